@@ -1,0 +1,256 @@
+#include "rvegen/inclusion_set.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <nlohmann/json.hpp>
+
+#include "rvegen/json_util.hpp"
+
+namespace rvegen {
+
+void for_each_image(const Box& box, const Vec3& ca, double ra, const Vec3& cb, double rb,
+                    const std::function<void(const Vec3&)>& f) {
+  const Vec3 d = cb - ca;
+  const double reach = ra + rb;
+  if (!box.periodic) {
+    if (d.squaredNorm() < reach * reach) f(Vec3::Zero());
+    return;
+  }
+  int lo[3], hi[3];
+  for (int k = 0; k < 3; ++k) {
+    lo[k] = static_cast<int>(std::ceil((-reach - d[k]) / box.size[k]));
+    hi[k] = static_cast<int>(std::floor((reach - d[k]) / box.size[k]));
+  }
+  for (int i = lo[0]; i <= hi[0]; ++i) {
+    for (int j = lo[1]; j <= hi[1]; ++j) {
+      for (int k = lo[2]; k <= hi[2]; ++k) {
+        const Vec3 shift(i * box.size[0], j * box.size[1], k * box.size[2]);
+        if ((d + shift).squaredNorm() < reach * reach) f(shift);
+      }
+    }
+  }
+}
+
+NeighbourGrid::NeighbourGrid(const Box& box, double reach) : box_(box) {
+  size_t total = 1;
+  for (int k = 0; k < 3; ++k) {
+    int n = reach > 0.0 ? static_cast<int>(std::floor(box.size[k] / reach)) : 1;
+    n = std::clamp(n, 1, 256);
+    // With fewer than 3 periodic cells the +-1 neighbours would alias: use one cell.
+    if (box.periodic && n < 3) n = 1;
+    n_[k] = n;
+    cell_[k] = box.size[k] / n;
+    total *= static_cast<size_t>(n);
+  }
+  cells_.resize(total);
+}
+
+int NeighbourGrid::cell_of(const Vec3& c, int k) const {
+  const double x = (c[k] - box_.origin[k]) / cell_[k];
+  int i = static_cast<int>(std::floor(x));
+  if (box_.periodic) {
+    i %= n_[k];
+    if (i < 0) i += n_[k];
+  } else {
+    i = std::clamp(i, 0, n_[k] - 1);
+  }
+  return i;
+}
+
+void NeighbourGrid::insert(int index, const Vec3& center) {
+  const int i = cell_of(center, 0), j = cell_of(center, 1), k = cell_of(center, 2);
+  cells_[(static_cast<size_t>(k) * n_[1] + j) * n_[0] + i].push_back(index);
+}
+
+void NeighbourGrid::for_each_candidate(const Vec3& c, const std::function<void(int)>& f) const {
+  const int ci[3] = {cell_of(c, 0), cell_of(c, 1), cell_of(c, 2)};
+  int lo[3], hi[3];
+  for (int k = 0; k < 3; ++k) {
+    if (n_[k] == 1) {
+      lo[k] = hi[k] = 0;
+    } else if (box_.periodic) {
+      lo[k] = ci[k] - 1;
+      hi[k] = ci[k] + 1;
+    } else {
+      lo[k] = std::max(0, ci[k] - 1);
+      hi[k] = std::min(n_[k] - 1, ci[k] + 1);
+    }
+  }
+  for (int z = lo[2]; z <= hi[2]; ++z) {
+    const int zz = (z + n_[2]) % n_[2];
+    for (int y = lo[1]; y <= hi[1]; ++y) {
+      const int yy = (y + n_[1]) % n_[1];
+      for (int x = lo[0]; x <= hi[0]; ++x) {
+        const int xx = (x + n_[0]) % n_[0];
+        for (int idx : cells_[(static_cast<size_t>(zz) * n_[1] + yy) * n_[0] + xx]) f(idx);
+      }
+    }
+  }
+}
+
+std::vector<OverlapRecord> find_overlaps(const InclusionSet& set) {
+  const auto& inc = set.inclusions;
+  double rmax = 0.0;
+  for (const auto& i : inc) rmax = std::max(rmax, i.shape.bounding_radius());
+  NeighbourGrid grid(set.box, 2.0 * rmax);
+  for (int i = 0; i < static_cast<int>(inc.size()); ++i) grid.insert(i, inc[i].shape.center);
+  std::vector<OverlapRecord> out;
+  for (int i = 0; i < static_cast<int>(inc.size()); ++i) {
+    const Shape& a = inc[i].shape;
+    const double ra = a.bounding_radius();
+    std::vector<int> cand;
+    grid.for_each_candidate(a.center, [&](int j) {
+      if (j >= i) cand.push_back(j);
+    });
+    std::sort(cand.begin(), cand.end());
+    for (int j : cand) {
+      const Shape& b = inc[j].shape;
+      for_each_image(set.box, a.center, ra, b.center, b.bounding_radius(), [&](const Vec3& s) {
+        if (j == i && s.isZero()) return;
+        // An inclusion against its own image: each image pair is met twice (+s and -s).
+        if (j == i && (s[0] < 0 || (s[0] == 0 && (s[1] < 0 || (s[1] == 0 && s[2] < 0))))) {
+          return;
+        }
+        const Contact c = intersect(a, b.translated(s));
+        if (c.overlap) out.push_back({i, j, s, c});
+      });
+    }
+  }
+  return out;
+}
+
+std::vector<int> find_outside(const InclusionSet& set) {
+  std::vector<int> out;
+  if (set.box.periodic) return out;
+  const Vec3 lo_box = set.box.origin, hi_box = set.box.origin + set.box.size;
+  for (int i = 0; i < static_cast<int>(set.inclusions.size()); ++i) {
+    Vec3 lo, hi;
+    set.inclusions[i].shape.aabb(&lo, &hi);
+    const double tol = 1e-9 * set.inclusions[i].shape.min_size();
+    if ((lo.array() < lo_box.array() - tol).any() || (hi.array() > hi_box.array() + tol).any()) {
+      out.push_back(i);
+    }
+  }
+  return out;
+}
+
+namespace {
+using json_util::Json;
+
+Box read_box(const Json& j, const std::string& path, bool origin_optional) {
+  json_util::only_keys(j, {"origin", "size", "periodic"}, path);
+  Box box;
+  if (j.contains("origin")) {
+    box.origin = json_util::vec3(j["origin"], path + ".origin");
+  } else if (!origin_optional) {
+    json_util::fail(path + ".origin", "missing key");
+  }
+  box.size = json_util::vec3(json_util::require(j, "size", path), path + ".size");
+  for (int k = 0; k < 3; ++k) {
+    if (!(box.size[k] > 0.0)) {
+      json_util::fail(path + ".size[" + std::to_string(k) + "]", "must be positive");
+    }
+  }
+  box.periodic = j.contains("periodic") ? json_util::boolean(j["periodic"], path + ".periodic")
+                                        : true;
+  return box;
+}
+}  // namespace
+
+InclusionSet read_inclusions_json(const std::string& text) {
+  using namespace json_util;
+  const Json root = parse(text, "inclusion file");
+  if (!root.is_object()) fail("(root)", "expected an object");
+  const std::string fmt = string(require(root, "format", ""), "format");
+  if (fmt != "rvegen.inclusions/1") fail("format", "expected \"rvegen.inclusions/1\", got \"" + fmt + "\"");
+  InclusionSet set;
+  set.box = read_box(require(root, "box", ""), "box", true);
+  const Json& list = require(root, "inclusions", "");
+  if (!list.is_array()) fail("inclusions", "expected an array");
+  for (size_t n = 0; n < list.size(); ++n) {
+    const std::string p = "inclusions[" + std::to_string(n) + "]";
+    const Json& e = list[n];
+    if (!e.is_object()) fail(p, "expected an object");
+    Inclusion inc;
+    const double id = number(require(e, "id", p), p + ".id");
+    if (id != std::floor(id) || id < 0) fail(p + ".id", "must be a non-negative integer");
+    inc.id = static_cast<int>(id);
+    if (e.contains("family")) {
+      const double fam = number(e["family"], p + ".family");
+      if (fam != std::floor(fam) || fam < 0) fail(p + ".family", "must be a non-negative integer");
+      inc.family = static_cast<int>(fam);
+    }
+    const std::string shape = string(require(e, "shape", p), p + ".shape");
+    ShapeKind kind;
+    if (!parse_shape_name(shape, &kind)) fail(p + ".shape", "unknown shape \"" + shape + "\"");
+    const Vec3 c = vec3(require(e, "center", p), p + ".center");
+    switch (kind) {
+      case ShapeKind::Sphere:
+        inc.shape = Shape::sphere(c, positive(require(e, "radius", p), p + ".radius"));
+        break;
+      case ShapeKind::Cylinder: {
+        const double r = positive(require(e, "radius", p), p + ".radius");
+        const Vec3 l = vec3(require(e, "half_axis", p), p + ".half_axis");
+        if (!(l.norm() > 0.0)) fail(p + ".half_axis", "must be non-zero");
+        inc.shape = Shape::cylinder(c, r, l);
+        break;
+      }
+      case ShapeKind::Ellipsoid: {
+        const Vec3 s = vec3(require(e, "semi_axes", p), p + ".semi_axes");
+        for (int k = 0; k < 3; ++k) {
+          if (!(s[k] > 0.0)) fail(p + ".semi_axes[" + std::to_string(k) + "]", "must be positive");
+        }
+        const Json& rj = require(e, "rotation", p);
+        if (!rj.is_array() || rj.size() != 3) fail(p + ".rotation", "expected 3 rows of 3 numbers");
+        Mat3 R;
+        for (int r = 0; r < 3; ++r) R.row(r) = vec3(rj[r], p + ".rotation[" + std::to_string(r) + "]");
+        if ((R.transpose() * R - Mat3::Identity()).norm() > 1e-6 || R.determinant() < 0.0) {
+          fail(p + ".rotation", "must be a proper rotation matrix (orthonormal, determinant +1)");
+        }
+        inc.shape = Shape::ellipsoid(c, s, R);
+        break;
+      }
+    }
+    set.inclusions.push_back(inc);
+  }
+  return set;
+}
+
+std::string write_inclusions_json(const InclusionSet& set) {
+  using OJson = nlohmann::ordered_json;
+  auto v3 = [](const Vec3& v) { return OJson::array({v[0], v[1], v[2]}); };
+  OJson root;
+  root["format"] = "rvegen.inclusions/1";
+  root["box"] = {{"origin", v3(set.box.origin)},
+                 {"size", v3(set.box.size)},
+                 {"periodic", set.box.periodic}};
+  OJson list = OJson::array();
+  for (const auto& inc : set.inclusions) {
+    OJson e;
+    e["id"] = inc.id;
+    e["family"] = inc.family;
+    e["shape"] = shape_name(inc.shape.kind);
+    e["center"] = v3(inc.shape.center);
+    switch (inc.shape.kind) {
+      case ShapeKind::Sphere:
+        e["radius"] = inc.shape.radius;
+        break;
+      case ShapeKind::Cylinder:
+        e["radius"] = inc.shape.radius;
+        e["half_axis"] = v3(inc.shape.half_axis);
+        break;
+      case ShapeKind::Ellipsoid: {
+        e["semi_axes"] = v3(inc.shape.semi_axes);
+        OJson rows = OJson::array();
+        for (int r = 0; r < 3; ++r) rows.push_back(v3(inc.shape.rotation.row(r).transpose()));
+        e["rotation"] = rows;
+        break;
+      }
+    }
+    list.push_back(e);
+  }
+  root["inclusions"] = list;
+  return root.dump(1) + "\n";
+}
+
+}  // namespace rvegen

@@ -1,0 +1,83 @@
+// The vector form of an RVE: box plus inclusions. Every representation (surfaces, voxels,
+// reports) is a pure function of it.
+#pragma once
+
+#include <functional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "rvegen/pair.hpp"
+#include "rvegen/shapes.hpp"
+
+namespace rvegen {
+
+/// Invalid user input (scene or inclusion file). The message names the offending key.
+class InputError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct Box {
+  Vec3 origin = Vec3::Zero();
+  Vec3 size = Vec3::Ones();
+  bool periodic = true;
+  double volume() const { return size.prod(); }
+};
+
+struct Inclusion {
+  int id = 0;
+  int family = 0;
+  Shape shape;
+};
+
+struct InclusionSet {
+  Box box;
+  std::vector<Inclusion> inclusions;
+};
+
+/// Calls f(shift) for every lattice translation `shift` of a periodic box such that the
+/// bounding spheres of a (at ca, radius ra) and of b translated by shift (at cb + shift,
+/// radius rb) intersect. Enumerates every image, even for inclusions longer than half the box.
+/// Non-periodic boxes yield only the zero shift (when the spheres intersect).
+void for_each_image(const Box& box, const Vec3& ca, double ra, const Vec3& cb, double rb,
+                    const std::function<void(const Vec3&)>& f);
+
+/// Uniform grid over inclusion centres for neighbour queries; periodic-aware.
+/// `reach` must be at least the largest sum of two bounding radii that will be queried.
+class NeighbourGrid {
+ public:
+  NeighbourGrid(const Box& box, double reach);
+  void insert(int index, const Vec3& center);
+  /// Calls f(index) for every stored index whose centre may lie within `reach` of c
+  /// (a superset; images are the caller's business through for_each_image).
+  void for_each_candidate(const Vec3& c, const std::function<void(int)>& f) const;
+
+ private:
+  int cell_of(const Vec3& c, int axis) const;
+  Box box_;
+  int n_[3];
+  double cell_[3];
+  std::vector<std::vector<int>> cells_;
+};
+
+struct OverlapRecord {
+  int a = 0;  // index into inclusions
+  int b = 0;
+  Vec3 shift = Vec3::Zero();  // b is tested at its position + shift
+  Contact contact;
+};
+
+/// Every overlapping pair (each pair and image once; an inclusion against its own periodic
+/// image is reported with a == b). Sorted by (a, b).
+std::vector<OverlapRecord> find_overlaps(const InclusionSet& set);
+
+/// Indices of inclusions not wholly inside a non-periodic box (empty for periodic boxes).
+std::vector<int> find_outside(const InclusionSet& set);
+
+/// Reads and validates an inclusion list (format "rvegen.inclusions/1"). Throws InputError.
+InclusionSet read_inclusions_json(const std::string& text);
+/// Serialises an inclusion list; doubles are written with round-trip precision.
+std::string write_inclusions_json(const InclusionSet& set);
+
+}  // namespace rvegen

@@ -1,0 +1,77 @@
+// Strict reading helpers over nlohmann::json: every error names the key path.
+#pragma once
+
+#include <cmath>
+#include <initializer_list>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "rvegen/inclusion_set.hpp"
+
+namespace rvegen::json_util {
+
+using Json = nlohmann::json;
+
+inline std::string join(const std::string& path, const std::string& key) {
+  return path.empty() ? key : path + "." + key;
+}
+
+[[noreturn]] inline void fail(const std::string& path, const std::string& what) {
+  throw InputError(path + ": " + what);
+}
+
+inline const Json& require(const Json& obj, const char* key, const std::string& path) {
+  if (!obj.is_object()) fail(path, "expected an object");
+  auto it = obj.find(key);
+  if (it == obj.end()) fail(join(path, key), "missing key");
+  return *it;
+}
+
+/// Rejects keys not in `allowed`.
+inline void only_keys(const Json& obj, std::initializer_list<const char*> allowed,
+                      const std::string& path) {
+  if (!obj.is_object()) fail(path, "expected an object");
+  for (auto it = obj.begin(); it != obj.end(); ++it) {
+    bool ok = false;
+    for (const char* a : allowed) ok |= it.key() == a;
+    if (!ok) fail(join(path, it.key()), "unknown key");
+  }
+}
+
+inline double number(const Json& v, const std::string& path) {
+  if (!v.is_number()) fail(path, "expected a number");
+  const double x = v.get<double>();
+  if (!std::isfinite(x)) fail(path, "must be finite");
+  return x;
+}
+
+inline double positive(const Json& v, const std::string& path) {
+  const double x = number(v, path);
+  if (!(x > 0.0)) fail(path, "must be positive (got " + v.dump() + ")");
+  return x;
+}
+
+inline Vec3 vec3(const Json& v, const std::string& path) {
+  if (!v.is_array() || v.size() != 3) fail(path, "expected an array of 3 numbers");
+  return Vec3(number(v[0], path + "[0]"), number(v[1], path + "[1]"), number(v[2], path + "[2]"));
+}
+
+inline bool boolean(const Json& v, const std::string& path) {
+  if (!v.is_boolean()) fail(path, "expected true or false");
+  return v.get<bool>();
+}
+
+inline std::string string(const Json& v, const std::string& path) {
+  if (!v.is_string()) fail(path, "expected a string");
+  return v.get<std::string>();
+}
+
+inline Json parse(const std::string& text, const std::string& what) {
+  try {
+    return Json::parse(text);
+  } catch (const Json::parse_error& e) {
+    throw InputError(what + ": not valid JSON (" + e.what() + ")");
+  }
+}
+
+}  // namespace rvegen::json_util

@@ -1,0 +1,60 @@
+#include "rvegen/report.hpp"
+
+#include <nlohmann/json.hpp>
+
+namespace rvegen {
+
+std::vector<double> family_volume_fractions(const InclusionSet& set, int n_families) {
+  std::vector<double> vf(n_families, 0.0);
+  for (const auto& inc : set.inclusions) {
+    if (inc.family >= 0 && inc.family < n_families) vf[inc.family] += inc.shape.volume();
+  }
+  for (double& v : vf) v /= set.box.volume();
+  return vf;
+}
+
+std::string report_json(const Scene& scene, const PackingResult& r, const VoxelImage* image,
+                        double total_seconds) {
+  using OJson = nlohmann::ordered_json;
+  const int nf = static_cast<int>(scene.families.size());
+  const std::vector<double> vf = family_volume_fractions(r.set, nf);
+  std::vector<double> voxel_vf(nf, 0.0);
+  if (image) {
+    for (uint8_t p : image->phase) {
+      if (p > 0 && p <= nf) voxel_vf[p - 1] += 1.0;
+    }
+    for (double& v : voxel_vf) v /= static_cast<double>(image->phase.size());
+  }
+  OJson root;
+  root["status"] = r.status;
+  root["method"] = scene.method;
+  root["seed"] = scene.seed;
+  double total = 0.0, target_total = 0.0;
+  OJson fams = OJson::array();
+  for (int f = 0; f < nf; ++f) {
+    const Family& fam = scene.families[f];
+    const double target = r.target_count[f] * fam.inclusion_volume() / scene.box.volume();
+    OJson j;
+    j["name"] = fam.name;
+    j["shape"] = shape_name(fam.shape);
+    j["count"] = r.placed_count[f];
+    j["target_count"] = r.target_count[f];
+    j["volume_fraction"] = vf[f];
+    j["target_volume_fraction"] = target;
+    if (image) j["voxel_volume_fraction"] = voxel_vf[f];
+    fams.push_back(j);
+    total += vf[f];
+    target_total += target;
+  }
+  root["volume_fraction"] = total;
+  root["target_volume_fraction"] = target_total;
+  root["count"] = r.set.inclusions.size();
+  root["families"] = fams;
+  root["attempts"] = r.attempts;
+  root["packing_seconds"] = r.seconds;
+  root["seconds"] = total_seconds;
+  if (image) root["voxels"] = {{"resolution", {image->dims[0], image->dims[1], image->dims[2]}}};
+  return root.dump(2) + "\n";
+}
+
+}  // namespace rvegen

@@ -102,7 +102,10 @@ Vec3 Shape::support(const Vec3& d) const {
       const Vec3 u = half_axis / h;
       const double du = d.dot(u);
       Vec3 x = center + (du >= 0.0 ? half_axis : Vec3(-half_axis));
-      const Vec3 radial = d - du * u;
+      Vec3 radial = d - du * u;
+      // Second Gram-Schmidt pass: when d is nearly axial, the cancellation above leaves an
+      // axial residue comparable to |radial| itself, which would put x off the rim.
+      radial -= radial.dot(u) * u;
       const double rn = radial.norm();
       // When d is (numerically) along the axis every rim point is a support point; the disk
       // centre is then returned, which is also one (h(d) is the same).

@@ -11,6 +11,7 @@
 
 #include <cstdlib>
 #include <map>
+#include <vector>
 #include <string>
 
 #include "reference_overlap.hpp"
@@ -53,6 +54,7 @@ Shape random_shape(ShapeKind kind, Random& rng, const Vec3& axis) {
 struct Combo {
   ShapeKind a, b;
   const char* name;
+  std::vector<std::string> expected_types;  // each must be met at least once
 };
 
 class PropertyTest : public ::testing::TestWithParam<Combo> {};
@@ -146,17 +148,20 @@ TEST_P(PropertyTest, AgreesWithReferenceNearContact) {
   std::printf("[ %s ] %ld pairs; overlap types: %s\n", combo.name, tested, summary.c_str());
   EXPECT_EQ(disagreements, 0) << "first: " << first_failure;
   EXPECT_EQ(bad_separation, 0) << "reported depth/normal did not separate the pair";
+  for (const auto& t : combo.expected_types) EXPECT_GT(types[t], 0) << "type never exercised: " << t;
 }
 
 INSTANTIATE_TEST_SUITE_P(
     AllCombinations, PropertyTest,
-    ::testing::Values(Combo{ShapeKind::Sphere, ShapeKind::Sphere, "sphere-sphere"},
-                      Combo{ShapeKind::Sphere, ShapeKind::Cylinder, "sphere-cylinder"},
-                      Combo{ShapeKind::Cylinder, ShapeKind::Sphere, "cylinder-sphere"},
-                      Combo{ShapeKind::Sphere, ShapeKind::Ellipsoid, "sphere-ellipsoid"},
-                      Combo{ShapeKind::Cylinder, ShapeKind::Cylinder, "cylinder-cylinder"},
-                      Combo{ShapeKind::Cylinder, ShapeKind::Ellipsoid, "cylinder-ellipsoid"},
-                      Combo{ShapeKind::Ellipsoid, ShapeKind::Ellipsoid, "ellipsoid-ellipsoid"}),
+    ::testing::Values(
+        Combo{ShapeKind::Sphere, ShapeKind::Sphere, "sphere-sphere", {"ss"}},
+        Combo{ShapeKind::Sphere, ShapeKind::Cylinder, "sphere-cylinder", {"sc2", "sc3", "sc4"}},
+        Combo{ShapeKind::Cylinder, ShapeKind::Sphere, "cylinder-sphere", {"sc2", "sc3", "sc4"}},
+        Combo{ShapeKind::Sphere, ShapeKind::Ellipsoid, "sphere-ellipsoid", {"pw"}},
+        Combo{ShapeKind::Cylinder, ShapeKind::Cylinder, "cylinder-cylinder",
+              {"cc1", "cd1", "cd2", "cd3", "d1", "d2"}},
+        Combo{ShapeKind::Cylinder, ShapeKind::Ellipsoid, "cylinder-ellipsoid", {"ce"}},
+        Combo{ShapeKind::Ellipsoid, ShapeKind::Ellipsoid, "ellipsoid-ellipsoid", {"pw"}}),
     [](const ::testing::TestParamInfo<Combo>& info) {
       std::string s = info.param.name;
       for (char& ch : s) {

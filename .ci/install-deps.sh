@@ -6,7 +6,7 @@ set -euo pipefail
 PKGS=(
   build-essential cmake g++ libgtest-dev libgmock-dev googletest libbenchmark-dev
   paraview paraview-dev python3-paraview qtbase5-dev qttools5-dev libqt5svg5-dev
-  qtxmlpatterns5-dev-tools libqt5x11extras5-dev libutfcpp-dev libdouble-conversion-dev zlib1g-dev
+  qtxmlpatterns5-dev-tools libqt5x11extras5-dev libqt5opengl5-dev libutfcpp-dev libdouble-conversion-dev zlib1g-dev
   libtiff-dev libtheora-dev libpng-dev libnetcdf-dev libxml2-dev liblzma-dev liblz4-dev libjpeg-dev
   libglew-dev libgl2ps-dev libgdal-dev libfreetype-dev libavcodec-dev libavformat-dev libswscale-dev
   libexpat1-dev libboost-dev python3-mpi4py libx11-dev libgl-dev mpi-default-dev

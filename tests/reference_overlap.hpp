@@ -84,7 +84,7 @@ inline bool overlap(const Shape& a, const Shape& b) {
     n /= nn;
     if (n.dot(v1) >= 0) return true;  // origin inside the portal
     const Vec3 v4 = S(n);
-    if (v4.dot(n) <= 0) return false;              // separating plane
+    if (v4.dot(n) <= 0) return false;  // separating plane
     // Converged: the new support plane is within eps of the portal; origin outside within eps.
     const double dv4 = v4.dot(n);
     if (std::min({dv4 - v1.dot(n), dv4 - v2.dot(n), dv4 - v3.dot(n)}) <= eps) return false;

@@ -11,11 +11,12 @@ using namespace rvegen;
 
 namespace {
 
-const Shape kCyl = Shape::cylinder(Vec3::Zero(), 1.0, Vec3(0, 0, 2));  // radius 1, length 4, along z
+const Shape kCyl =
+    Shape::cylinder(Vec3::Zero(), 1.0, Vec3(0, 0, 2));  // radius 1, length 4, along z
 
 void expect_vec_near(const Vec3& a, const Vec3& b, double tol) {
-  EXPECT_NEAR((a - b).norm(), 0.0, tol) << "got (" << a.transpose() << ") want (" << b.transpose()
-                                        << ")";
+  EXPECT_NEAR((a - b).norm(), 0.0, tol)
+      << "got (" << a.transpose() << ") want (" << b.transpose() << ")";
 }
 
 TEST(SphereSphere, OverlapDepthNormal) {
@@ -162,14 +163,15 @@ TEST(CylinderCylinder, EndDiskIntoLateralSurfaceTJunction) {
   EXPECT_EQ(c.type, ContactType::kCD1);
   EXPECT_NEAR(c.depth, 0.1, 1e-6);
   expect_vec_near(c.normal, Vec3(1, 0, 0), 1e-4);
-  EXPECT_FALSE(intersect(kCyl, Shape::cylinder({2.5 + 1e-6, 0, 0.3}, 0.5, Vec3(1.5, 0, 0))).overlap);
+  EXPECT_FALSE(
+      intersect(kCyl, Shape::cylinder({2.5 + 1e-6, 0, 0.3}, 0.5, Vec3(1.5, 0, 0))).overlap);
 }
 
 TEST(CylinderCylinder, Cd3AxisThroughEndDisk) {
   // A wide, slightly tilted cylinder whose lower end disk is pierced by kCyl's axis.
   const double t = 0.1;
-  const Contact c =
-      intersect(kCyl, Shape::cylinder({0, 0, 2.4}, 3.0, Vec3(0.5 * std::sin(t), 0, 0.5 * std::cos(t))));
+  const Contact c = intersect(
+      kCyl, Shape::cylinder({0, 0, 2.4}, 3.0, Vec3(0.5 * std::sin(t), 0, 0.5 * std::cos(t))));
   ASSERT_TRUE(c.overlap);
   EXPECT_EQ(c.type, ContactType::kCD3);
 }
@@ -188,7 +190,8 @@ TEST(CylinderCylinder, NearlyParallelLongFibres) {
   // far outside the segments, the lateral surfaces still overlap near the ends.
   const Shape a = Shape::cylinder({0, 0, 0}, 0.1, Vec3(0, 0, 5));
   const double ang = 1e-7;
-  const Shape b = Shape::cylinder({0.199, 0, 0}, 0.1, Vec3(5 * std::sin(ang), 0, 5 * std::cos(ang)));
+  const Shape b =
+      Shape::cylinder({0.199, 0, 0}, 0.1, Vec3(5 * std::sin(ang), 0, 5 * std::cos(ang)));
   EXPECT_TRUE(intersect(a, b).overlap);
   EXPECT_FALSE(intersect(a, b.translated(Vec3(0.0011, 0, 0))).overlap);
 }

@@ -11,8 +11,9 @@
 
 #include <cstdlib>
 #include <map>
-#include <vector>
+#include <ostream>
 #include <string>
+#include <vector>
 
 #include "reference_overlap.hpp"
 #include "rvegen/pair.hpp"
@@ -56,6 +57,10 @@ struct Combo {
   const char* name;
   std::vector<std::string> expected_types;  // each must be met at least once
 };
+
+void PrintTo(const Combo& c, std::ostream* os) {
+  *os << c.name;
+}
 
 class PropertyTest : public ::testing::TestWithParam<Combo> {};
 
@@ -148,7 +153,8 @@ TEST_P(PropertyTest, AgreesWithReferenceNearContact) {
   std::printf("[ %s ] %ld pairs; overlap types: %s\n", combo.name, tested, summary.c_str());
   EXPECT_EQ(disagreements, 0) << "first: " << first_failure;
   EXPECT_EQ(bad_separation, 0) << "reported depth/normal did not separate the pair";
-  for (const auto& t : combo.expected_types) EXPECT_GT(types[t], 0) << "type never exercised: " << t;
+  for (const auto& t : combo.expected_types)
+    EXPECT_GT(types[t], 0) << "type never exercised: " << t;
 }
 
 INSTANTIATE_TEST_SUITE_P(
@@ -158,7 +164,9 @@ INSTANTIATE_TEST_SUITE_P(
         Combo{ShapeKind::Sphere, ShapeKind::Cylinder, "sphere-cylinder", {"sc2", "sc3", "sc4"}},
         Combo{ShapeKind::Cylinder, ShapeKind::Sphere, "cylinder-sphere", {"sc2", "sc3", "sc4"}},
         Combo{ShapeKind::Sphere, ShapeKind::Ellipsoid, "sphere-ellipsoid", {"pw"}},
-        Combo{ShapeKind::Cylinder, ShapeKind::Cylinder, "cylinder-cylinder",
+        Combo{ShapeKind::Cylinder,
+              ShapeKind::Cylinder,
+              "cylinder-cylinder",
               {"cc1", "cd1", "cd2", "cd3", "d1", "d2"}},
         Combo{ShapeKind::Cylinder, ShapeKind::Ellipsoid, "cylinder-ellipsoid", {"ce"}},
         Combo{ShapeKind::Ellipsoid, ShapeKind::Ellipsoid, "ellipsoid-ellipsoid", {"pw"}}),

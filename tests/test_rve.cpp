@@ -86,9 +86,9 @@ TEST(Periodic, GridAuditMatchesBruteForceOverAllImages) {
       for (int x = -1; x <= 1; ++x) {
         for (int y = -1; y <= 1; ++y) {
           for (int z = -1; z <= 1; ++z) {
-            brute += intersect(s.inclusions[i].shape,
-                               s.inclusions[j].shape.translated(Vec3(x, y, z)))
-                         .overlap;
+            brute +=
+                intersect(s.inclusions[i].shape, s.inclusions[j].shape.translated(Vec3(x, y, z)))
+                    .overlap;
           }
         }
       }
@@ -129,7 +129,8 @@ TEST(InclusionFile, ErrorsNameTheKey) {
     }
     return std::string("no error");
   };
-  const std::string head = R"({"format":"rvegen.inclusions/1","box":{"size":[1,1,1]},"inclusions":[)";
+  const std::string head =
+      R"({"format":"rvegen.inclusions/1","box":{"size":[1,1,1]},"inclusions":[)";
   EXPECT_NE(err(head + R"({"id":0,"shape":"sphere","center":[0,0,0],"radius":-1}]})")
                 .find("inclusions[0].radius"),
             std::string::npos);
@@ -168,28 +169,35 @@ TEST(Scene, BadInputNamesTheProblem) {
   EXPECT_NE(scene_error("{" + box + R"("families":[{"shape":"sphere","radius":0.1}]})")
                 .find("volume_fraction"),
             std::string::npos);
-  EXPECT_NE(scene_error("{" + box + R"("families":[{"shape":"sphere","radius":0.1,"count":1,"colour":1}]})")
+  EXPECT_NE(scene_error("{" + box +
+                        R"("families":[{"shape":"sphere","radius":0.1,"count":1,"colour":1}]})")
                 .find("families[0].colour: unknown key"),
             std::string::npos);
   EXPECT_NE(scene_error("{" + box + R"("families":[{"shape":"sphere","radius":NaN,"count":1}]})")
                 .find("not valid JSON"),
             std::string::npos);
-  EXPECT_NE(scene_error("{" + box + R"("families":[{"shape":"sphere","radius":0.05,"volume_fraction":0.8}]})")
+  EXPECT_NE(scene_error("{" + box +
+                        R"("families":[{"shape":"sphere","radius":0.05,"volume_fraction":0.8}]})")
                 .find("exceeds"),
             std::string::npos);
   EXPECT_NE(scene_error("{" + box + R"("families":[{"shape":"sphere","radius":0.6,"count":1}]})")
                 .find("does not fit"),
             std::string::npos);
-  EXPECT_NE(scene_error(R"({"box":{"size":[1,0,1]},"families":[{"shape":"sphere","radius":0.1,"count":1}]})")
-                .find("box.size[1]"),
-            std::string::npos);
-  EXPECT_NE(scene_error("{" + box + R"("method":"magic","families":[{"shape":"sphere","radius":0.1,"count":1}]})")
-                .find("method"),
-            std::string::npos);
+  EXPECT_NE(
+      scene_error(
+          R"({"box":{"size":[1,0,1]},"families":[{"shape":"sphere","radius":0.1,"count":1}]})")
+          .find("box.size[1]"),
+      std::string::npos);
+  EXPECT_NE(
+      scene_error("{" + box +
+                  R"("method":"magic","families":[{"shape":"sphere","radius":0.1,"count":1}]})")
+          .find("method"),
+      std::string::npos);
 }
 
 Scene small_scene(bool periodic) {
-  Scene s = parse_scene(R"({"box":{"size":[1,1,1],"periodic":)" + std::string(periodic ? "true" : "false") +
+  Scene s = parse_scene(R"({"box":{"size":[1,1,1],"periodic":)" +
+                        std::string(periodic ? "true" : "false") +
                         R"(},"seed":5,"families":[
       {"shape":"sphere","radius":0.06,"volume_fraction":0.12},
       {"shape":"cylinder","radius":0.02,"aspect_ratio":4,"volume_fraction":0.05},

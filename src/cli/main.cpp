@@ -89,7 +89,8 @@ int cmd_generate(const std::vector<std::string>& args) {
     std::cerr << "rvegen: " << e.what() << "\n";
     return 1;
   }
-  const auto vf = rvegen::family_volume_fractions(result.set, static_cast<int>(scene.families.size()));
+  const auto vf =
+      rvegen::family_volume_fractions(result.set, static_cast<int>(scene.families.size()));
   double total = 0.0;
   for (double v : vf) total += v;
   if (!quiet) {

@@ -45,7 +45,8 @@ struct Simplex {
   }
 };
 
-// Closest point of segment (i, j) of s to the origin (Ericson, "Real-Time Collision Detection" 5.1.2).
+// Closest point of segment (i, j) of s to the origin (Ericson, "Real-Time Collision
+// Detection" 5.1.2).
 void solve_segment(Simplex& s, int i, int j) {
   const Vec3& A = s.v[i].w;
   const Vec3 ab = s.v[j].w - A;
@@ -267,8 +268,9 @@ void epa(const Shape& a, const Shape& b, const Simplex& s, double tol, ConvexQue
       faces.push_back(f);
     }
     if (faces.size() > 4096) {  // garbage-collect dead faces
-      faces.erase(std::remove_if(faces.begin(), faces.end(), [](const Face& f) { return !f.alive; }),
-                  faces.end());
+      faces.erase(
+          std::remove_if(faces.begin(), faces.end(), [](const Face& f) { return !f.alive; }),
+          faces.end());
       best_face = -1;
     }
   }

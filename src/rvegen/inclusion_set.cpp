@@ -151,8 +151,8 @@ Box read_box(const Json& j, const std::string& path, bool origin_optional) {
       json_util::fail(path + ".size[" + std::to_string(k) + "]", "must be positive");
     }
   }
-  box.periodic = j.contains("periodic") ? json_util::boolean(j["periodic"], path + ".periodic")
-                                        : true;
+  box.periodic =
+      j.contains("periodic") ? json_util::boolean(j["periodic"], path + ".periodic") : true;
   return box;
 }
 }  // namespace
@@ -162,7 +162,8 @@ InclusionSet read_inclusions_json(const std::string& text) {
   const Json root = parse(text, "inclusion file");
   if (!root.is_object()) fail("(root)", "expected an object");
   const std::string fmt = string(require(root, "format", ""), "format");
-  if (fmt != "rvegen.inclusions/1") fail("format", "expected \"rvegen.inclusions/1\", got \"" + fmt + "\"");
+  if (fmt != "rvegen.inclusions/1")
+    fail("format", "expected \"rvegen.inclusions/1\", got \"" + fmt + "\"");
   InclusionSet set;
   set.box = read_box(require(root, "box", ""), "box", true);
   const Json& list = require(root, "inclusions", "");
@@ -203,7 +204,8 @@ InclusionSet read_inclusions_json(const std::string& text) {
         const Json& rj = require(e, "rotation", p);
         if (!rj.is_array() || rj.size() != 3) fail(p + ".rotation", "expected 3 rows of 3 numbers");
         Mat3 R;
-        for (int r = 0; r < 3; ++r) R.row(r) = vec3(rj[r], p + ".rotation[" + std::to_string(r) + "]");
+        for (int r = 0; r < 3; ++r)
+          R.row(r) = vec3(rj[r], p + ".rotation[" + std::to_string(r) + "]");
         if ((R.transpose() * R - Mat3::Identity()).norm() > 1e-6 || R.determinant() < 0.0) {
           fail(p + ".rotation", "must be a proper rotation matrix (orthonormal, determinant +1)");
         }
@@ -221,9 +223,8 @@ std::string write_inclusions_json(const InclusionSet& set) {
   auto v3 = [](const Vec3& v) { return OJson::array({v[0], v[1], v[2]}); };
   OJson root;
   root["format"] = "rvegen.inclusions/1";
-  root["box"] = {{"origin", v3(set.box.origin)},
-                 {"size", v3(set.box.size)},
-                 {"periodic", set.box.periodic}};
+  root["box"] = {
+      {"origin", v3(set.box.origin)}, {"size", v3(set.box.size)}, {"periodic", set.box.periodic}};
   OJson list = OJson::array();
   for (const auto& inc : set.inclusions) {
     OJson e;

@@ -34,7 +34,9 @@ void mesh_ellipsoid(SurfaceMesh& m, const Inclusion& inc, const Vec3& center, co
   }
   m.points.push_back(center + M * Vec3(0, 0, -1));
   const int64_t south = static_cast<int64_t>(m.points.size()) - 1;
-  auto ring = [&](int i, int j) { return base + 1 + static_cast<int64_t>(i - 1) * nseg + (j % nseg); };
+  auto ring = [&](int i, int j) {
+    return base + 1 + static_cast<int64_t>(i - 1) * nseg + (j % nseg);
+  };
   for (int j = 0; j < nseg; ++j) add_tri(m, base, ring(1, j), ring(1, j + 1), inc);
   for (int i = 1; i < nlat - 1; ++i) {
     for (int j = 0; j < nseg; ++j) {

@@ -12,9 +12,9 @@ namespace rvegen {
 struct SurfaceMesh {
   std::vector<Vec3> points;
   std::vector<std::array<int64_t, 3>> triangles;  // outward-facing (counter-clockwise)
-  std::vector<int32_t> inclusion_id;               // per triangle
-  std::vector<int32_t> family;                     // per triangle
-  std::vector<int32_t> shape;                      // per triangle: ShapeKind as int
+  std::vector<int32_t> inclusion_id;              // per triangle
+  std::vector<int32_t> family;                    // per triangle
+  std::vector<int32_t> shape;                     // per triangle: ShapeKind as int
 };
 
 struct MeshOptions {

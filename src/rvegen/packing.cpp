@@ -87,7 +87,8 @@ PackingResult pack_rsa(const Scene& scene, const ProgressFn& progress) {
         if (box.periodic && 2.0 * rs + scene.min_gap > box.size.minCoeff()) {
           for_each_image(box, c, rs + 0.5 * scene.min_gap, c, rs + 0.5 * scene.min_gap,
                          [&](const Vec3& sh) {
-                           if (clear && !sh.isZero()) clear = clear_of(s, s.translated(sh), scene.min_gap);
+                           if (clear && !sh.isZero())
+                             clear = clear_of(s, s.translated(sh), scene.min_gap);
                          });
         }
         if (clear) {
@@ -112,9 +113,9 @@ PackingResult pack_rsa(const Scene& scene, const ProgressFn& progress) {
       if (!placed) {
         res.status = "target_not_reached";
         if (progress) {
-          progress("rsa: family \"" + fam.name + "\": no room for inclusion " + std::to_string(k + 1) +
-                   " of " + std::to_string(res.target_count[f]) + " after " +
-                   std::to_string(scene.rsa_max_attempts) + " attempts");
+          progress("rsa: family \"" + fam.name + "\": no room for inclusion " +
+                   std::to_string(k + 1) + " of " + std::to_string(res.target_count[f]) +
+                   " after " + std::to_string(scene.rsa_max_attempts) + " attempts");
         }
         break;
       }

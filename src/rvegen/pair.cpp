@@ -67,9 +67,9 @@ Contact intersect_sphere_cylinder(const Shape& s, const Shape& cyl) {
   const double h = cyl.half_axis.norm();
   const Vec3 u = cyl.half_axis / h;
   const Vec3 d = s.center - cyl.center;
-  const double X = d.dot(u);   // paper: X, signed axial coordinate of p_s
-  const Vec3 w = d - X * u;    // radial offset of p_s from the axis
-  const double L = w.norm();   // paper: L, distance of p_s to the axis
+  const double X = d.dot(u);  // paper: X, signed axial coordinate of p_s
+  const Vec3 w = d - X * u;   // radial offset of p_s from the axis
+  const double L = w.norm();  // paper: L, distance of p_s to the axis
   const double r = cyl.radius;
   // Sphere centre on the axis: any radial direction is a nearest one; choose a fixed one.
   const Vec3 e = L > 1e-14 * (h + r) ? Vec3(w / L) : any_orthogonal(u);

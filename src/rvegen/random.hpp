@@ -50,7 +50,8 @@ class Random {
   Mat3 rotation() {
     const double u1 = uniform(), u2 = 2.0 * M_PI * uniform(), u3 = 2.0 * M_PI * uniform();
     const double a = std::sqrt(1.0 - u1), b = std::sqrt(u1);
-    const Eigen::Quaterniond q(b * std::cos(u3), a * std::sin(u2), a * std::cos(u2), b * std::sin(u3));
+    const Eigen::Quaterniond q(b * std::cos(u3), a * std::sin(u2), a * std::cos(u2),
+                               b * std::sin(u3));
     return q.toRotationMatrix();
   }
 

@@ -104,10 +104,9 @@ Family parse_family(const Json& j, const std::string& p) {
       f.radius = positive(require(j, "radius", p), p + ".radius");
       break;
     case ShapeKind::Cylinder:
-      only_keys(j,
-                {"name", "shape", "radius", "aspect_ratio", "volume_fraction", "count",
-                 "orientation"},
-                p);
+      only_keys(
+          j, {"name", "shape", "radius", "aspect_ratio", "volume_fraction", "count", "orientation"},
+          p);
       f.radius = positive(require(j, "radius", p), p + ".radius");
       f.aspect_ratio = positive(require(j, "aspect_ratio", p), p + ".aspect_ratio");
       break;
@@ -123,7 +122,8 @@ Family parse_family(const Json& j, const std::string& p) {
     }
   }
   f.name = j.contains("name") ? string(j["name"], p + ".name") : std::string(shape_name(f.shape));
-  if (j.contains("orientation")) f.orientation = parse_orientation(j["orientation"], p + ".orientation");
+  if (j.contains("orientation"))
+    f.orientation = parse_orientation(j["orientation"], p + ".orientation");
   const bool has_vf = j.contains("volume_fraction"), has_n = j.contains("count");
   if (has_vf == has_n) fail(p, "give exactly one of \"volume_fraction\" and \"count\"");
   if (has_vf) {
@@ -131,7 +131,8 @@ Family parse_family(const Json& j, const std::string& p) {
     if (f.volume_fraction >= 1.0) fail(p + ".volume_fraction", "must be below 1");
   } else {
     const double n = number(j["count"], p + ".count");
-    if (n != std::floor(n) || n < 0 || n > 1e8) fail(p + ".count", "must be an integer in [0, 1e8]");
+    if (n != std::floor(n) || n < 0 || n > 1e8)
+      fail(p + ".count", "must be an integer in [0, 1e8]");
     f.count = static_cast<int>(n);
   }
   return f;
@@ -261,7 +262,8 @@ std::string scene_to_json(const Scene& s) {
   using OJson = nlohmann::ordered_json;
   auto v3 = [](const Vec3& v) { return OJson::array({v[0], v[1], v[2]}); };
   OJson root;
-  root["box"] = {{"origin", v3(s.box.origin)}, {"size", v3(s.box.size)}, {"periodic", s.box.periodic}};
+  root["box"] = {
+      {"origin", v3(s.box.origin)}, {"size", v3(s.box.size)}, {"periodic", s.box.periodic}};
   root["seed"] = s.seed;
   root["method"] = s.method;
   root["min_gap"] = s.min_gap;

@@ -1,12 +1,13 @@
 #include "rvegen/writers.hpp"
 
+#include <unistd.h>
+
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
-#include <unistd.h>
 
 namespace rvegen {
 namespace {
@@ -42,7 +43,8 @@ std::string array_tag(const char* vtk_type, const char* name, int components, si
 }
 
 std::string footer(const Appended& app) {
-  return "  <AppendedData encoding=\"raw\">\n   _" + app.bytes() + "\n  </AppendedData>\n</VTKFile>\n";
+  return "  <AppendedData encoding=\"raw\">\n   _" + app.bytes() +
+         "\n  </AppendedData>\n</VTKFile>\n";
 }
 
 }  // namespace
@@ -57,7 +59,8 @@ std::string vti_bytes(const VoxelImage& im) {
   s << "  <ImageData WholeExtent=\"0 " << im.dims[0] << " 0 " << im.dims[1] << " 0 " << im.dims[2]
     << "\" Origin=\"" << im.origin[0] << " " << im.origin[1] << " " << im.origin[2]
     << "\" Spacing=\"" << im.spacing[0] << " " << im.spacing[1] << " " << im.spacing[2] << "\">\n";
-  s << "    <Piece Extent=\"0 " << im.dims[0] << " 0 " << im.dims[1] << " 0 " << im.dims[2] << "\">\n";
+  s << "    <Piece Extent=\"0 " << im.dims[0] << " 0 " << im.dims[1] << " 0 " << im.dims[2]
+    << "\">\n";
   s << "    <CellData Scalars=\"phase\">\n";
   s << array_tag("UInt8", "phase", 1, o_phase);
   s << array_tag("Int32", "inclusion_id", 1, o_id);
@@ -84,7 +87,8 @@ std::string vtp_bytes(const SurfaceMesh& m) {
   const size_t o_shape = app.add(m.shape.data(), m.shape.size());
   std::ostringstream s;
   s << header("PolyData") << "  <PolyData>\n";
-  s << "    <Piece NumberOfPoints=\"" << m.points.size() << "\" NumberOfVerts=\"0\" NumberOfLines=\"0\""
+  s << "    <Piece NumberOfPoints=\"" << m.points.size()
+    << "\" NumberOfVerts=\"0\" NumberOfLines=\"0\""
     << " NumberOfStrips=\"0\" NumberOfPolys=\"" << m.triangles.size() << "\">\n";
   s << "    <Points>\n" << array_tag("Float64", "Points", 3, o_pts) << "    </Points>\n";
   s << "    <Polys>\n"
@@ -118,7 +122,8 @@ void OutputTransaction::commit() {
   for (size_t i = 0; i < files_.size(); ++i) {
     const std::string dst = (fs::path(dir_) / files_[i].first).string();
     if (std::rename(temps_[i].c_str(), dst.c_str()) != 0) {
-      throw std::runtime_error("cannot move " + temps_[i] + " to " + dst + ": " + std::strerror(errno));
+      throw std::runtime_error("cannot move " + temps_[i] + " to " + dst + ": " +
+                               std::strerror(errno));
     }
   }
   temps_.clear();

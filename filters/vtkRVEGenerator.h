@@ -1,0 +1,94 @@
+/**
+ * @class vtkRVEGenerator
+ * @brief Generates a Representative Volume Element: inclusions packed without overlap.
+ *
+ * Output port 0: vtkPolyData of the inclusion surfaces (cell data inclusion_id, family, shape).
+ * Output port 1: vtkImageData with one cell per voxel (cell data phase, inclusion_id).
+ * Properties describe the built-in three-family scene (spheres, fibres, ellipsoids); a scene
+ * file (JSON, the format `rvegen generate` reads) overrides all of them when set.
+ * The packing is computed once per change of the properties and shared by both ports.
+ */
+#ifndef vtkRVEGenerator_h
+#define vtkRVEGenerator_h
+
+#include <memory>
+#include <string>
+
+#include "RVEGenFiltersModule.h"
+#include "vtkPolyDataAlgorithm.h"
+
+class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
+ public:
+  static vtkRVEGenerator* New();
+  vtkTypeMacro(vtkRVEGenerator, vtkPolyDataAlgorithm);
+  void PrintSelf(ostream& os, vtkIndent indent) override;
+
+  vtkSetMacro(Seed, int);
+  vtkGetMacro(Seed, int);
+  vtkSetVector3Macro(BoxSize, double);
+  vtkGetVector3Macro(BoxSize, double);
+  vtkSetMacro(Periodic, bool);
+  vtkGetMacro(Periodic, bool);
+  vtkBooleanMacro(Periodic, bool);
+  vtkSetMacro(MinGap, double);
+  vtkGetMacro(MinGap, double);
+
+  vtkSetMacro(SphereRadius, double);
+  vtkGetMacro(SphereRadius, double);
+  vtkSetMacro(SphereVolumeFraction, double);
+  vtkGetMacro(SphereVolumeFraction, double);
+  vtkSetMacro(FibreRadius, double);
+  vtkGetMacro(FibreRadius, double);
+  vtkSetMacro(FibreAspectRatio, double);
+  vtkGetMacro(FibreAspectRatio, double);
+  vtkSetMacro(FibreVolumeFraction, double);
+  vtkGetMacro(FibreVolumeFraction, double);
+  vtkSetVector3Macro(EllipsoidSemiAxes, double);
+  vtkGetVector3Macro(EllipsoidSemiAxes, double);
+  vtkSetMacro(EllipsoidVolumeFraction, double);
+  vtkGetMacro(EllipsoidVolumeFraction, double);
+
+  vtkSetVector3Macro(Resolution, int);
+  vtkGetVector3Macro(Resolution, int);
+
+  /// JSON scene file; when non-empty it overrides every other property.
+  vtkSetStringMacro(SceneFile);
+  vtkGetStringMacro(SceneFile);
+
+  /// "ok" or "target_not_reached" after an update (empty before, "invalid" on bad input).
+  const char* GetStatus() const { return this->Status.c_str(); }
+
+ protected:
+  vtkRVEGenerator();
+  ~vtkRVEGenerator() override;
+
+  int FillOutputPortInformation(int port, vtkInformation* info) override;
+  int RequestInformation(vtkInformation* request, vtkInformationVector** inInfo,
+                         vtkInformationVector* outInfo) override;
+  int RequestData(vtkInformation* request, vtkInformationVector** inInfo,
+                  vtkInformationVector* outInfo) override;
+
+  int Seed;
+  double BoxSize[3];
+  bool Periodic;
+  double MinGap;
+  double SphereRadius;
+  double SphereVolumeFraction;
+  double FibreRadius;
+  double FibreAspectRatio;
+  double FibreVolumeFraction;
+  double EllipsoidSemiAxes[3];
+  double EllipsoidVolumeFraction;
+  int Resolution[3];
+  char* SceneFile;
+
+ private:
+  vtkRVEGenerator(const vtkRVEGenerator&) = delete;
+  void operator=(const vtkRVEGenerator&) = delete;
+
+  struct Cache;
+  std::unique_ptr<Cache> Cached;
+  std::string Status;
+};
+
+#endif

@@ -1,0 +1,86 @@
+#!/usr/bin/env bash
+# End-to-end tests of the rvegen command line: outputs, exit codes, bad input, determinism.
+# usage: test_cli.sh RVEGEN_BINARY WORK_DIR
+set -u
+RVEGEN=$1
+WORK=$2
+rm -rf "$WORK" && mkdir -p "$WORK"
+fails=0
+fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
+expect_rc() {  # expect_rc WANT CMD...
+  local want=$1; shift
+  "$@" >"$WORK/last.out" 2>"$WORK/last.err"
+  local rc=$?
+  [ "$rc" -eq "$want" ] || fail "exit $rc (want $want): $* -- $(head -c 400 "$WORK/last.err")"
+}
+py=/usr/bin/python3
+
+# Default scene: all four files, no overlap by the independent audit.
+expect_rc 0 "$RVEGEN" generate -q -o "$WORK/default"
+for f in inclusions.json inclusions.vtp voxels.vti report.json; do
+  [ -s "$WORK/default/$f" ] || fail "default run did not write $f"
+done
+ls -A "$WORK/default" | grep -q '^\.' && fail "temporary files left behind"
+expect_rc 0 "$RVEGEN" check "$WORK/default/inclusions.json"
+expect_rc 0 "$RVEGEN" check --json "$WORK/default/inclusions.json"
+$py -c "import json,sys; d=json.load(open('$WORK/last.out')); sys.exit(0 if d['count']==0 and d['n']>500 else 1)" \
+  || fail "check --json on the default RVE"
+$py -c "import json,sys; r=json.load(open('$WORK/default/report.json')); sys.exit(0 if r['status']=='ok' and abs(r['volume_fraction']-r['target_volume_fraction'])<0.002 else 1)" \
+  || fail "report.json of the default run"
+
+# Same seed, same bytes.
+expect_rc 0 "$RVEGEN" generate -q -o "$WORK/default2"
+cmp -s "$WORK/default/inclusions.json" "$WORK/default2/inclusions.json" || fail "same seed gave a different RVE"
+
+# Bad input: exit 2, a message naming the problem, nothing written.
+bad() {  # bad NAME JSON EXPECTED_MESSAGE_PART
+  echo "$2" >"$WORK/$1.json"
+  expect_rc 2 "$RVEGEN" generate -q "$WORK/$1.json" -o "$WORK/out_$1"
+  grep -q -- "$3" "$WORK/last.err" || fail "$1: message does not mention '$3': $(cat "$WORK/last.err")"
+  [ -e "$WORK/out_$1" ] && fail "$1: output directory created on invalid input"
+}
+BOX='"box":{"size":[1,1,1]}'
+bad unknown_key "{$BOX,\"families\":[{\"shape\":\"sphere\",\"radius\":0.1,\"count\":1}],\"sede\":3}" "sede"
+bad negative_radius "{$BOX,\"families\":[{\"shape\":\"sphere\",\"radius\":-0.1,\"count\":1}]}" "families\[0\].radius"
+bad nan_value "{$BOX,\"families\":[{\"shape\":\"sphere\",\"radius\":NaN,\"count\":1}]}" "not valid JSON"
+bad impossible_fraction "{$BOX,\"families\":[{\"shape\":\"sphere\",\"radius\":0.05,\"volume_fraction\":0.75}]}" "exceeds"
+bad box_too_small "{\"box\":{\"size\":[0.1,1,1]},\"families\":[{\"shape\":\"sphere\",\"radius\":0.06,\"count\":1}]}" "does not fit"
+bad missing_size "{$BOX,\"families\":[{\"shape\":\"cylinder\",\"radius\":0.02,\"count\":1}]}" "aspect_ratio"
+expect_rc 2 "$RVEGEN" generate -q "$WORK/does_not_exist.json" -o "$WORK/out_missing"
+expect_rc 2 "$RVEGEN" frobnicate
+
+# A target RSA cannot reach: exit 3, report says so, the configuration has no overlap.
+echo "{$BOX,\"seed\":3,\"families\":[{\"shape\":\"sphere\",\"radius\":0.07,\"volume_fraction\":0.5}],\"voxels\":{\"resolution\":16}}" >"$WORK/rsa_wall.json"
+expect_rc 3 "$RVEGEN" generate -q "$WORK/rsa_wall.json" -o "$WORK/rsa_wall"
+$py -c "import json,sys; r=json.load(open('$WORK/rsa_wall/report.json')); sys.exit(0 if r['status']=='target_not_reached' and 0.2<r['volume_fraction']<0.5 else 1)" \
+  || fail "report of the unreachable target"
+expect_rc 0 "$RVEGEN" check "$WORK/rsa_wall/inclusions.json"
+
+# check: overlapping pairs are listed with their type, exit 1.
+cat >"$WORK/overlap.json" <<'JSON'
+{"format": "rvegen.inclusions/1", "box": {"origin": [0,0,0], "size": [1,1,1], "periodic": true},
+ "inclusions": [
+  {"id": 0, "family": 0, "shape": "cylinder", "center": [0.5,0.5,0.5], "radius": 0.05, "half_axis": [0,0,0.2]},
+  {"id": 1, "family": 0, "shape": "sphere", "center": [0.58,0.5,0.5], "radius": 0.05},
+  {"id": 2, "family": 0, "shape": "sphere", "center": [0.02,0.2,0.2], "radius": 0.05},
+  {"id": 3, "family": 0, "shape": "sphere", "center": [0.97,0.2,0.2], "radius": 0.05},
+  {"id": 4, "family": 1, "shape": "ellipsoid", "center": [0.2,0.8,0.8], "semi_axes": [0.1,0.05,0.05],
+   "rotation": [[1,0,0],[0,1,0],[0,0,1]]}]}
+JSON
+expect_rc 1 "$RVEGEN" check --json "$WORK/overlap.json"
+$py - "$WORK/last.out" <<'PY' || fail "check --json listing"
+import json, sys
+d = json.load(open(sys.argv[1]))
+pairs = sorted((p["a"], p["b"], p["type"]) for p in d["overlapping_pairs"])
+assert d["n"] == 5 and d["count"] == 2, d
+assert pairs == [(0, 1, "sc2"), (2, 3, "ss")], pairs
+PY
+echo '{"format": "rvegen.inclusions/1", "box": {"size": [1,1,1]}, "inclusions": [{"id": 0, "shape": "sphere", "center": [0,0,0], "radius": -1}]}' >"$WORK/bad_list.json"
+expect_rc 2 "$RVEGEN" check "$WORK/bad_list.json"
+grep -q "inclusions\[0\].radius" "$WORK/last.err" || fail "check error does not name the key"
+
+if [ "$fails" -ne 0 ]; then
+  echo "$fails failure(s)"
+  exit 1
+fi
+echo "all CLI tests passed"

@@ -1,0 +1,114 @@
+"""pvpython test of the installed ParaView plugin.
+
+Loads the plugin, creates RVEGenerator(), updates both output ports, checks them against the
+command-line tool's files for the same (default) scene, renders the inclusions headless and
+compares the picture with a committed baseline.
+
+usage: pvpython --force-offscreen-rendering test_plugin.py PLUGIN.so CLI_OUTPUT_DIR BASELINE.png OUT.png
+"""
+import json
+import os
+import sys
+import tempfile
+
+from paraview.simple import *  # noqa: F401,F403
+from paraview import servermanager
+from vtkmodules.vtkImagingCore import vtkImageDifference
+from vtkmodules.vtkIOImage import vtkPNGReader
+from vtkmodules.vtkIOXML import vtkXMLImageDataReader
+
+plugin, cli_dir, baseline, out_png = sys.argv[1:5]
+failures = []
+
+
+def check(cond, msg):
+    if not cond:
+        failures.append(msg)
+        print("FAIL:", msg)
+
+
+LoadPlugin(plugin, ns=globals())
+gen = RVEGenerator()
+gen.UpdatePipeline()
+
+# Port 1: the voxel image, identical to the command line's voxels.vti for the same scene.
+image = servermanager.Fetch(gen, idx=1)
+surfaces = servermanager.Fetch(gen, idx=0)
+check(image.GetNumberOfCells() == 64 ** 3, "voxel port has %d cells" % image.GetNumberOfCells())
+reader = vtkXMLImageDataReader()
+reader.SetFileName(cli_dir + "/voxels.vti")
+reader.Update()
+cli = reader.GetOutput()
+for name in ("phase", "inclusion_id"):
+    a = image.GetCellData().GetArray(name)
+    b = cli.GetCellData().GetArray(name)
+    check(a is not None and b is not None, "array %s missing" % name)
+    if a is not None and b is not None:
+        diff = sum(1 for i in range(a.GetNumberOfTuples()) if a.GetValue(i) != b.GetValue(i))
+        check(diff == 0, "%s differs from voxels.vti in %d voxels" % (name, diff))
+phase = image.GetCellData().GetArray("phase")
+check(phase.GetRange() == (0.0, 3.0), "phase range %s" % (phase.GetRange(),))
+
+# Port 0: surfaces with the inclusion ids of inclusions.json.
+with open(cli_dir + "/inclusions.json") as f:
+    n_inclusions = len(json.load(f)["inclusions"])
+ids = surfaces.GetCellData().GetArray("inclusion_id")
+check(ids is not None and surfaces.GetNumberOfCells() > 0, "surface port is empty")
+if ids is not None:
+    seen = {int(ids.GetValue(i)) for i in range(ids.GetNumberOfTuples())}
+    check(seen == set(range(n_inclusions)), "surface ids do not match inclusions.json")
+for name in ("family", "shape"):
+    check(surfaces.GetCellData().GetArray(name) is not None, "surface array %s missing" % name)
+
+# A scene file overrides the properties.
+scene_path = os.path.join(tempfile.mkdtemp(), "scene.json")
+with open(scene_path, "w") as f:
+    json.dump({"box": {"size": [1, 1, 1]}, "seed": 1,
+               "families": [{"shape": "sphere", "radius": 0.1, "volume_fraction": 0.1}],
+               "voxels": {"resolution": 16}}, f)
+gen.SceneFile = scene_path
+gen.UpdatePipeline()
+small = servermanager.Fetch(gen, idx=1)
+check(small.GetNumberOfCells() == 16 ** 3, "scene file not honoured (%d cells)" % small.GetNumberOfCells())
+gen.SceneFile = ""
+gen.UpdatePipeline()
+
+# Headless picture, compared with the baseline.
+view = CreateView("RenderView")
+view.ViewSize = [400, 400]
+view.OrientationAxesVisibility = 0
+view.Background = [1, 1, 1]
+try:
+    view.UseColorPaletteForBackground = 0
+except AttributeError:
+    pass
+disp = Show(OutputPort(gen, 0), view)
+ColorBy(disp, ("CELLS", "family"))
+lut = GetColorTransferFunction("family")
+lut.ApplyPreset("Rainbow Uniform", True)
+lut.RescaleTransferFunction(0.0, 2.0)
+outline = Show(Outline(Input=OutputPort(gen, 1)), view)
+outline.DiffuseColor = [0, 0, 0]
+view.CameraPosition = [2.6, 2.0, 1.8]
+view.CameraFocalPoint = [0.5, 0.5, 0.5]
+view.CameraViewUp = [0, 0, 1]
+view.ResetCamera()
+Render(view)
+SaveScreenshot(out_png, view, ImageResolution=[400, 400])
+
+png = vtkPNGReader()
+png.SetFileName(out_png)
+ref = vtkPNGReader()
+ref.SetFileName(baseline)
+cmp = vtkImageDifference()
+cmp.SetInputConnection(png.GetOutputPort())
+cmp.SetImageConnection(ref.GetOutputPort())
+cmp.Update()
+err = cmp.GetThresholdedError()
+print("image difference (thresholded):", err)
+check(err <= 10.0, "picture differs from baseline %s (error %.1f)" % (baseline, err))
+
+if failures:
+    print("%d failure(s)" % len(failures))
+    sys.exit(1)
+print("ok")

@@ -31,11 +31,14 @@ void for_each_image(const Box& box, const Vec3& ca, double ra, const Vec3& cb, d
   }
 }
 
-NeighbourGrid::NeighbourGrid(const Box& box, double reach) : box_(box) {
+NeighbourGrid::NeighbourGrid(const Box& box, double reach, size_t expected_count) : box_(box) {
   size_t total = 1;
+  // Cells no smaller than `reach`, and no more than about two per inclusion.
+  const double min_cell =
+      std::max(reach, std::cbrt(box.volume() / (2.0 * std::max<size_t>(expected_count, 1))));
   for (int k = 0; k < 3; ++k) {
-    int n = reach > 0.0 ? static_cast<int>(std::floor(box.size[k] / reach)) : 1;
-    n = std::clamp(n, 1, 256);
+    int n = min_cell > 0.0 ? static_cast<int>(std::floor(box.size[k] / min_cell)) : 1;
+    n = std::clamp(n, 1, 1024);
     // With fewer than 3 periodic cells the +-1 neighbours would alias: use one cell.
     if (box.periodic && n < 3) n = 1;
     n_[k] = n;
@@ -92,7 +95,7 @@ std::vector<OverlapRecord> find_overlaps(const InclusionSet& set) {
   const auto& inc = set.inclusions;
   double rmax = 0.0;
   for (const auto& i : inc) rmax = std::max(rmax, i.shape.bounding_radius());
-  NeighbourGrid grid(set.box, 2.0 * rmax);
+  NeighbourGrid grid(set.box, 2.0 * rmax, inc.size());
   for (int i = 0; i < static_cast<int>(inc.size()); ++i) grid.insert(i, inc[i].shape.center);
   std::vector<OverlapRecord> out;
   for (int i = 0; i < static_cast<int>(inc.size()); ++i) {

@@ -45,9 +45,10 @@ void for_each_image(const Box& box, const Vec3& ca, double ra, const Vec3& cb, d
 
 /// Uniform grid over inclusion centres for neighbour queries; periodic-aware.
 /// `reach` must be at least the largest sum of two bounding radii that will be queried.
+/// `expected_count` bounds the number of cells (about two per stored inclusion).
 class NeighbourGrid {
  public:
-  NeighbourGrid(const Box& box, double reach);
+  NeighbourGrid(const Box& box, double reach, size_t expected_count);
   void insert(int index, const Vec3& center);
   /// Calls f(index) for every stored index whose centre may lie within `reach` of c
   /// (a superset; images are the caller's business through for_each_image).

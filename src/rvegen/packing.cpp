@@ -55,7 +55,7 @@ PackingResult pack_rsa(const Scene& scene, const ProgressFn& progress) {
   const long long total = std::accumulate(res.target_count.begin(), res.target_count.end(), 0LL);
   Random rng(scene.seed);
   const Box& box = scene.box;
-  NeighbourGrid grid(box, 2.0 * rmax + scene.min_gap);
+  NeighbourGrid grid(box, 2.0 * rmax + scene.min_gap, static_cast<size_t>(total));
   auto& out = res.set.inclusions;
   out.reserve(total);
   long long done = 0;

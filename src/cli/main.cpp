@@ -62,7 +62,6 @@ int cmd_generate(const std::vector<std::string>& args) {
   try {
     scene = scene_path.empty() ? rvegen::default_scene()
                                : rvegen::parse_scene(rvegen::read_file(scene_path));
-    rvegen::validate_scene(scene);
   } catch (const rvegen::InputError& e) {
     std::cerr << "rvegen: invalid scene" << (scene_path.empty() ? "" : " " + scene_path) << ": "
               << e.what() << "\n";

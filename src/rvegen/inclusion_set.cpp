@@ -137,29 +137,6 @@ std::vector<int> find_outside(const InclusionSet& set) {
   return out;
 }
 
-namespace {
-using json_util::Json;
-
-Box read_box(const Json& j, const std::string& path, bool origin_optional) {
-  json_util::only_keys(j, {"origin", "size", "periodic"}, path);
-  Box box;
-  if (j.contains("origin")) {
-    box.origin = json_util::vec3(j["origin"], path + ".origin");
-  } else if (!origin_optional) {
-    json_util::fail(path + ".origin", "missing key");
-  }
-  box.size = json_util::vec3(json_util::require(j, "size", path), path + ".size");
-  for (int k = 0; k < 3; ++k) {
-    if (!(box.size[k] > 0.0)) {
-      json_util::fail(path + ".size[" + std::to_string(k) + "]", "must be positive");
-    }
-  }
-  box.periodic =
-      j.contains("periodic") ? json_util::boolean(j["periodic"], path + ".periodic") : true;
-  return box;
-}
-}  // namespace
-
 InclusionSet read_inclusions_json(const std::string& text) {
   using namespace json_util;
   const Json root = parse(text, "inclusion file");
@@ -168,7 +145,7 @@ InclusionSet read_inclusions_json(const std::string& text) {
   if (fmt != "rvegen.inclusions/1")
     fail("format", "expected \"rvegen.inclusions/1\", got \"" + fmt + "\"");
   InclusionSet set;
-  set.box = read_box(require(root, "box", ""), "box", true);
+  set.box = box(require(root, "box", ""), "box");
   const Json& list = require(root, "inclusions", "");
   if (!list.is_array()) fail("inclusions", "expected an array");
   for (size_t n = 0; n < list.size(); ++n) {

@@ -66,6 +66,19 @@ inline std::string string(const Json& v, const std::string& path) {
   return v.get<std::string>();
 }
 
+/// A box object: "size" (positive), optional "origin" (default 0) and "periodic" (default true).
+inline Box box(const Json& j, const std::string& path) {
+  only_keys(j, {"origin", "size", "periodic"}, path);
+  Box b;
+  if (j.contains("origin")) b.origin = vec3(j["origin"], path + ".origin");
+  b.size = vec3(require(j, "size", path), path + ".size");
+  for (int k = 0; k < 3; ++k) {
+    if (!(b.size[k] > 0.0)) fail(path + ".size[" + std::to_string(k) + "]", "must be positive");
+  }
+  if (j.contains("periodic")) b.periodic = boolean(j["periodic"], path + ".periodic");
+  return b;
+}
+
 inline Json parse(const std::string& text, const std::string& what) {
   try {
     return Json::parse(text);

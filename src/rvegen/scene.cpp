@@ -182,16 +182,7 @@ Scene parse_scene(const std::string& text) {
   if (!root.is_object()) fail("(root)", "expected an object");
   only_keys(root, {"box", "seed", "method", "min_gap", "families", "voxels"}, "");
   Scene s;
-  {
-    const Json& b = require(root, "box", "");
-    only_keys(b, {"origin", "size", "periodic"}, "box");
-    if (b.contains("origin")) s.box.origin = vec3(b["origin"], "box.origin");
-    s.box.size = vec3(require(b, "size", "box"), "box.size");
-    for (int k = 0; k < 3; ++k) {
-      if (!(s.box.size[k] > 0.0)) fail("box.size[" + std::to_string(k) + "]", "must be positive");
-    }
-    if (b.contains("periodic")) s.box.periodic = boolean(b["periodic"], "box.periodic");
-  }
+  s.box = box(require(root, "box", ""), "box");
   if (root.contains("seed")) {
     const double seed = number(root["seed"], "seed");
     if (seed < 0 || seed != std::floor(seed) || seed > 9007199254740992.0) {

@@ -17,6 +17,9 @@ from vtkmodules.vtkImagingCore import vtkImageDifference
 from vtkmodules.vtkIOImage import vtkPNGReader
 from vtkmodules.vtkIOXML import vtkXMLImageDataReader
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "samples"))
+from rve_view import save_rve_picture  # noqa: E402
+
 plugin, cli_dir, baseline, out_png = sys.argv[1:5]
 failures = []
 
@@ -74,27 +77,7 @@ gen.SceneFile = ""
 gen.UpdatePipeline()
 
 # Headless picture, compared with the baseline.
-view = CreateView("RenderView")
-view.ViewSize = [400, 400]
-view.OrientationAxesVisibility = 0
-view.Background = [1, 1, 1]
-try:
-    view.UseColorPaletteForBackground = 0
-except AttributeError:
-    pass
-disp = Show(OutputPort(gen, 0), view)
-ColorBy(disp, ("CELLS", "family"))
-lut = GetColorTransferFunction("family")
-lut.ApplyPreset("Rainbow Uniform", True)
-lut.RescaleTransferFunction(0.0, 2.0)
-outline = Show(Outline(Input=OutputPort(gen, 1)), view)
-outline.DiffuseColor = [0, 0, 0]
-view.CameraPosition = [2.6, 2.0, 1.8]
-view.CameraFocalPoint = [0.5, 0.5, 0.5]
-view.CameraViewUp = [0, 0, 1]
-view.ResetCamera()
-Render(view)
-SaveScreenshot(out_png, view, ImageResolution=[400, 400])
+save_rve_picture(OutputPort(gen, 0), OutputPort(gen, 1), out_png, 400)
 
 png = vtkPNGReader()
 png.SetFileName(out_png)

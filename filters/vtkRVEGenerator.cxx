@@ -39,14 +39,14 @@ vtkRVEGenerator::vtkRVEGenerator() {
   for (int a = 0; a < 3; ++a) {
     this->BoxSize[a] = d.box.size[a];
     this->Resolution[a] = d.resolution[a];
-    this->EllipsoidSemiAxes[a] = d.families[2].semi_axes[a];
+    this->EllipsoidSemiAxes[a] = d.families[2].semi_axes[a].p1;
   }
   this->Periodic = d.box.periodic;
   this->MinGap = d.min_gap;
-  this->SphereRadius = d.families[0].radius;
+  this->SphereRadius = d.families[0].radius.p1;
   this->SphereVolumeFraction = d.families[0].volume_fraction;
-  this->FibreRadius = d.families[1].radius;
-  this->FibreAspectRatio = d.families[1].aspect_ratio;
+  this->FibreRadius = d.families[1].radius.p1;
+  this->FibreAspectRatio = d.families[1].aspect_ratio.p1;
   this->FibreVolumeFraction = d.families[1].volume_fraction;
   this->EllipsoidVolumeFraction = d.families[2].volume_fraction;
   this->SceneFile = nullptr;
@@ -75,9 +75,7 @@ rvegen::Scene SceneFromProperties(const vtkRVEGenerator* g) {
   s.families[1].radius = self->GetFibreRadius();
   s.families[1].aspect_ratio = self->GetFibreAspectRatio();
   s.families[1].volume_fraction = self->GetFibreVolumeFraction();
-  s.families[2].semi_axes =
-      rvegen::Vec3(self->GetEllipsoidSemiAxes()[0], self->GetEllipsoidSemiAxes()[1],
-                   self->GetEllipsoidSemiAxes()[2]);
+  for (int a = 0; a < 3; ++a) s.families[2].semi_axes[a] = self->GetEllipsoidSemiAxes()[a];
   s.families[2].volume_fraction = self->GetEllipsoidVolumeFraction();
   std::vector<rvegen::Family> kept;
   for (const auto& f : s.families) {

@@ -7,65 +7,43 @@
 
 namespace rvegen {
 
-Shape draw_inclusion(const Family& f, const Vec3& center, Random& rng) {
-  const bool aligned = f.orientation.kind == OrientationLaw::Kind::kAligned;
-  switch (f.shape) {
-    case ShapeKind::Sphere:
-      return Shape::sphere(center, f.radius);
-    case ShapeKind::Cylinder: {
-      const Vec3 u = aligned ? f.orientation.axis : rng.unit_vector();
-      return Shape::cylinder(center, f.radius, u * (f.aspect_ratio * f.radius));
-    }
-    case ShapeKind::Ellipsoid: {
-      Mat3 R = rng.rotation();
-      if (aligned) {
-        // First principal axis along the law's axis, random spin about it.
-        const Vec3 a = f.orientation.axis;
-        const Vec3 b0 = any_orthogonal(a);
-        const double th = 2.0 * M_PI * rng.uniform();
-        const Vec3 b = std::cos(th) * b0 + std::sin(th) * a.cross(b0);
-        R.col(0) = a;
-        R.col(1) = b;
-        R.col(2) = a.cross(b);
-      }
-      return Shape::ellipsoid(center, f.semi_axes, R);
-    }
-  }
-  return Shape::sphere(center, f.radius);
-}
-
 PackingResult pack_rsa(const Scene& scene, const ProgressFn& progress) {
   const auto t0 = std::chrono::steady_clock::now();
   PackingResult res;
   res.set.box = scene.box;
+  res.method = "rsa";
   const int nf = static_cast<int>(scene.families.size());
-  res.target_count.resize(nf);
+  Random rng(scene.seed);
+  std::vector<Inclusion> pop = draw_population(scene, rng);
+  res.target_count.assign(nf, 0);
   res.placed_count.assign(nf, 0);
+  res.target_volume_fraction.assign(nf, 0.0);
   double rmax = 0.0;
-  for (int f = 0; f < nf; ++f) {
-    res.target_count[f] = scene.target_count(f);
-    rmax = std::max(rmax, scene.families[f].bounding_radius());
+  for (const auto& inc : pop) {
+    ++res.target_count[inc.family];
+    res.target_volume_fraction[inc.family] += inc.shape.volume() / scene.box.volume();
+    rmax = std::max(rmax, inc.shape.bounding_radius());
   }
   // Bulkiest inclusions first (largest smallest width): they are the hardest to place late.
-  std::vector<int> order(nf);
-  std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
-    return scene.families[a].min_width() > scene.families[b].min_width();
+  auto width = [](const Shape& s) {
+    return s.kind == ShapeKind::Cylinder ? std::min(s.radius, s.half_axis.norm()) : s.min_size();
+  };
+  std::stable_sort(pop.begin(), pop.end(), [&](const Inclusion& a, const Inclusion& b) {
+    return width(a.shape) > width(b.shape);
   });
-  const long long total = std::accumulate(res.target_count.begin(), res.target_count.end(), 0LL);
-  Random rng(scene.seed);
+  const long long total = static_cast<long long>(pop.size());
   const Box& box = scene.box;
   NeighbourGrid grid(box, 2.0 * rmax + scene.min_gap, static_cast<size_t>(total));
   auto& out = res.set.inclusions;
   out.reserve(total);
   long long done = 0;
-  for (int f : order) {
-    const Family& fam = scene.families[f];
-    for (int k = 0; k < res.target_count[f]; ++k) {
+  for (const Inclusion& drawn : pop) {
+    const int f = drawn.family;
+    {
       bool placed = false;
       for (int attempt = 0; attempt < scene.rsa_max_attempts && !placed; ++attempt) {
         ++res.attempts;
-        Shape s = draw_inclusion(fam, Vec3::Zero(), rng);
+        Shape s = drawn.shape;
         Vec3 lo, hi;
         s.aabb(&lo, &hi);  // around the origin: half extents are hi
         Vec3 c;
@@ -113,9 +91,9 @@ PackingResult pack_rsa(const Scene& scene, const ProgressFn& progress) {
       if (!placed) {
         res.status = "target_not_reached";
         if (progress) {
-          progress("rsa: family \"" + fam.name + "\": no room for inclusion " +
-                   std::to_string(k + 1) + " of " + std::to_string(res.target_count[f]) +
-                   " after " + std::to_string(scene.rsa_max_attempts) + " attempts");
+          progress("rsa: family \"" + scene.families[f].name + "\": no room for inclusion " +
+                   std::to_string(done + 1) + " of " + std::to_string(total) + " after " +
+                   std::to_string(scene.rsa_max_attempts) + " attempts");
         }
         break;
       }
@@ -128,14 +106,14 @@ PackingResult pack_rsa(const Scene& scene, const ProgressFn& progress) {
         progress(buf);
       }
     }
-    if (res.status != "ok") break;
   }
+  res.stop_reason = res.status == "ok" ? "target reached" : "no room after max_attempts";
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;
 }
 
 PackingResult generate(const Scene& scene, const ProgressFn& progress) {
-  return pack_rsa(scene, progress);
+  return scene.method == "rsa" ? pack_rsa(scene, progress) : pack_md(scene, progress);
 }
 
 }  // namespace rvegen

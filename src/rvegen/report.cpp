@@ -33,7 +33,7 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
   OJson fams = OJson::array();
   for (int f = 0; f < nf; ++f) {
     const Family& fam = scene.families[f];
-    const double target = r.target_count[f] * fam.inclusion_volume() / scene.box.volume();
+    const double target = r.target_volume_fraction[f];
     OJson j;
     j["name"] = fam.name;
     j["shape"] = shape_name(fam.shape);

@@ -8,46 +8,228 @@
 
 namespace rvegen {
 
-double Family::inclusion_volume() const {
+namespace {
+// Parameters of the lognormal law with the given mean and std of the size itself.
+void lognormal_params(double mean, double std, double* mu, double* sigma) {
+  const double s2 = std::log(1.0 + (std * std) / (mean * mean));
+  *sigma = std::sqrt(s2);
+  *mu = std::log(mean) - 0.5 * s2;
+}
+constexpr double kTails = 6.0;  // truncation of normal and lognormal laws, in std / sigma
+}  // namespace
+
+double SizeLaw::lower() const {
+  switch (kind) {
+    case Kind::kFixed:
+      return p1;
+    case Kind::kUniform:
+      return p1;
+    case Kind::kNormal:
+      return std::max(p1 - kTails * p2, 1e-6 * p1);
+    case Kind::kLognormal: {
+      double mu, sigma;
+      lognormal_params(p1, p2, &mu, &sigma);
+      return std::exp(mu - kTails * sigma);
+    }
+  }
+  return p1;
+}
+
+double SizeLaw::upper() const {
+  switch (kind) {
+    case Kind::kFixed:
+      return p1;
+    case Kind::kUniform:
+      return p2;
+    case Kind::kNormal:
+      return p1 + kTails * p2;
+    case Kind::kLognormal: {
+      double mu, sigma;
+      lognormal_params(p1, p2, &mu, &sigma);
+      return std::exp(mu + kTails * sigma);
+    }
+  }
+  return p1;
+}
+
+double SizeLaw::sample(Random& rng) const {
+  const double lo = lower(), hi = upper();
+  for (;;) {
+    double x = p1;
+    switch (kind) {
+      case Kind::kFixed:
+        return p1;
+      case Kind::kUniform:
+        return rng.uniform(p1, p2);
+      case Kind::kNormal:
+        x = p1 + p2 * rng.normal();
+        break;
+      case Kind::kLognormal: {
+        double mu, sigma;
+        lognormal_params(p1, p2, &mu, &sigma);
+        x = std::exp(mu + sigma * rng.normal());
+        break;
+      }
+    }
+    if (x >= lo && x <= hi) return x;
+  }
+}
+
+double SizeLaw::moment(int k) const {
+  switch (kind) {
+    case Kind::kFixed:
+      return std::pow(p1, k);
+    case Kind::kUniform:
+      return p2 > p1 ? (std::pow(p2, k + 1) - std::pow(p1, k + 1)) / ((k + 1) * (p2 - p1))
+                     : std::pow(p1, k);
+    default:
+      break;
+  }
+  // Truncated normal / lognormal: Simpson's rule on the density over [lower, upper].
+  double mu = p1, sigma = p2;
+  if (kind == Kind::kLognormal) lognormal_params(p1, p2, &mu, &sigma);
+  auto density = [&](double x) {
+    const double z = kind == Kind::kNormal ? (x - mu) / sigma : (std::log(x) - mu) / sigma;
+    return std::exp(-0.5 * z * z) / (kind == Kind::kNormal ? 1.0 : x);
+  };
+  const int n = 4000;
+  const double a = lower(), b = upper(), h = (b - a) / n;
+  double mass = 0.0, mom = 0.0;
+  for (int i = 0; i <= n; ++i) {
+    const double x = a + i * h, w = (i == 0 || i == n) ? 1.0 : (i % 2 ? 4.0 : 2.0);
+    mass += w * density(x);
+    mom += w * density(x) * std::pow(x, k);
+  }
+  return mom / mass;
+}
+
+Vec3 OrientationLaw::sample(Random& rng) const {
+  switch (kind) {
+    case Kind::kIsotropic:
+      return rng.unit_vector();
+    case Kind::kAligned:
+      return axis;
+    case Kind::kVonMisesFisher: {
+      // Wood (1994) in three dimensions: w = cos(angle to the axis) has density ~ exp(kappa w).
+      const double u = rng.uniform();
+      const double w = kappa > 1e-8 ? 1.0 + std::log(u + (1.0 - u) * std::exp(-2.0 * kappa)) / kappa
+                                    : 2.0 * u - 1.0;
+      const double phi = 2.0 * M_PI * rng.uniform();
+      const Vec3 e1 = any_orthogonal(axis), e2 = axis.cross(e1);
+      const double s = std::sqrt(std::max(0.0, 1.0 - w * w));
+      return (w * axis + s * (std::cos(phi) * e1 + std::sin(phi) * e2)).normalized();
+    }
+    case Kind::kPlanar: {
+      const double phi = 2.0 * M_PI * rng.uniform();
+      const Vec3 e1 = any_orthogonal(axis), e2 = axis.cross(e1);
+      return std::cos(phi) * e1 + std::sin(phi) * e2;
+    }
+  }
+  return axis;
+}
+
+double Family::mean_volume() const {
   switch (shape) {
     case ShapeKind::Sphere:
-      return 4.0 / 3.0 * M_PI * std::pow(radius, 3);
+      return 4.0 / 3.0 * M_PI * radius.moment(3);
     case ShapeKind::Cylinder:
-      return M_PI * radius * radius * 2.0 * aspect_ratio * radius;
+      return 2.0 * M_PI * radius.moment(3) * aspect_ratio.mean();
     case ShapeKind::Ellipsoid:
-      return 4.0 / 3.0 * M_PI * semi_axes.prod();
+      return 4.0 / 3.0 * M_PI * semi_axes[0].mean() * semi_axes[1].mean() * semi_axes[2].mean();
   }
   return 0.0;
 }
 
-double Family::bounding_radius() const {
+double Family::max_bounding_radius() const {
   switch (shape) {
     case ShapeKind::Sphere:
-      return radius;
+      return radius.upper();
     case ShapeKind::Cylinder:
-      return radius * std::sqrt(1.0 + aspect_ratio * aspect_ratio);
+      return radius.upper() * std::sqrt(1.0 + std::pow(aspect_ratio.upper(), 2));
     case ShapeKind::Ellipsoid:
-      return semi_axes.maxCoeff();
+      return std::max({semi_axes[0].upper(), semi_axes[1].upper(), semi_axes[2].upper()});
   }
   return 0.0;
 }
 
-double Family::min_width() const {
+double Family::max_min_width() const {
   switch (shape) {
     case ShapeKind::Sphere:
-      return 2.0 * radius;
+      return 2.0 * radius.upper();
     case ShapeKind::Cylinder:
-      return 2.0 * radius * std::min(1.0, aspect_ratio);
+      return 2.0 * radius.upper() * std::min(1.0, aspect_ratio.upper());
     case ShapeKind::Ellipsoid:
-      return 2.0 * semi_axes.minCoeff();
+      return 2.0 * std::min({semi_axes[0].upper(), semi_axes[1].upper(), semi_axes[2].upper()});
   }
   return 0.0;
 }
 
-int Scene::target_count(int f) const {
+Shape Family::draw(const Vec3& center, Random& rng) const {
+  switch (shape) {
+    case ShapeKind::Sphere:
+      return Shape::sphere(center, radius.sample(rng));
+    case ShapeKind::Cylinder: {
+      const double r = radius.sample(rng), a = aspect_ratio.sample(rng);
+      return Shape::cylinder(center, r, orientation.sample(rng) * (a * r));
+    }
+    case ShapeKind::Ellipsoid: {
+      const Vec3 semi(semi_axes[0].sample(rng), semi_axes[1].sample(rng), semi_axes[2].sample(rng));
+      // First principal axis from the law, random spin about it.
+      const Vec3 a = orientation.sample(rng);
+      const Vec3 b0 = any_orthogonal(a);
+      const double th = 2.0 * M_PI * rng.uniform();
+      const Vec3 b = std::cos(th) * b0 + std::sin(th) * a.cross(b0);
+      Mat3 R;
+      R.col(0) = a;
+      R.col(1) = b;
+      R.col(2) = a.cross(b);
+      return Shape::ellipsoid(center, semi, R);
+    }
+  }
+  return Shape::sphere(center, radius.sample(rng));
+}
+
+double Scene::expected_count(int f) const {
   const Family& fam = families[f];
   if (fam.count >= 0) return fam.count;
-  return static_cast<int>(std::lround(fam.volume_fraction * box.volume() / fam.inclusion_volume()));
+  return fam.volume_fraction * box.volume() / fam.mean_volume();
+}
+
+double Scene::expected_volume_fraction() const {
+  double total = 0.0;
+  for (size_t f = 0; f < families.size(); ++f) {
+    total += expected_count(static_cast<int>(f)) * families[f].mean_volume() / box.volume();
+  }
+  return total;
+}
+
+std::vector<Inclusion> draw_population(const Scene& scene, Random& rng) {
+  std::vector<Inclusion> out;
+  const double V = scene.box.volume();
+  for (size_t f = 0; f < scene.families.size(); ++f) {
+    const Family& fam = scene.families[f];
+    auto add = [&](const Shape& s) {
+      Inclusion inc;
+      inc.id = static_cast<int>(out.size());
+      inc.family = static_cast<int>(f);
+      inc.shape = s;
+      out.push_back(inc);
+    };
+    if (fam.count >= 0) {
+      for (int k = 0; k < fam.count; ++k) add(fam.draw(Vec3::Zero(), rng));
+    } else {
+      const double target = fam.volume_fraction * V;
+      double sum = 0.0;
+      for (;;) {
+        const Shape s = fam.draw(Vec3::Zero(), rng);
+        const double v = s.volume();
+        if (sum + v > target && (sum + v - target) >= (target - sum)) break;
+        add(s);
+        sum += v;
+      }
+    }
+  }
+  return out;
 }
 
 double max_packable_fraction(const Scene& scene) {
@@ -75,22 +257,64 @@ OrientationLaw parse_orientation(const Json& j, const std::string& p) {
   using namespace json_util;
   OrientationLaw law;
   const std::string name = string(require(j, "law", p), p + ".law");
+  auto unit = [&](const char* key) {
+    Vec3 v = vec3(require(j, key, p), join(p, key));
+    if (!(v.norm() > 0.0)) fail(join(p, key), "must be non-zero");
+    return Vec3(v.normalized());
+  };
   if (name == "isotropic") {
     only_keys(j, {"law"}, p);
     law.kind = OrientationLaw::Kind::kIsotropic;
   } else if (name == "aligned") {
     only_keys(j, {"law", "axis"}, p);
     law.kind = OrientationLaw::Kind::kAligned;
-    law.axis = vec3(require(j, "axis", p), p + ".axis");
-    if (!(law.axis.norm() > 0.0)) fail(p + ".axis", "must be non-zero");
-    law.axis.normalize();
+    law.axis = unit("axis");
+  } else if (name == "von_mises_fisher") {
+    only_keys(j, {"law", "axis", "kappa"}, p);
+    law.kind = OrientationLaw::Kind::kVonMisesFisher;
+    law.axis = unit("axis");
+    law.kappa = number(require(j, "kappa", p), p + ".kappa");
+    if (law.kappa < 0.0 || law.kappa > 1e6) fail(p + ".kappa", "must be in [0, 1e6]");
+  } else if (name == "planar") {
+    only_keys(j, {"law", "normal"}, p);
+    law.kind = OrientationLaw::Kind::kPlanar;
+    law.axis = unit("normal");
   } else {
-    fail(p + ".law", "unknown orientation law \"" + name + "\" (isotropic, aligned)");
+    fail(p + ".law",
+         "unknown orientation law \"" + name + "\" (isotropic, aligned, von_mises_fisher, planar)");
   }
   return law;
 }
 
-Family parse_family(const Json& j, const std::string& p) {
+SizeLaw parse_size(const Json& j, const std::string& p) {
+  using namespace json_util;
+  SizeLaw law;
+  if (j.is_number()) {
+    law.p1 = positive(j, p);
+    return law;
+  }
+  if (!j.is_object()) fail(p, "expected a positive number or a size law object");
+  const std::string name = string(require(j, "law", p), p + ".law");
+  if (name == "uniform") {
+    only_keys(j, {"law", "min", "max"}, p);
+    law.kind = SizeLaw::Kind::kUniform;
+    law.p1 = positive(require(j, "min", p), p + ".min");
+    law.p2 = positive(require(j, "max", p), p + ".max");
+    if (!(law.p2 >= law.p1)) fail(p + ".max", "must be >= min");
+  } else if (name == "normal" || name == "lognormal") {
+    only_keys(j, {"law", "mean", "std"}, p);
+    law.kind = name == "normal" ? SizeLaw::Kind::kNormal : SizeLaw::Kind::kLognormal;
+    law.p1 = positive(require(j, "mean", p), p + ".mean");
+    law.p2 = number(require(j, "std", p), p + ".std");
+    if (!(law.p2 >= 0.0)) fail(p + ".std", "must be >= 0");
+    if (law.p2 > 10.0 * law.p1) fail(p + ".std", "must be at most 10 x mean");
+  } else {
+    fail(p + ".law", "unknown size law \"" + name + "\" (uniform, normal, lognormal)");
+  }
+  return law;
+}
+
+Family parse_family(const Json& j, const std::string& p, double box_volume) {
   using namespace json_util;
   Family f;
   if (!j.is_object()) fail(p, "expected an object");
@@ -98,24 +322,71 @@ Family parse_family(const Json& j, const std::string& p) {
   if (!parse_shape_name(shape, &f.shape)) {
     fail(p + ".shape", "unknown shape \"" + shape + "\" (sphere, cylinder, ellipsoid)");
   }
+  const bool has_vf = j.contains("volume_fraction"), has_n = j.contains("count");
+  if (!has_vf && !has_n) fail(p, "give \"volume_fraction\", \"count\" or both");
+  if (has_vf) {
+    f.volume_fraction = positive(j["volume_fraction"], p + ".volume_fraction");
+    if (f.volume_fraction >= 1.0) fail(p + ".volume_fraction", "must be below 1");
+  }
+  if (has_n) {
+    const double n = number(j["count"], p + ".count");
+    if (n != std::floor(n) || n < 0 || n > 1e8)
+      fail(p + ".count", "must be an integer in [0, 1e8]");
+    f.count = static_cast<int>(n);
+  }
+  // Both given: the size follows (the paper's set-up), so no size key may be given.
+  const bool derived = has_vf && has_n;
+  if (derived && f.count < 1) fail(p + ".count", "must be >= 1 with a volume fraction");
+  const double per = derived ? f.volume_fraction * box_volume / f.count : 0.0;
   switch (f.shape) {
     case ShapeKind::Sphere:
       only_keys(j, {"name", "shape", "radius", "volume_fraction", "count"}, p);
-      f.radius = positive(require(j, "radius", p), p + ".radius");
+      if (derived) {
+        if (j.contains("radius"))
+          fail(p + ".radius",
+               "not allowed with both volume_fraction and count (the radius follows from them)");
+        f.radius = std::cbrt(3.0 * per / (4.0 * M_PI));
+      } else {
+        f.radius = parse_size(require(j, "radius", p), p + ".radius");
+      }
       break;
     case ShapeKind::Cylinder:
       only_keys(
           j, {"name", "shape", "radius", "aspect_ratio", "volume_fraction", "count", "orientation"},
           p);
-      f.radius = positive(require(j, "radius", p), p + ".radius");
-      f.aspect_ratio = positive(require(j, "aspect_ratio", p), p + ".aspect_ratio");
+      f.aspect_ratio = parse_size(require(j, "aspect_ratio", p), p + ".aspect_ratio");
+      if (derived) {
+        if (j.contains("radius"))
+          fail(p + ".radius",
+               "not allowed with both volume_fraction and count (the radius follows from them)");
+        f.radius = std::cbrt(per / (2.0 * M_PI * f.aspect_ratio.mean()));
+      } else {
+        f.radius = parse_size(require(j, "radius", p), p + ".radius");
+      }
       break;
     case ShapeKind::Ellipsoid: {
-      only_keys(j, {"name", "shape", "semi_axes", "volume_fraction", "count", "orientation"}, p);
-      f.semi_axes = vec3(require(j, "semi_axes", p), p + ".semi_axes");
-      for (int k = 0; k < 3; ++k) {
-        if (!(f.semi_axes[k] > 0.0)) {
-          fail(p + ".semi_axes[" + std::to_string(k) + "]", "must be positive");
+      only_keys(
+          j,
+          {"name", "shape", "semi_axes", "axis_ratios", "volume_fraction", "count", "orientation"},
+          p);
+      if (derived) {
+        if (j.contains("semi_axes"))
+          fail(p + ".semi_axes",
+               "not allowed with both volume_fraction and count (give axis_ratios)");
+        const Vec3 r = vec3(require(j, "axis_ratios", p), p + ".axis_ratios");
+        for (int k = 0; k < 3; ++k) {
+          if (!(r[k] > 0.0))
+            fail(p + ".axis_ratios[" + std::to_string(k) + "]", "must be positive");
+        }
+        const double scale = std::cbrt(3.0 * per / (4.0 * M_PI * r.prod()));
+        for (int k = 0; k < 3; ++k) f.semi_axes[k] = scale * r[k];
+      } else {
+        if (j.contains("axis_ratios"))
+          fail(p + ".axis_ratios", "only with both volume_fraction and count");
+        const Json& s = require(j, "semi_axes", p);
+        if (!s.is_array() || s.size() != 3) fail(p + ".semi_axes", "expected an array of 3 sizes");
+        for (int k = 0; k < 3; ++k) {
+          f.semi_axes[k] = parse_size(s[k], p + ".semi_axes[" + std::to_string(k) + "]");
         }
       }
       break;
@@ -124,17 +395,7 @@ Family parse_family(const Json& j, const std::string& p) {
   f.name = j.contains("name") ? string(j["name"], p + ".name") : std::string(shape_name(f.shape));
   if (j.contains("orientation"))
     f.orientation = parse_orientation(j["orientation"], p + ".orientation");
-  const bool has_vf = j.contains("volume_fraction"), has_n = j.contains("count");
-  if (has_vf == has_n) fail(p, "give exactly one of \"volume_fraction\" and \"count\"");
-  if (has_vf) {
-    f.volume_fraction = positive(j["volume_fraction"], p + ".volume_fraction");
-    if (f.volume_fraction >= 1.0) fail(p + ".volume_fraction", "must be below 1");
-  } else {
-    const double n = number(j["count"], p + ".count");
-    if (n != std::floor(n) || n < 0 || n > 1e8)
-      fail(p + ".count", "must be an integer in [0, 1e8]");
-    f.count = static_cast<int>(n);
-  }
+  if (derived) f.volume_fraction = -1.0;  // the count now says it all
   return f;
 }
 }  // namespace
@@ -143,7 +404,12 @@ void validate_scene(const Scene& s) {
   using json_util::fail;
   if (s.families.empty()) fail("families", "at least one family is needed");
   if (!(s.min_gap >= 0.0) || !std::isfinite(s.min_gap)) fail("min_gap", "must be >= 0");
-  if (s.method != "rsa") fail("method", "unknown method \"" + s.method + "\" (rsa)");
+  if (s.method != "rsa" && s.method != "md") {
+    fail("method", "unknown method \"" + s.method + "\" (md, rsa)");
+  }
+  if (s.rsa_max_attempts < 1) fail("rsa.max_attempts", "must be >= 1");
+  if (s.md.max_steps < 1) fail("md.max_steps", "must be >= 1");
+  if (!(s.md.max_seconds > 0.0)) fail("md.max_seconds", "must be positive");
   for (int k = 0; k < 3; ++k) {
     if (s.resolution[k] < 1 || s.resolution[k] > 4096) {
       fail("voxels.resolution[" + std::to_string(k) + "]", "must be an integer in [1, 4096]");
@@ -153,20 +419,29 @@ void validate_scene(const Scene& s) {
     }
   }
   const double box_min = s.box.size.minCoeff();
-  double total = 0.0;
+  double count = 0.0;
   for (size_t i = 0; i < s.families.size(); ++i) {
     const Family& f = s.families[i];
     const std::string p = "families[" + std::to_string(i) + "]";
-    if (f.min_width() + 2.0 * s.min_gap >= box_min) {
-      fail(p, "inclusion does not fit in the box (smallest width " + std::to_string(f.min_width()) +
-                  " >= smallest box size " + std::to_string(box_min) + ")");
+    if (f.max_min_width() + 2.0 * s.min_gap >= box_min) {
+      fail(p, "inclusion does not fit in the box (smallest width " +
+                  std::to_string(f.max_min_width()) + " >= smallest box size " +
+                  std::to_string(box_min) + ")");
     }
-    if (f.volume_fraction >= 0.0 && s.target_count(static_cast<int>(i)) < 1) {
+    if (!s.box.periodic && 2.0 * f.max_bounding_radius() >= box_min) {
+      // A non-periodic box must hold every inclusion whatever its orientation.
+      fail(p, "inclusion does not fit in the non-periodic box (largest length " +
+                  std::to_string(2.0 * f.max_bounding_radius()) + " >= smallest box size " +
+                  std::to_string(box_min) + ")");
+    }
+    const double n = s.expected_count(static_cast<int>(i));
+    if (f.volume_fraction >= 0.0 && f.count < 0 && n < 0.5) {
       fail(p + ".volume_fraction", "too small for a single inclusion in this box");
     }
-    total += s.target_count(static_cast<int>(i)) * f.inclusion_volume() / s.box.volume();
+    count += n;
   }
-  const double limit = max_packable_fraction(s);
+  if (count > 2e7) fail("families", "more than 2e7 inclusions asked for");
+  const double total = s.expected_volume_fraction(), limit = max_packable_fraction(s);
   if (total > limit) {
     char buf[160];
     std::snprintf(buf, sizeof buf,
@@ -180,7 +455,7 @@ Scene parse_scene(const std::string& text) {
   using namespace json_util;
   const Json root = parse(text, "scene file");
   if (!root.is_object()) fail("(root)", "expected an object");
-  only_keys(root, {"box", "seed", "method", "min_gap", "families", "voxels"}, "");
+  only_keys(root, {"box", "seed", "method", "min_gap", "families", "voxels", "md", "rsa"}, "");
   Scene s;
   s.box = box(require(root, "box", ""), "box");
   if (root.contains("seed")) {
@@ -195,10 +470,29 @@ Scene parse_scene(const std::string& text) {
     s.min_gap = number(root["min_gap"], "min_gap");
     if (s.min_gap < 0.0) fail("min_gap", "must be >= 0");
   }
+  if (root.contains("md")) {
+    const Json& m = root["md"];
+    only_keys(m, {"max_steps", "max_seconds"}, "md");
+    if (m.contains("max_steps")) {
+      const double n = number(m["max_steps"], "md.max_steps");
+      if (n != std::floor(n) || n < 1 || n > 1e12) fail("md.max_steps", "must be an integer >= 1");
+      s.md.max_steps = static_cast<long long>(n);
+    }
+    if (m.contains("max_seconds")) s.md.max_seconds = positive(m["max_seconds"], "md.max_seconds");
+  }
+  if (root.contains("rsa")) {
+    const Json& r = root["rsa"];
+    only_keys(r, {"max_attempts"}, "rsa");
+    const double n = number(require(r, "max_attempts", "rsa"), "rsa.max_attempts");
+    if (n != std::floor(n) || n < 1 || n > 1e9)
+      fail("rsa.max_attempts", "must be an integer in [1, 1e9]");
+    s.rsa_max_attempts = static_cast<int>(n);
+  }
   const Json& fams = require(root, "families", "");
   if (!fams.is_array()) fail("families", "expected an array");
   for (size_t i = 0; i < fams.size(); ++i) {
-    s.families.push_back(parse_family(fams[i], "families[" + std::to_string(i) + "]"));
+    s.families.push_back(
+        parse_family(fams[i], "families[" + std::to_string(i) + "]", s.box.volume()));
   }
   if (root.contains("voxels")) {
     const Json& v = root["voxels"];
@@ -227,27 +521,43 @@ Scene default_scene() {
   s.box.size = Vec3(1, 1, 1);
   s.box.periodic = true;
   s.seed = 42;
-  s.method = "rsa";
+  s.method = "md";
   Family spheres;
   spheres.name = "spheres";
   spheres.shape = ShapeKind::Sphere;
   spheres.radius = 0.05;
-  spheres.volume_fraction = 0.15;
+  spheres.volume_fraction = 0.20;
   Family fibres;
   fibres.name = "fibres";
   fibres.shape = ShapeKind::Cylinder;
   fibres.radius = 0.02;
   fibres.aspect_ratio = 5.0;
-  fibres.volume_fraction = 0.08;
+  fibres.volume_fraction = 0.10;
   Family grains;
   grains.name = "grains";
   grains.shape = ShapeKind::Ellipsoid;
-  grains.semi_axes = Vec3(0.06, 0.04, 0.03);
+  grains.semi_axes = {0.06, 0.04, 0.03};
   grains.volume_fraction = 0.05;
   s.families = {spheres, fibres, grains};
   s.resolution = {64, 64, 64};
   return s;
 }
+
+namespace {
+nlohmann::ordered_json size_json(const SizeLaw& l) {
+  switch (l.kind) {
+    case SizeLaw::Kind::kFixed:
+      return l.p1;
+    case SizeLaw::Kind::kUniform:
+      return {{"law", "uniform"}, {"min", l.p1}, {"max", l.p2}};
+    case SizeLaw::Kind::kNormal:
+      return {{"law", "normal"}, {"mean", l.p1}, {"std", l.p2}};
+    case SizeLaw::Kind::kLognormal:
+      return {{"law", "lognormal"}, {"mean", l.p1}, {"std", l.p2}};
+  }
+  return l.p1;
+}
+}  // namespace
 
 std::string scene_to_json(const Scene& s) {
   using OJson = nlohmann::ordered_json;
@@ -258,27 +568,41 @@ std::string scene_to_json(const Scene& s) {
   root["seed"] = s.seed;
   root["method"] = s.method;
   root["min_gap"] = s.min_gap;
+  root["md"] = {{"max_steps", s.md.max_steps}, {"max_seconds", s.md.max_seconds}};
+  root["rsa"] = {{"max_attempts", s.rsa_max_attempts}};
   OJson fams = OJson::array();
   for (const auto& f : s.families) {
     OJson j;
     j["name"] = f.name;
     j["shape"] = shape_name(f.shape);
     if (f.shape == ShapeKind::Ellipsoid) {
-      j["semi_axes"] = v3(f.semi_axes);
+      j["semi_axes"] = OJson::array(
+          {size_json(f.semi_axes[0]), size_json(f.semi_axes[1]), size_json(f.semi_axes[2])});
     } else {
-      j["radius"] = f.radius;
+      j["radius"] = size_json(f.radius);
     }
-    if (f.shape == ShapeKind::Cylinder) j["aspect_ratio"] = f.aspect_ratio;
+    if (f.shape == ShapeKind::Cylinder) j["aspect_ratio"] = size_json(f.aspect_ratio);
     if (f.count >= 0) {
       j["count"] = f.count;
     } else {
       j["volume_fraction"] = f.volume_fraction;
     }
     if (f.shape != ShapeKind::Sphere) {
-      if (f.orientation.kind == OrientationLaw::Kind::kAligned) {
-        j["orientation"] = {{"law", "aligned"}, {"axis", v3(f.orientation.axis)}};
-      } else {
-        j["orientation"] = {{"law", "isotropic"}};
+      const auto& o = f.orientation;
+      switch (o.kind) {
+        case OrientationLaw::Kind::kIsotropic:
+          j["orientation"] = {{"law", "isotropic"}};
+          break;
+        case OrientationLaw::Kind::kAligned:
+          j["orientation"] = {{"law", "aligned"}, {"axis", v3(o.axis)}};
+          break;
+        case OrientationLaw::Kind::kVonMisesFisher:
+          j["orientation"] = {
+              {"law", "von_mises_fisher"}, {"axis", v3(o.axis)}, {"kappa", o.kappa}};
+          break;
+        case OrientationLaw::Kind::kPlanar:
+          j["orientation"] = {{"law", "planar"}, {"normal", v3(o.axis)}};
+          break;
       }
     }
     fams.push_back(j);

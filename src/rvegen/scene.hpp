@@ -8,44 +8,82 @@
 #include <vector>
 
 #include "rvegen/inclusion_set.hpp"
+#include "rvegen/random.hpp"
 
 namespace rvegen {
 
+/// Distribution of one size (radius, aspect ratio, semi-axis).
+/// normal and lognormal take the mean and standard deviation of the size itself and are
+/// truncated to [max(lo, tiny), hi] with lo/hi at mean -/+ 6 std (normal) or exp(mu -/+ 6 sigma)
+/// (lognormal): draws outside are redrawn, so sizes are always positive and bounded.
+struct SizeLaw {
+  enum class Kind { kFixed, kUniform, kNormal, kLognormal };
+  Kind kind = Kind::kFixed;
+  double p1 = 0.0;  // fixed: value; uniform: min; normal, lognormal: mean
+  double p2 = 0.0;  // uniform: max; normal, lognormal: std
+
+  SizeLaw() = default;
+  SizeLaw(double value) : p1(value) {}  // NOLINT(google-explicit-constructor): a fixed size
+  bool fixed() const { return kind == Kind::kFixed; }
+  double sample(Random& rng) const;
+  /// Smallest and largest size the law can draw.
+  double lower() const;
+  double upper() const;
+  /// E[X^k] of the (truncated) law.
+  double moment(int k) const;
+  double mean() const { return moment(1); }
+};
+
 struct OrientationLaw {
-  enum class Kind { kIsotropic, kAligned };
+  enum class Kind { kIsotropic, kAligned, kVonMisesFisher, kPlanar };
   Kind kind = Kind::kIsotropic;
-  Vec3 axis = Vec3::UnitZ();  // unit, for kAligned
+  Vec3 axis = Vec3::UnitZ();  // unit: aligned and von Mises-Fisher axis, planar normal
+  double kappa = 0.0;         // von Mises-Fisher concentration
+  /// A unit direction drawn from the law.
+  Vec3 sample(Random& rng) const;
 };
 
 struct Family {
   std::string name;
   ShapeKind shape = ShapeKind::Sphere;
-  double radius = 0.0;        // sphere, cylinder
-  double aspect_ratio = 0.0;  // cylinder: a = |l| / r
-  Vec3 semi_axes = Vec3::Zero();
-  double volume_fraction = -1.0;  // < 0 when `count` is given
-  int count = -1;                 // < 0 when `volume_fraction` is given
+  SizeLaw radius;        // sphere, cylinder
+  SizeLaw aspect_ratio;  // cylinder: a = |l| / r
+  std::array<SizeLaw, 3> semi_axes;
+  double volume_fraction = -1.0;  // < 0 when only `count` is given
+  int count = -1;                 // < 0 when only `volume_fraction` is given
   OrientationLaw orientation;
 
-  /// The shape of one inclusion of this family at the origin with its reference orientation.
-  double inclusion_volume() const;
-  double bounding_radius() const;
-  /// Smallest width of the shape (the least box size it can pass through).
-  double min_width() const;
+  /// Expected volume of one inclusion.
+  double mean_volume() const;
+  /// Largest bounding radius any inclusion of the family can have.
+  double max_bounding_radius() const;
+  /// Largest smallest-width of any inclusion (the least box size every inclusion passes through).
+  double max_min_width() const;
+  /// One inclusion drawn from the family's laws, centred at `center`.
+  Shape draw(const Vec3& center, Random& rng) const;
+};
+
+/// Settings of the molecular-dynamics packer (see packing.hpp).
+struct MdSettings {
+  long long max_steps = 2000000;
+  double max_seconds = 600.0;
 };
 
 struct Scene {
   Box box;
   uint64_t seed = 42;
-  std::string method = "rsa";
+  std::string method = "md";
   double min_gap = 0.0;
   std::vector<Family> families;
   std::array<int, 3> resolution = {64, 64, 64};
   /// RSA: attempts per inclusion before the target is declared out of reach.
   int rsa_max_attempts = 20000;
+  MdSettings md;
 
-  /// Number of inclusions of family f (from count, or volume fraction and inclusion volume).
-  int target_count(int f) const;
+  /// Expected number of inclusions of family f (its count, or volume fraction / mean volume).
+  double expected_count(int f) const;
+  /// Expected total volume fraction.
+  double expected_volume_fraction() const;
 };
 
 /// Parses and validates a scene (see README for the schema). Throws InputError naming the key.
@@ -62,5 +100,11 @@ std::string scene_to_json(const Scene& scene);
 /// (Kepler), ellipsoids 0.7707 (Donev et al. 2004), cylinders pi/(2 sqrt 3) = 0.9069 (aligned,
 /// hexagonal). A target above it is rejected as invalid input before any work.
 double max_packable_fraction(const Scene& scene);
+
+/// The inclusions a scene asks for, drawn from its laws (deterministic in scene.seed), centres
+/// not yet placed. A `volume_fraction` family draws inclusions until the next one would take
+/// the family's volume further from its target than stopping, so the drawn volume is the
+/// target to within half an inclusion.
+std::vector<Inclusion> draw_population(const Scene& scene, Random& rng);
 
 }  // namespace rvegen

@@ -48,6 +48,14 @@ struct Shape {
   bool contains(const Vec3& x) const;
   /// Axis-aligned bounding box (exact for all three kinds).
   void aabb(Vec3* lo, Vec3* hi) const;
+  /// Copy scaled by f about its centre.
+  Shape scaled(double f) const {
+    Shape s = *this;
+    s.radius *= f;
+    s.half_axis *= f;
+    s.semi_axes *= f;
+    return s;
+  }
   /// Copy translated by t.
   Shape translated(const Vec3& t) const {
     Shape s = *this;

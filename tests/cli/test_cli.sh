@@ -50,11 +50,19 @@ expect_rc 2 "$RVEGEN" generate -q "$WORK/does_not_exist.json" -o "$WORK/out_miss
 expect_rc 2 "$RVEGEN" frobnicate
 
 # A target RSA cannot reach: exit 3, report says so, the configuration has no overlap.
-echo "{$BOX,\"seed\":3,\"families\":[{\"shape\":\"sphere\",\"radius\":0.07,\"volume_fraction\":0.5}],\"voxels\":{\"resolution\":16}}" >"$WORK/rsa_wall.json"
+echo "{$BOX,\"seed\":3,\"method\":\"rsa\",\"families\":[{\"shape\":\"sphere\",\"radius\":0.07,\"volume_fraction\":0.5}],\"voxels\":{\"resolution\":16}}" >"$WORK/rsa_wall.json"
 expect_rc 3 "$RVEGEN" generate -q "$WORK/rsa_wall.json" -o "$WORK/rsa_wall"
 $py -c "import json,sys; r=json.load(open('$WORK/rsa_wall/report.json')); sys.exit(0 if r['status']=='target_not_reached' and 0.2<r['volume_fraction']<0.5 else 1)" \
   || fail "report of the unreachable target"
 expect_rc 0 "$RVEGEN" check "$WORK/rsa_wall/inclusions.json"
+
+# A target beyond random close packing for MD (70 % of monodisperse spheres): it jams, exits 3
+# within its budget, and writes the best valid configuration, denser than RSA's.
+echo "{$BOX,\"seed\":3,\"families\":[{\"shape\":\"sphere\",\"radius\":0.07,\"volume_fraction\":0.7}],\"voxels\":{\"resolution\":16}}" >"$WORK/md_wall.json"
+expect_rc 3 "$RVEGEN" generate -q "$WORK/md_wall.json" -o "$WORK/md_wall"
+$py -c "import json,sys; r=json.load(open('$WORK/md_wall/report.json')); sys.exit(0 if r['status']=='target_not_reached' and r['method']=='md' and 0.55<r['volume_fraction']<0.7 else 1)" \
+  || fail "report of the target MD cannot reach"
+expect_rc 0 "$RVEGEN" check "$WORK/md_wall/inclusions.json"
 
 # check: overlapping pairs are listed with their type, exit 1.
 cat >"$WORK/overlap.json" <<'JSON'

@@ -276,7 +276,7 @@ Mat3 shape_matrix_inverse(const Shape& e) {
 }
 }  // namespace
 
-double perram_wertheim(const Shape& e1, const Shape& e2, double* lambda_out) {
+double perram_wertheim(const Shape& e1, const Shape& e2, double* lambda_out, double stop_above) {
   const Mat3 A = shape_matrix_inverse(e1), B = shape_matrix_inverse(e2);
   const Vec3 r = e2.center - e1.center;
   if (r.squaredNorm() == 0.0) {
@@ -284,25 +284,62 @@ double perram_wertheim(const Shape& e1, const Shape& e2, double* lambda_out) {
     return 0.0;
   }
   // F(l) = l (1-l) r^T G^{-1} r with G = (1-l) A + l B is concave on [0, 1]; its derivative
-  // F'(l) = z^T ((1-l)^2 A - l^2 B) z, z = G^{-1} r, decreases from > 0 to < 0: bisect it.
-  double lo = 0.0, hi = 1.0;
-  for (int it = 0; it < 60 && hi - lo > 1e-15; ++it) {
-    const double l = 0.5 * (lo + hi);
+  // F'(l) = z^T ((1-l)^2 A - l^2 B) z, z = G^{-1} r, decreases from > 0 to < 0. Its root is
+  // bracketed and found by regula falsi with the Illinois modification (superlinear), falling
+  // back to bisection when an update barely shrinks the bracket. Since F(l) <= max F, the
+  // search may stop as soon as some F(l) >= stop_above.
+  auto eval = [&](double l, double* F) {
     const Mat3 G = (1.0 - l) * A + l * B;
     const Vec3 z = G.llt().solve(r);
-    const double dF = z.dot(((1.0 - l) * (1.0 - l)) * (A * z) - (l * l) * (B * z));
-    (dF > 0.0 ? lo : hi) = l;
+    *F = l * (1.0 - l) * r.dot(z);
+    return z.dot(((1.0 - l) * (1.0 - l)) * (A * z) - (l * l) * (B * z));
+  };
+  double lo = 0.0, hi = 1.0;
+  double flo = r.dot(A.llt().solve(r)), fhi = -r.dot(B.llt().solve(r));
+  double best_l = 0.5, best_F = -1.0;
+  int side = 0;
+  for (int it = 0; it < 100 && hi - lo > 1e-13; ++it) {
+    double l = (lo * fhi - hi * flo) / (fhi - flo);
+    const double w = hi - lo;
+    if (!(l > lo + 1e-3 * w && l < hi - 1e-3 * w) || it % 8 == 7) l = 0.5 * (lo + hi);
+    double F;
+    const double d = eval(l, &F);
+    if (F > best_F) {
+      best_F = F;
+      best_l = l;
+    }
+    if (best_F >= stop_above) break;
+    if (d > 0.0) {
+      lo = l;
+      flo = d;
+      if (side == 1) fhi *= 0.5;
+      side = 1;
+    } else if (d < 0.0) {
+      hi = l;
+      fhi = d;
+      if (side == -1) flo *= 0.5;
+      side = -1;
+    } else {
+      lo = hi = l;
+    }
   }
-  const double l = 0.5 * (lo + hi);
-  if (lambda_out) *lambda_out = l;
-  const Mat3 G = (1.0 - l) * A + l * B;
-  return l * (1.0 - l) * r.dot(G.llt().solve(r));
+  if (best_F < stop_above) {
+    const double l = 0.5 * (lo + hi);
+    double F;
+    eval(l, &F);
+    if (F > best_F) {
+      best_F = F;
+      best_l = l;
+    }
+  }
+  if (lambda_out) *lambda_out = best_l;
+  return best_F;
 }
 
 Contact intersect_perram_wertheim(const Shape& e1, const Shape& e2) {
   Contact c;
   double l = 0.5;
-  const double F = perram_wertheim(e1, e2, &l);
+  const double F = perram_wertheim(e1, e2, &l, 1.0);
   if (!(F < 1.0)) return c;
   const Mat3 A = shape_matrix_inverse(e1), B = shape_matrix_inverse(e2);
   const Vec3 r = e2.center - e1.center;

@@ -10,6 +10,7 @@
 // Tangent contact (depth 0) and depths below that bound count as touching, not overlapping.
 #pragma once
 
+#include <cmath>
 #include <string>
 
 #include "rvegen/shapes.hpp"
@@ -67,8 +68,11 @@ Contact intersect_convex(const Shape& a, const Shape& b);               // GJK/E
 
 /// Perram-Wertheim contact function max_lambda F(lambda) for two ellipsoids (spheres allowed):
 /// < 1 overlap, = 1 tangent, > 1 disjoint. sqrt(F) is the factor by which both must be scaled
-/// about their centres to touch. Writes the maximising lambda when asked.
-double perram_wertheim(const Shape& e1, const Shape& e2, double* lambda_out = nullptr);
+/// about their centres to touch. Writes the maximising lambda when asked. The search stops early
+/// (returning a value >= stop_above, a lower bound of the maximum) once the maximum is known to
+/// be at least stop_above.
+double perram_wertheim(const Shape& e1, const Shape& e2, double* lambda_out = nullptr,
+                       double stop_above = HUGE_VAL);
 
 }  // namespace rvegen
 

@@ -2,6 +2,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "rvegen/stats.hpp"
+
 namespace rvegen {
 
 std::vector<double> family_volume_fractions(const InclusionSet& set, int n_families) {
@@ -42,6 +44,26 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
     j["volume_fraction"] = vf[f];
     j["target_volume_fraction"] = target;
     if (image) j["voxel_volume_fraction"] = voxel_vf[f];
+    if (fam.shape != ShapeKind::Sphere) {
+      const Mat3 a = orientation_tensor(r.set, f);
+      OJson rows = OJson::array();
+      for (int k = 0; k < 3; ++k) rows.push_back({a(k, 0), a(k, 1), a(k, 2)});
+      j["orientation_tensor"] = rows;
+    } else {
+      // g(r) of the centres over five mean diameters (at most half the box).
+      double mean_d = 0.0;
+      int n = 0;
+      for (const auto& inc : r.set.inclusions) {
+        if (inc.family == f) {
+          mean_d += 2.0 * inc.shape.radius;
+          ++n;
+        }
+      }
+      if (n > 1) {
+        const RadialDistribution g = radial_distribution(r.set, f, 50, 5.0 * mean_d / n);
+        j["radial_distribution"] = {{"r", g.r}, {"g", g.g}};
+      }
+    }
     fams.push_back(j);
     total += vf[f];
     target_total += target;
@@ -50,7 +72,18 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
   root["target_volume_fraction"] = target_total;
   root["count"] = r.set.inclusions.size();
   root["families"] = fams;
-  root["attempts"] = r.attempts;
+  const Summary nn = nearest_neighbour_distances(r.set);
+  if (nn.n > 0) {
+    root["nearest_neighbour_distance"] = {
+        {"mean", nn.mean}, {"std", nn.std}, {"min", nn.min}, {"max", nn.max}};
+  }
+  root["stop_reason"] = r.stop_reason;
+  if (scene.method == "md") {
+    root["steps"] = r.steps;
+    root["scale"] = r.scale;
+  } else {
+    root["attempts"] = r.attempts;
+  }
   root["packing_seconds"] = r.seconds;
   root["seconds"] = total_seconds;
   if (image) root["voxels"] = {{"resolution", {image->dims[0], image->dims[1], image->dims[2]}}};

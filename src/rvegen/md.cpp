@@ -136,10 +136,11 @@ class MdPacker {
   // a (scale s + pad_a) from b (scale s + pad_b, at its centre + shift).
   double separating_scale(const Body& a, const Body& b, const Vec3& shift, const Vec3& n) const;
 
-  // Mobility of body i to an impulse along n at lever r (translation + rotation).
-  double mobility(int i, const Vec3& r, const Vec3& n, double scale) const;
-  Vec3 turn_response(int i, const Vec3& torque, double scale) const;
-  void apply_impulse(int i, const Vec3& point, const Vec3& impulse, double scale);
+  BodyMobility mobility_of(const Body& b, const Shape& scaled) const;
+  void add(int i, const Vec3& move, const Vec3& turn) {
+    move_[i] += move;
+    turn_[i] += turn;
+  }
 
   const Scene& scene_;
   const Box& box_;
@@ -433,44 +434,16 @@ void MdPacker::build_pairs() {
   }
 }
 
-double MdPacker::mobility(int i, const Vec3& r, const Vec3& n, double scale) const {
-  const Body& b = bodies_[i];
-  double m = 1.0 / b.volume;
-  if (b.turn != Turn::kNone) m += r.cross(n).dot(turn_response(i, r.cross(n), scale));
-  return m;
-}
-
-// Angular displacement of body i under a torque: inverse of (volume x gyration tensor), the
-// gyration tensor I / m of the body at the given scale; restricted to its turn axis if any.
-Vec3 MdPacker::turn_response(int i, const Vec3& torque, double scale) const {
-  const Body& b = bodies_[i];
-  const Shape& s = b.shape;
-  const double f2 = scale * scale;
-  Mat3 K;
-  if (s.kind == ShapeKind::Cylinder) {
-    const Vec3 u = s.half_axis.normalized();
-    const double L2 = s.half_axis.squaredNorm(), r2 = s.radius * s.radius;
-    const double k_ax = 0.5 * r2, k_tr = 0.25 * r2 + L2 / 3.0;
-    K = k_tr * Mat3::Identity() + (k_ax - k_tr) * u * u.transpose();
-  } else {
-    const Vec3& a = s.semi_axes;
-    const Vec3 k(a[1] * a[1] + a[2] * a[2], a[0] * a[0] + a[2] * a[2], a[0] * a[0] + a[1] * a[1]);
-    K = s.rotation * (k / 5.0).asDiagonal() * s.rotation.transpose();
+BodyMobility MdPacker::mobility_of(const Body& b, const Shape& scaled) const {
+  switch (b.turn) {
+    case Turn::kNone:
+      return body_mobility(scaled, false, Vec3::Zero());
+    case Turn::kFree:
+      return body_mobility(scaled, true, Vec3::Zero());
+    case Turn::kAboutAxis:
+      return body_mobility(scaled, true, b.turn_axis);
   }
-  K *= f2 * b.volume;
-  if (b.turn == Turn::kAboutAxis) {
-    const Vec3& ax = b.turn_axis;
-    return (torque.dot(ax) / ax.dot(K * ax)) * ax;
-  }
-  return K.llt().solve(torque);
-}
-
-void MdPacker::apply_impulse(int i, const Vec3& point, const Vec3& impulse, double scale) {
-  Body& b = bodies_[i];
-  move_[i] += impulse / b.volume;
-  if (b.turn != Turn::kNone) {
-    turn_[i] += turn_response(i, (point - b.shape.center).cross(impulse), scale);
-  }
+  return body_mobility(scaled, false, Vec3::Zero());
 }
 
 double MdPacker::separating_scale(const Body& a, const Body& b, const Vec3& shift,
@@ -515,19 +488,12 @@ double MdPacker::contacts() {
     if (!c.overlap) continue;
     max_overlap_ = std::max(max_overlap_, c.depth / std::min(A.min_size(), B.min_size()));
     s_in = std::min(s_in, separating_scale(ba, bb, e.shift, c.normal));
-    if (e.a == e.b) {
-      // An inclusion against its own periodic image: the torque turns it, nothing moves it.
-      const Vec3 r = c.point - A.center, rb = c.point - B.center;
-      const double mob = mobility(e.a, r, c.normal, fa) + mobility(e.a, rb, c.normal, fa);
-      const Vec3 J = (kRelaxation * c.depth / mob) * c.normal;
-      if (ba.turn != Turn::kNone) turn_[e.a] += turn_response(e.a, rb.cross(J) - r.cross(J), fa);
-      continue;
-    }
-    const double mob = mobility(e.a, c.point - A.center, c.normal, fa) +
-                       mobility(e.b, c.point - B.center, c.normal, fb);
-    const Vec3 J = (kRelaxation * c.depth / mob) * c.normal;
-    apply_impulse(e.a, c.point, -J, fa);
-    apply_impulse(e.b, c.point - e.shift, J, fb);
+    // An inclusion against its own periodic image (e.a == e.b) only turns: the two moves
+    // cancel.
+    const ContactResponse r = contact_response(A.center, mobility_of(ba, A), B.center,
+                                               mobility_of(bb, B), c, kRelaxation);
+    add(e.a, r.move_a, r.turn_a);
+    add(e.b, r.move_b, r.turn_b);
   }
   if (!box_.periodic) {
     // Walls: contacts push the shape at the force scale back inside; the valid scale is the
@@ -549,8 +515,15 @@ double MdPacker::contacts() {
           const Shape cur = b.shape.scaled(f);
           const Vec3 p = cur.support(-nrm);
           max_overlap_ = std::max(max_overlap_, depth / cur.min_size());
-          const Vec3 J = (depth / mobility(static_cast<int>(i), p - cur.center, nrm, f)) * nrm;
-          apply_impulse(static_cast<int>(i), p, J, f);
+          // The wall is an immovable body beyond the face (normal from the inclusion to it).
+          Contact c;
+          c.overlap = true;
+          c.depth = depth;
+          c.normal = -nrm;
+          c.point = p;
+          const ContactResponse r =
+              contact_response(cur.center, mobility_of(b, cur), p, BodyMobility{}, c, 1.0);
+          add(static_cast<int>(i), r.move_a, r.turn_a);
         }
       }
     }
@@ -684,6 +657,49 @@ PackingResult MdPacker::run() {
 }
 
 }  // namespace
+
+BodyMobility body_mobility(const Shape& s, bool turns, const Vec3& axis) {
+  BodyMobility m;
+  const double volume = s.volume();
+  m.inv_volume = 1.0 / volume;
+  if (!turns || s.kind == ShapeKind::Sphere) return m;
+  // Inertia tensor = volume x gyration tensor I / m of the uniform solid.
+  Mat3 K;
+  if (s.kind == ShapeKind::Cylinder) {
+    const Vec3 u = s.half_axis.normalized();
+    const double L2 = s.half_axis.squaredNorm(), r2 = s.radius * s.radius;
+    const double k_ax = 0.5 * r2, k_tr = 0.25 * r2 + L2 / 3.0;
+    K = k_tr * Mat3::Identity() + (k_ax - k_tr) * u * u.transpose();
+  } else {
+    const Vec3& a = s.semi_axes;
+    const Vec3 k(a[1] * a[1] + a[2] * a[2], a[0] * a[0] + a[2] * a[2], a[0] * a[0] + a[1] * a[1]);
+    K = s.rotation * (k / 5.0).asDiagonal() * s.rotation.transpose();
+  }
+  K *= volume;
+  if (axis.squaredNorm() > 0.0) {
+    const Vec3 e = axis.normalized();
+    m.inv_inertia = e * e.transpose() / e.dot(K * e);
+  } else {
+    m.inv_inertia = K.inverse();
+  }
+  return m;
+}
+
+ContactResponse contact_response(const Vec3& ca, const BodyMobility& ma, const Vec3& cb,
+                                 const BodyMobility& mb, const Contact& c, double gain) {
+  ContactResponse r;
+  const Vec3 ra = c.point - ca, rb = c.point - cb;
+  const Vec3 ta = ra.cross(c.normal), tb = rb.cross(c.normal);
+  const double mob =
+      ma.inv_volume + ta.dot(ma.inv_inertia * ta) + mb.inv_volume + tb.dot(mb.inv_inertia * tb);
+  if (!(mob > 0.0) || !c.overlap) return r;
+  r.impulse = (gain * c.depth / mob) * c.normal;
+  r.move_a = -ma.inv_volume * r.impulse;
+  r.move_b = mb.inv_volume * r.impulse;
+  r.turn_a = ma.inv_inertia * ra.cross(-r.impulse);
+  r.turn_b = mb.inv_inertia * rb.cross(r.impulse);
+  return r;
+}
 
 PackingResult pack_md(const Scene& scene, const ProgressFn& progress) {
   MdPacker packer(scene, progress);

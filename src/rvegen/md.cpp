@@ -36,6 +36,7 @@
 #include <cmath>
 #include <cstdio>
 #include <numeric>
+#include <tuple>
 
 #include "rvegen/packing.hpp"
 
@@ -48,7 +49,7 @@ constexpr double kRelaxation = 1.0;        // scale of the summed contact impuls
 constexpr double kInitialPressure = 0.05;  // m: force scale / valid scale - 1
 constexpr double kMinPressure = 1e-6;
 constexpr double kStall = 0.1;  // m halves when the valid scale grew by less than kStall m
-constexpr double kSkin = 0.5;   // Verlet skin, in median capsule radii
+constexpr double kSkin = 0.5;   // Verlet skin, in capsule radii of each body
 constexpr int kPatience =
     100;  // steps between pressure checks           // steps without progress before m is halved
 constexpr double kStartFraction = 0.25;  // volume fraction of the initial force scale
@@ -137,6 +138,24 @@ class MdPacker {
   double separating_scale(const Body& a, const Body& b, const Vec3& shift, const Vec3& n) const;
 
   BodyMobility mobility_of(const Body& b, const Shape& scaled) const;
+  struct Sub {
+    Vec3 c;
+    double r;
+    int body;
+  };
+  struct Key {
+    int a, b, kx, ky, kz;
+    bool operator<(const Key& o) const {
+      return std::tie(a, b, kx, ky, kz) < std::tie(o.a, o.b, o.kx, o.ky, o.kz);
+    }
+    bool operator==(const Key& o) const {
+      return a == o.a && b == o.b && kx == o.kx && ky == o.ky && kz == o.kz;
+    }
+  };
+  static Key make_key(int a, int b, int kx, int ky, int kz);
+  std::vector<Sub> subs_;
+  std::vector<Key> keys_;
+  std::vector<double> half_skin_;
   void add(int i, const Vec3& move, const Vec3& turn) {
     move_[i] += move;
     turn_[i] += turn;
@@ -153,7 +172,6 @@ class MdPacker {
   std::vector<Vec3> built_center_;
   std::vector<double> turned_since_build_;
   double built_scale_ = -1.0;
-  double skin_ = 0.0;
   long long rebuilds_ = 0;
   // Scale control: contacts act at s_out = max(s_start, s_in (1 + m)).
   double s_out_ = 0.0, s_start_ = 0.0, m_ = kInitialPressure;
@@ -223,13 +241,6 @@ void MdPacker::init_bodies() {
   turn_.assign(n, Vec3::Zero());
   vel_.assign(n, Vec3::Zero());
   omega_.assign(n, Vec3::Zero());
-  // Skin: a fifth of the median capsule radius.
-  std::vector<double> radii(n);
-  for (size_t i = 0; i < n; ++i) radii[i] = bodies_[i].cap_radius;
-  if (n > 0) {
-    std::nth_element(radii.begin(), radii.begin() + n / 2, radii.end());
-    skin_ = kSkin * radii[n / 2];
-  }
 }
 
 void MdPacker::wrap(Body& b) const {
@@ -242,79 +253,84 @@ void MdPacker::wrap(Body& b) const {
 
 bool MdPacker::pairs_stale() const {
   if (built_scale_ < 0.0) return true;
-  double worst = 0.0;
   for (size_t i = 0; i < bodies_.size(); ++i) {
     const Body& b = bodies_[i];
-    const Vec3 d = b.shape.center - built_center_[i];
+    const double d = (b.shape.center - built_center_[i]).norm();
     const double grow = b.bound * std::max(0.0, force_scale(b) - (built_scale_ + b.pad));
-    const double r = b.bound * (force_scale(b) + 1e-12);
-    worst = std::max(worst, d.norm() + turned_since_build_[i] * r + grow);
+    const double r = b.bound * force_scale(b);
+    if (d + turned_since_build_[i] * r + grow > half_skin_[i]) return true;
   }
-  return worst > 0.5 * skin_;
+  return false;
+}
+
+// Canonical key of a candidate pair: a <= b, b taken at its centre + k * box (k in box sizes);
+// for a == b one of k and -k.
+MdPacker::Key MdPacker::make_key(int a, int b, int kx, int ky, int kz) {
+  if (a > b) {
+    std::swap(a, b);
+    kx = -kx;
+    ky = -ky;
+    kz = -kz;
+  }
+  if (a == b && (kx < 0 || (kx == 0 && (ky < 0 || (ky == 0 && kz < 0))))) {
+    kx = -kx;
+    ky = -ky;
+    kz = -kz;
+  }
+  return {a, b, kx, ky, kz};
 }
 
 void MdPacker::build_pairs() {
   const size_t n = bodies_.size();
   built_center_.resize(n);
+  half_skin_.resize(n);
   turned_since_build_.assign(n, 0.0);
   built_scale_ = s_out_;
   ++rebuilds_;
   pairs_.clear();
   for (Body& b : bodies_) wrap(b);
-  // Strings of spheres covering each inflated capsule.
-  struct Sub {
-    Vec3 c;
-    double r;
-    int body;
-  };
-  std::vector<Sub> subs;
+  // Strings of spheres covering each capsule inflated by the body's half skin (relative to its
+  // size, so large bodies do not force frequent rebuilds).
+  subs_.clear();
   std::vector<Vec3> seg_p(n), seg_q(n);
   std::vector<double> cap_r(n);
-  double rmax = 0.0;
   for (size_t i = 0; i < n; ++i) {
     const Body& b = bodies_[i];
     built_center_[i] = b.shape.center;
     const double f = force_scale(b);
+    half_skin_[i] = 0.5 * kSkin * b.cap_radius * f;
     const Vec3 e = capsule_axis(b.shape) * (b.cap_half * f);
-    const double rho = b.cap_radius * f + 0.5 * skin_;
+    const double rho = b.cap_radius * f + half_skin_[i];
     seg_p[i] = b.shape.center - e;
     seg_q[i] = b.shape.center + e;
     cap_r[i] = rho;
     const int k = b.cap_half > 0.0 ? static_cast<int>(std::ceil(2.0 * e.norm() / rho)) + 1 : 1;
     const double spacing = k > 1 ? 2.0 * e.norm() / (k - 1) : 0.0;
     const double rs = std::sqrt(rho * rho + 0.25 * spacing * spacing);
-    rmax = std::max(rmax, rs);
     for (int t = 0; t < k; ++t) {
       const double u = k > 1 ? -1.0 + 2.0 * t / (k - 1) : 0.0;
-      subs.push_back({b.shape.center + u * e, rs, static_cast<int>(i)});
+      subs_.push_back({b.shape.center + u * e, rs, static_cast<int>(i)});
     }
   }
-  struct Key {
-    int a, b, kx, ky, kz;
-    bool operator<(const Key& o) const {
-      return std::tie(a, b, kx, ky, kz) < std::tie(o.a, o.b, o.kx, o.ky, o.kz);
-    }
-    bool operator==(const Key& o) const {
-      return a == o.a && b == o.b && kx == o.kx && ky == o.ky && kz == o.kz;
-    }
-  };
-  std::vector<Key> keys;
-  int nc[3];
-  const double cell = 2.0 * rmax;
-  bool use_grid = true;
-  for (int a = 0; a < 3; ++a) {
-    nc[a] = std::max(1, static_cast<int>(std::floor(box_.size[a] / cell)));
-    if (box_.periodic && nc[a] < 3) use_grid = false;
-    nc[a] = std::min(nc[a], 1 << 10);
+  // Spheres up to twice the median radius are "small" and sorted into a grid of cells at
+  // least twice that radius; larger ones are registered in every cell they can reach.
+  std::vector<double> radii(subs_.size());
+  for (size_t p = 0; p < subs_.size(); ++p) radii[p] = subs_[p].r;
+  std::nth_element(radii.begin(), radii.begin() + radii.size() / 2, radii.end());
+  double r_cut = 2.0 * radii[radii.size() / 2];
+  std::vector<int> small, large;
+  for (size_t p = 0; p < subs_.size(); ++p) {
+    (subs_[p].r <= r_cut ? small : large).push_back(static_cast<int>(p));
   }
-  const long long ncell = static_cast<long long>(nc[0]) * nc[1] * nc[2];
-  if (ncell > 8 * static_cast<long long>(subs.size()) + 64) {
-    // More cells than spheres: coarsen (cells stay >= 2 rmax).
-    const double f = std::cbrt(static_cast<double>(ncell) / (8.0 * subs.size() + 64));
-    for (int a = 0; a < 3; ++a) nc[a] = std::max(1, static_cast<int>(nc[a] / f));
-    for (int a = 0; a < 3; ++a) use_grid &= !box_.periodic || nc[a] >= 3;
+  if (large.size() > 2000) {
+    // Too many large spheres for the direct large-large pass: one level for all.
+    r_cut = *std::max_element(radii.begin(), radii.end());
+    small.clear();
+    large.clear();
+    for (size_t p = 0; p < subs_.size(); ++p) small.push_back(static_cast<int>(p));
   }
-  auto add_key = [&](const Sub& p, const Sub& q) {
+  keys_.clear();
+  auto add_min_image = [&](const Sub& p, const Sub& q) {
     Vec3 d = q.c - p.c;
     int k[3] = {0, 0, 0};
     if (box_.periodic) {
@@ -325,53 +341,45 @@ void MdPacker::build_pairs() {
     }
     const double rr = p.r + q.r;
     if (d.squaredNorm() > rr * rr) return;
-    int a = p.body, b = q.body;
-    // Shift applied to b: -k box. Canonical order a <= b (swap negates the shift).
-    int s[3] = {-k[0], -k[1], -k[2]};
-    if (a > b) {
-      std::swap(a, b);
-      for (int& x : s) x = -x;
-    }
-    if (a == b) {
-      if (s[0] == 0 && s[1] == 0 && s[2] == 0) return;
-      // One of +shift / -shift.
-      const int* first = s[0] != 0 ? &s[0] : (s[1] != 0 ? &s[1] : &s[2]);
-      if (*first < 0) {
-        for (int& x : s) x = -x;
-      }
-    }
-    keys.push_back({a, b, s[0], s[1], s[2]});
+    if (p.body == q.body && k[0] == 0 && k[1] == 0 && k[2] == 0) return;
+    keys_.push_back(make_key(p.body, q.body, -k[0], -k[1], -k[2]));
   };
+  auto add_all_images = [&](const Sub& p, const Sub& q) {
+    for_each_image(box_, p.c, p.r, q.c, q.r, [&](const Vec3& sh) {
+      int k[3] = {0, 0, 0};
+      if (box_.periodic) {
+        for (int a = 0; a < 3; ++a) k[a] = static_cast<int>(std::floor(sh[a] / box_.size[a] + 0.5));
+      }
+      if (p.body == q.body && k[0] == 0 && k[1] == 0 && k[2] == 0) return;
+      keys_.push_back(make_key(p.body, q.body, k[0], k[1], k[2]));
+    });
+  };
+  // Cells at least twice the largest small radius; large spheres reach r_small further.
+  double r_small = 0.0;
+  for (int p : small) r_small = std::max(r_small, subs_[p].r);
+  int nc[3];
+  const double cell = 2.0 * r_small;
+  bool use_grid = true;
+  for (int a = 0; a < 3; ++a) {
+    nc[a] = std::clamp(static_cast<int>(std::floor(box_.size[a] / cell)), 1, 1 << 10);
+  }
+  const double cap = 8.0 * static_cast<double>(subs_.size()) + 64.0;
+  if (static_cast<double>(nc[0]) * nc[1] * nc[2] > cap) {
+    // More cells than spheres: coarsen (cells stay >= 2 r_cut).
+    const double f = std::cbrt(static_cast<double>(nc[0]) * nc[1] * nc[2] / cap);
+    for (int a = 0; a < 3; ++a) nc[a] = std::max(1, static_cast<int>(nc[a] / f));
+  }
+  for (int a = 0; a < 3; ++a) use_grid &= !box_.periodic || nc[a] >= 3;
   if (!use_grid) {
     // Small periodic boxes: every pair of spheres with every image that can touch.
-    for (size_t p = 0; p < subs.size(); ++p) {
-      for (size_t q = p; q < subs.size(); ++q) {
-        for_each_image(box_, subs[p].c, subs[p].r, subs[q].c, subs[q].r, [&](const Vec3& sh) {
-          Sub moved = subs[q];
-          moved.c += sh;
-          int k[3];
-          for (int a = 0; a < 3; ++a) k[a] = static_cast<int>(std::lround(-sh[a] / box_.size[a]));
-          int a = subs[p].body, b = subs[q].body;
-          int s[3] = {-k[0], -k[1], -k[2]};
-          if (a == b && s[0] == 0 && s[1] == 0 && s[2] == 0) return;
-          if (a > b) {
-            std::swap(a, b);
-            for (int& x : s) x = -x;
-          }
-          if (a == b) {
-            const int* first = s[0] != 0 ? &s[0] : (s[1] != 0 ? &s[1] : &s[2]);
-            if (*first < 0) {
-              for (int& x : s) x = -x;
-            }
-          }
-          keys.push_back({a, b, s[0], s[1], s[2]});
-        });
-      }
+    for (size_t p = 0; p < subs_.size(); ++p) {
+      for (size_t q = p; q < subs_.size(); ++q) add_all_images(subs_[p], subs_[q]);
     }
   } else {
-    auto cell_of = [&](const Vec3& c, int a) {
-      const double t = (c[a] - box_.origin[a]) / box_.size[a];
-      int i = static_cast<int>(std::floor(t * nc[a]));
+    const long long ncell = static_cast<long long>(nc[0]) * nc[1] * nc[2];
+    const long long nc01 = static_cast<long long>(nc[0]) * nc[1];
+    auto cell_index = [&](double x, int a) {
+      int i = static_cast<int>(std::floor((x - box_.origin[a]) / box_.size[a] * nc[a]));
       if (box_.periodic) {
         i %= nc[a];
         if (i < 0) i += nc[a];
@@ -380,22 +388,24 @@ void MdPacker::build_pairs() {
       }
       return i;
     };
-    // Counting sort of spheres into cells.
-    std::vector<int> start(ncell + 1, 0), cell_id(subs.size()), order(subs.size());
-    const long long nc01 = static_cast<long long>(nc[0]) * nc[1];
-    for (size_t p = 0; p < subs.size(); ++p) {
-      cell_id[p] = static_cast<int>(cell_of(subs[p].c, 0) + nc[0] * cell_of(subs[p].c, 1) +
-                                    nc01 * cell_of(subs[p].c, 2));
-      ++start[cell_id[p] + 1];
+    // Counting sort of the small spheres into cells.
+    std::vector<int> start(ncell + 1, 0), cell_id(small.size()), order(small.size());
+    for (size_t t = 0; t < small.size(); ++t) {
+      const Vec3& c = subs_[small[t]].c;
+      cell_id[t] = static_cast<int>(cell_index(c[0], 0) + nc[0] * cell_index(c[1], 1) +
+                                    nc01 * cell_index(c[2], 2));
+      ++start[cell_id[t] + 1];
     }
     for (long long c = 0; c < ncell; ++c) start[c + 1] += start[c];
     {
       std::vector<int> fill(start.begin(), start.end() - 1);
-      for (size_t p = 0; p < subs.size(); ++p) order[fill[cell_id[p]]++] = static_cast<int>(p);
+      for (size_t t = 0; t < small.size(); ++t) order[fill[cell_id[t]]++] = small[t];
     }
     const int span[3] = {std::min(nc[0], 3), std::min(nc[1], 3), std::min(nc[2], 3)};
-    for (size_t p = 0; p < subs.size(); ++p) {
-      const int cx = cell_of(subs[p].c, 0), cy = cell_of(subs[p].c, 1), cz = cell_of(subs[p].c, 2);
+    for (size_t t = 0; t < small.size(); ++t) {
+      const Sub& sp = subs_[small[t]];
+      const int cx = cell_index(sp.c[0], 0), cy = cell_index(sp.c[1], 1),
+                cz = cell_index(sp.c[2], 2);
       for (int dz = -1; dz < span[2] - 1; ++dz) {
         for (int dy = -1; dy < span[1] - 1; ++dy) {
           for (int dx = -1; dx < span[0] - 1; ++dx) {
@@ -409,21 +419,57 @@ void MdPacker::build_pairs() {
             }
             const long long c = x + nc[0] * y + nc01 * z;
             for (int k = start[c]; k < start[c + 1]; ++k) {
-              const int q = order[k];
-              if (q <= static_cast<int>(p)) continue;
-              add_key(subs[p], subs[q]);
+              if (order[k] > small[t]) add_min_image(sp, subs_[order[k]]);
             }
           }
         }
       }
     }
-    // Spheres of the same body against their own images are found above; identical
-    // spheres (q == p) can only meet their images in boxes the grid does not handle.
+    if (!large.empty()) {
+      // Large spheres: registered in every cell within their radius plus r_small, so a small
+      // sphere that touches one finds it in its own cell.
+      std::vector<std::vector<int>> reg(ncell);
+      for (int q : large) {
+        const Sub& sq = subs_[q];
+        int lo[3], hi[3];
+        for (int a = 0; a < 3; ++a) {
+          const double w = box_.size[a] / nc[a];
+          lo[a] = static_cast<int>(std::floor((sq.c[a] - sq.r - r_small - box_.origin[a]) / w));
+          hi[a] = static_cast<int>(std::floor((sq.c[a] + sq.r + r_small - box_.origin[a]) / w));
+          if (box_.periodic) {
+            if (hi[a] - lo[a] + 1 >= nc[a]) {
+              lo[a] = 0;
+              hi[a] = nc[a] - 1;
+            }
+          } else {
+            lo[a] = std::clamp(lo[a], 0, nc[a] - 1);
+            hi[a] = std::clamp(hi[a], 0, nc[a] - 1);
+          }
+        }
+        for (int z = lo[2]; z <= hi[2]; ++z) {
+          for (int y = lo[1]; y <= hi[1]; ++y) {
+            for (int x = lo[0]; x <= hi[0]; ++x) {
+              const int xx = (x % nc[0] + nc[0]) % nc[0], yy = (y % nc[1] + nc[1]) % nc[1],
+                        zz = (z % nc[2] + nc[2]) % nc[2];
+              reg[xx + nc[0] * yy + nc01 * zz].push_back(q);
+            }
+          }
+        }
+      }
+      for (size_t t = 0; t < small.size(); ++t) {
+        const Sub& sp = subs_[small[t]];
+        const long long c = cell_id[t];
+        for (int q : reg[c]) add_all_images(sp, subs_[q]);
+      }
+      for (size_t u = 0; u < large.size(); ++u) {
+        for (size_t v = u; v < large.size(); ++v) add_all_images(subs_[large[u]], subs_[large[v]]);
+      }
+    }
   }
-  std::sort(keys.begin(), keys.end());
-  keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
-  pairs_.reserve(keys.size());
-  for (const Key& k : keys) {
+  std::sort(keys_.begin(), keys_.end());
+  keys_.erase(std::unique(keys_.begin(), keys_.end()), keys_.end());
+  pairs_.reserve(keys_.size());
+  for (const Key& k : keys_) {
     const Vec3 shift(k.kx * box_.size[0], k.ky * box_.size[1], k.kz * box_.size[2]);
     const double rr = cap_r[k.a] + cap_r[k.b];
     if (segment_distance2(seg_p[k.a], seg_q[k.a], seg_p[k.b] + shift, seg_q[k.b] + shift) >

@@ -19,10 +19,10 @@
 //      the translational and rotational mobilities of both bodies), plus a fraction kMomentum
 //      of the previous step's motion (damping 1 - kMomentum).
 // The outer scale follows the inner one: s_out = s_in (1 + m), with the "pressure" m halved
-// whenever s_in has stalled over kPatience steps. The run ends when s_in >= 1 (status "ok":
-// the inclusions have their drawn sizes), when m < kMinPressure (jammed), or on the
-// step/time budget; then the status is "target_not_reached" and the best valid configuration
-// is returned shrunk to its scale.
+// whenever s_in has stalled over md.patience steps (md.pressure is its initial value). The run ends
+// when s_in >= 1 (status "ok": the inclusions have their drawn sizes), when m < kMinPressure
+// (jammed), or on the step/time budget; then the status is "target_not_reached" and the best valid
+// configuration is returned shrunk to its scale.
 //
 // min_gap: inclusion i is tested at scale s + gap / (2 min_size_i); scaled so, it contains the
 // inclusion at scale s grown by gap / 2 in every direction, so valid pairs are >= gap apart.
@@ -44,14 +44,11 @@ namespace rvegen {
 
 namespace {
 
-constexpr double kMomentum = 0.9;          // fraction of the last step's motion kept (damping 0.1)
-constexpr double kRelaxation = 1.0;        // scale of the summed contact impulses
-constexpr double kInitialPressure = 0.05;  // m: force scale / valid scale - 1
+constexpr double kMomentum = 0.9;    // fraction of the last step's motion kept (damping 0.1)
+constexpr double kRelaxation = 1.0;  // scale of the summed contact impulses
 constexpr double kMinPressure = 1e-6;
 constexpr double kStall = 0.1;  // m halves when the valid scale grew by less than kStall m
 constexpr double kSkin = 0.5;   // Verlet skin, in capsule radii of each body
-constexpr int kPatience =
-    100;  // steps between pressure checks           // steps without progress before m is halved
 constexpr double kStartFraction = 0.25;  // volume fraction of the initial force scale
 constexpr double kMaxTurn = 0.2;         // radians per step
 
@@ -174,7 +171,7 @@ class MdPacker {
   double built_scale_ = -1.0;
   long long rebuilds_ = 0;
   // Scale control: contacts act at s_out = max(s_start, s_in (1 + m)).
-  double s_out_ = 0.0, s_start_ = 0.0, m_ = kInitialPressure;
+  double s_out_ = 0.0, s_start_ = 0.0, m_ = 0.0;
   long long steps_ = 0;
   double max_overlap_ = 0.0;  // largest relative overlap depth of the last step
   // Best valid configuration.
@@ -236,6 +233,7 @@ void MdPacker::init_bodies() {
   const double vf = total / box_.volume();
   s_start_ = std::min(1.0, std::cbrt(kStartFraction / std::max(vf, 1e-12)));
   s_out_ = s_start_;
+  m_ = scene_.md.pressure;
   const size_t n = bodies_.size();
   move_.assign(n, Vec3::Zero());
   turn_.assign(n, Vec3::Zero());
@@ -656,7 +654,7 @@ PackingResult MdPacker::run() {
     if (best_scale_ >= 1.0) break;
     move();
     ++steps_;
-    if (steps_ % kPatience == 0) {
+    if (steps_ % scene_.md.patience == 0) {
       // Pressure control: halve m when the valid scale has stalled.
       if (best_scale_ < mark * (1.0 + kStall * m_)) m_ *= 0.5;
       mark = best_scale_;

@@ -472,7 +472,17 @@ Scene parse_scene(const std::string& text) {
   }
   if (root.contains("md")) {
     const Json& m = root["md"];
-    only_keys(m, {"max_steps", "max_seconds"}, "md");
+    only_keys(m, {"max_steps", "max_seconds", "pressure", "patience"}, "md");
+    if (m.contains("pressure")) {
+      s.md.pressure = positive(m["pressure"], "md.pressure");
+      if (s.md.pressure > 1.0) fail("md.pressure", "must be in (0, 1]");
+    }
+    if (m.contains("patience")) {
+      const double n = number(m["patience"], "md.patience");
+      if (n != std::floor(n) || n < 1 || n > 1e7)
+        fail("md.patience", "must be an integer in [1, 1e7]");
+      s.md.patience = static_cast<int>(n);
+    }
     if (m.contains("max_steps")) {
       const double n = number(m["max_steps"], "md.max_steps");
       if (n != std::floor(n) || n < 1 || n > 1e12) fail("md.max_steps", "must be an integer >= 1");
@@ -568,7 +578,10 @@ std::string scene_to_json(const Scene& s) {
   root["seed"] = s.seed;
   root["method"] = s.method;
   root["min_gap"] = s.min_gap;
-  root["md"] = {{"max_steps", s.md.max_steps}, {"max_seconds", s.md.max_seconds}};
+  root["md"] = {{"max_steps", s.md.max_steps},
+                {"max_seconds", s.md.max_seconds},
+                {"pressure", s.md.pressure},
+                {"patience", s.md.patience}};
   root["rsa"] = {{"max_attempts", s.rsa_max_attempts}};
   OJson fams = OJson::array();
   for (const auto& f : s.families) {

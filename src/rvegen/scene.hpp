@@ -67,6 +67,10 @@ struct Family {
 struct MdSettings {
   long long max_steps = 2000000;
   double max_seconds = 600.0;
+  /// Initial pressure m (force scale / valid scale - 1) and the steps over which a stalled
+  /// valid scale halves it: more patience means slower compression and denser jamming.
+  double pressure = 0.05;
+  int patience = 100;
 };
 
 struct Scene {

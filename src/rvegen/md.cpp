@@ -47,8 +47,8 @@ namespace {
 constexpr double kMomentum = 0.9;    // fraction of the last step's motion kept (damping 0.1)
 constexpr double kRelaxation = 1.0;  // scale of the summed contact impulses
 constexpr double kMinPressure = 1e-6;
-constexpr double kStall = 0.1;  // m halves when the valid scale grew by less than kStall m
-constexpr double kSkin = 0.5;   // Verlet skin, in capsule radii of each body
+constexpr double kStall = 0.1;           // m halves when the valid scale grew by less than kStall m
+constexpr double kSkin = 0.5;            // Verlet skin, in capsule radii of each body
 constexpr double kStartFraction = 0.25;  // volume fraction of the initial force scale
 constexpr double kMaxTurn = 0.2;         // radians per step
 
@@ -656,7 +656,12 @@ PackingResult MdPacker::run() {
     ++steps_;
     if (steps_ % scene_.md.patience == 0) {
       // Pressure control: halve m when the valid scale has stalled.
-      if (best_scale_ < mark * (1.0 + kStall * m_)) m_ *= 0.5;
+      if (best_scale_ < mark * (1.0 + kStall * m_)) {
+        m_ *= 0.5;
+        // Stalled: the starting scale may itself be jammed (long fibres), so the outer scale
+        // may now drop below it.
+        s_start_ = 0.0;
+      }
       mark = best_scale_;
       if (m_ < kMinPressure) {
         why = "jammed";

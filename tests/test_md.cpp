@@ -6,18 +6,10 @@
 #include "rvegen/packing.hpp"
 #include "rvegen/report.hpp"
 #include "rvegen/stats.hpp"
+#include "test_util.hpp"
 
 namespace rvegen {
 namespace {
-
-std::string scene_error_for_test(const std::string& text) {
-  try {
-    parse_scene(text);
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
-}
 
 double total_fraction(const PackingResult& r) {
   double vf = 0.0;
@@ -202,7 +194,7 @@ TEST(Laws, VolumeFractionAndCountGiveTheSize) {
   EXPECT_NEAR(50 * s.families[1].mean_volume(), 0.2, 1e-12);
   EXPECT_NEAR(20 * s.families[2].mean_volume(), 0.1, 1e-12);
   EXPECT_NEAR(s.families[2].semi_axes[0].p1 / s.families[2].semi_axes[2].p1, 3.0, 1e-12);
-  EXPECT_NE(scene_error_for_test(R"({"box":{"size":[1,1,1]},"families":[
+  EXPECT_NE(scene_error(R"({"box":{"size":[1,1,1]},"families":[
       {"shape":"sphere","radius":0.1,"volume_fraction":0.3,"count":100}]})")
                 .find("families[0].radius"),
             std::string::npos);

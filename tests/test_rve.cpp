@@ -9,6 +9,7 @@
 #include "rvegen/report.hpp"
 #include "rvegen/scene.hpp"
 #include "rvegen/voxelize.hpp"
+#include "test_util.hpp"
 
 using namespace rvegen;
 
@@ -142,15 +143,6 @@ TEST(InclusionFile, ErrorsNameTheKey) {
             std::string::npos);
   EXPECT_NE(err(R"({"format":"other","box":{"size":[1,1,1]},"inclusions":[]})").find("format"),
             std::string::npos);
-}
-
-std::string scene_error(const std::string& text) {
-  try {
-    parse_scene(text);
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "no error";
 }
 
 TEST(Scene, DefaultSceneRoundTrips) {

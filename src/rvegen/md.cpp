@@ -35,10 +35,10 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <numeric>
 #include <tuple>
 
 #include "rvegen/packing.hpp"
+#include "rvegen/stats.hpp"
 
 namespace rvegen {
 
@@ -65,17 +65,6 @@ struct Body {
   Turn turn = Turn::kNone;
   Vec3 turn_axis = Vec3::UnitZ();
 };
-
-// Bounding capsule axis (unit) of a shape.
-Vec3 capsule_axis(const Shape& s) {
-  if (s.kind == ShapeKind::Cylinder) return s.half_axis.normalized();
-  if (s.kind == ShapeKind::Ellipsoid) {
-    int k = 0;
-    s.semi_axes.maxCoeff(&k);
-    return s.rotation.col(k);
-  }
-  return Vec3::UnitZ();
-}
 
 // Squared distance between segments [p1, q1] and [p2, q2] (Ericson, Real-Time Collision
 // Detection, 5.1.9).
@@ -297,7 +286,7 @@ void MdPacker::build_pairs() {
     built_center_[i] = b.shape.center;
     const double f = force_scale(b);
     half_skin_[i] = 0.5 * kSkin * b.cap_radius * f;
-    const Vec3 e = capsule_axis(b.shape) * (b.cap_half * f);
+    const Vec3 e = principal_axis(b.shape) * (b.cap_half * f);
     const double rho = b.cap_radius * f + half_skin_[i];
     seg_p[i] = b.shape.center - e;
     seg_q[i] = b.shape.center + e;

@@ -25,11 +25,8 @@ PackingResult pack_rsa(const Scene& scene, const ProgressFn& progress) {
     rmax = std::max(rmax, inc.shape.bounding_radius());
   }
   // Bulkiest inclusions first (largest smallest width): they are the hardest to place late.
-  auto width = [](const Shape& s) {
-    return s.kind == ShapeKind::Cylinder ? std::min(s.radius, s.half_axis.norm()) : s.min_size();
-  };
-  std::stable_sort(pop.begin(), pop.end(), [&](const Inclusion& a, const Inclusion& b) {
-    return width(a.shape) > width(b.shape);
+  std::stable_sort(pop.begin(), pop.end(), [](const Inclusion& a, const Inclusion& b) {
+    return a.shape.min_size() > b.shape.min_size();
   });
   const long long total = static_cast<long long>(pop.size());
   const Box& box = scene.box;

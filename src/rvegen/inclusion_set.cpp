@@ -4,6 +4,7 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 
+#include "rvegen/body.hpp"
 #include "rvegen/json_util.hpp"
 
 namespace rvegen {
@@ -93,13 +94,16 @@ void NeighbourGrid::for_each_candidate(const Vec3& c, const std::function<void(i
 
 std::vector<OverlapRecord> find_overlaps(const InclusionSet& set) {
   const auto& inc = set.inclusions;
+  // Modified inclusions are tested by their envelopes, which hold everything they add.
+  std::vector<Shape> env(inc.size());
+  for (size_t i = 0; i < inc.size(); ++i) env[i] = envelope(inc[i]);
   double rmax = 0.0;
-  for (const auto& i : inc) rmax = std::max(rmax, i.shape.bounding_radius());
+  for (const auto& e : env) rmax = std::max(rmax, e.bounding_radius());
   NeighbourGrid grid(set.box, 2.0 * rmax, inc.size());
   for (int i = 0; i < static_cast<int>(inc.size()); ++i) grid.insert(i, inc[i].shape.center);
   std::vector<OverlapRecord> out;
   for (int i = 0; i < static_cast<int>(inc.size()); ++i) {
-    const Shape& a = inc[i].shape;
+    const Shape& a = env[i];
     const double ra = a.bounding_radius();
     std::vector<int> cand;
     grid.for_each_candidate(a.center, [&](int j) {
@@ -107,7 +111,7 @@ std::vector<OverlapRecord> find_overlaps(const InclusionSet& set) {
     });
     std::sort(cand.begin(), cand.end());
     for (int j : cand) {
-      const Shape& b = inc[j].shape;
+      const Shape& b = env[j];
       for_each_image(set.box, a.center, ra, b.center, b.bounding_radius(), [&](const Vec3& s) {
         if (j == i && s.isZero()) return;
         // An inclusion against its own image: each image pair is met twice (+s and -s).
@@ -137,10 +141,68 @@ std::vector<int> find_outside(const InclusionSet& set) {
   return out;
 }
 
+namespace {
+Modifiers read_modifiers(const json_util::Json& j, const Shape& shape, const std::string& p) {
+  using namespace json_util;
+  only_keys(j,
+            {"coating", "shells_may_touch", "wave_amplitude", "wave_length", "wave_phase",
+             "wave_angle", "deform_amplitude", "deform_scale", "deform_waves", "debond_fraction",
+             "debond_gap", "debond_axis"},
+            p);
+  Modifiers m;
+  auto num = [&](const char* key, double* out) {
+    if (j.contains(key)) *out = number(j[key], join(p, key));
+  };
+  num("coating", &m.coating);
+  if (m.coating < 0.0) fail(p + ".coating", "must be >= 0");
+  if (j.contains("shells_may_touch"))
+    m.shells_may_touch = boolean(j["shells_may_touch"], p + ".shells_may_touch");
+  if (j.contains("wave_amplitude")) {
+    if (shape.kind != ShapeKind::Cylinder) fail(p + ".wave_amplitude", "cylinders only");
+    m.wave_amplitude = positive(j["wave_amplitude"], p + ".wave_amplitude");
+    m.wave_length = positive(require(j, "wave_length", p), p + ".wave_length");
+    num("wave_phase", &m.wave_phase);
+    num("wave_angle", &m.wave_angle);
+  }
+  if (j.contains("deform_amplitude")) {
+    if (shape.kind == ShapeKind::Cylinder)
+      fail(p + ".deform_amplitude", "spheres and ellipsoids only");
+    m.deform_amplitude = positive(j["deform_amplitude"], p + ".deform_amplitude");
+    if (m.deform_amplitude > 0.5) fail(p + ".deform_amplitude", "must be in (0, 0.5]");
+    m.deform_scale = positive(require(j, "deform_scale", p), p + ".deform_scale");
+    const Json& waves = require(j, "deform_waves", p);
+    if (!waves.is_array()) fail(p + ".deform_waves", "expected an array");
+    double sum = 0.0;
+    for (size_t k = 0; k < waves.size(); ++k) {
+      const std::string q = p + ".deform_waves[" + std::to_string(k) + "]";
+      DeformationWave w;
+      w.direction = vec3(require(waves[k], "direction", q), q + ".direction").normalized();
+      w.weight = positive(require(waves[k], "weight", q), q + ".weight");
+      w.wavenumber = positive(require(waves[k], "wavenumber", q), q + ".wavenumber");
+      w.phase = number(require(waves[k], "phase", q), q + ".phase");
+      sum += w.weight;
+      m.deform_waves.push_back(w);
+    }
+    if (sum > 1.0 + 1e-9) fail(p + ".deform_waves", "weights must sum to at most 1");
+  }
+  if (j.contains("debond_gap")) {
+    if (shape.kind != ShapeKind::Sphere) fail(p + ".debond_gap", "spheres only");
+    m.debond_gap = positive(j["debond_gap"], p + ".debond_gap");
+    m.debond_fraction = positive(require(j, "debond_fraction", p), p + ".debond_fraction");
+    if (m.debond_fraction > 1.0) fail(p + ".debond_fraction", "must be in (0, 1]");
+    const Vec3 a = vec3(require(j, "debond_axis", p), p + ".debond_axis");
+    if (!(a.norm() > 0.0)) fail(p + ".debond_axis", "must be non-zero");
+    m.debond_axis = a.normalized();
+  }
+  return m;
+}
+}  // namespace
+
 InclusionSet read_inclusions_json(const std::string& text) {
   using namespace json_util;
   const Json root = parse(text, "inclusion file");
   if (!root.is_object()) fail("(root)", "expected an object");
+  only_keys(root, {"format", "box", "family_names", "inclusions"}, "");
   const std::string fmt = string(require(root, "format", ""), "format");
   if (fmt != "rvegen.inclusions/1")
     fail("format", "expected \"rvegen.inclusions/1\", got \"" + fmt + "\"");
@@ -152,6 +214,10 @@ InclusionSet read_inclusions_json(const std::string& text) {
     const std::string p = "inclusions[" + std::to_string(n) + "]";
     const Json& e = list[n];
     if (!e.is_object()) fail(p, "expected an object");
+    only_keys(e,
+              {"id", "family", "shape", "center", "radius", "half_axis", "semi_axes", "rotation",
+               "modifiers"},
+              p);
     Inclusion inc;
     const double id = number(require(e, "id", p), p + ".id");
     if (id != std::floor(id) || id < 0) fail(p + ".id", "must be a non-negative integer");
@@ -193,7 +259,15 @@ InclusionSet read_inclusions_json(const std::string& text) {
         break;
       }
     }
+    if (e.contains("modifiers"))
+      inc.mod = read_modifiers(e["modifiers"], inc.shape, p + ".modifiers");
     set.inclusions.push_back(inc);
+  }
+  if (root.contains("family_names")) {
+    const Json& names = root["family_names"];
+    if (!names.is_array()) fail("family_names", "expected an array of strings");
+    for (size_t k = 0; k < names.size(); ++k)
+      set.family_names.push_back(string(names[k], "family_names[" + std::to_string(k) + "]"));
   }
   return set;
 }
@@ -228,8 +302,41 @@ std::string write_inclusions_json(const InclusionSet& set) {
         break;
       }
     }
+    const Modifiers& m = inc.mod;
+    if (m.any()) {
+      OJson mj;
+      if (m.coated()) {
+        mj["coating"] = m.coating;
+        mj["shells_may_touch"] = m.shells_may_touch;
+      }
+      if (m.wavy()) {
+        mj["wave_amplitude"] = m.wave_amplitude;
+        mj["wave_length"] = m.wave_length;
+        mj["wave_phase"] = m.wave_phase;
+        mj["wave_angle"] = m.wave_angle;
+      }
+      if (m.deformed()) {
+        mj["deform_amplitude"] = m.deform_amplitude;
+        mj["deform_scale"] = m.deform_scale;
+        OJson waves = OJson::array();
+        for (const auto& w : m.deform_waves) {
+          waves.push_back({{"direction", v3(w.direction)},
+                           {"weight", w.weight},
+                           {"wavenumber", w.wavenumber},
+                           {"phase", w.phase}});
+        }
+        mj["deform_waves"] = waves;
+      }
+      if (m.debonded()) {
+        mj["debond_fraction"] = m.debond_fraction;
+        mj["debond_gap"] = m.debond_gap;
+        mj["debond_axis"] = v3(m.debond_axis);
+      }
+      e["modifiers"] = mj;
+    }
     list.push_back(e);
   }
+  if (!set.family_names.empty()) root["family_names"] = set.family_names;
   root["inclusions"] = list;
   return root.dump(1) + "\n";
 }

@@ -37,6 +37,7 @@
 #include <cstdio>
 #include <tuple>
 
+#include "rvegen/body.hpp"
 #include "rvegen/packing.hpp"
 #include "rvegen/stats.hpp"
 
@@ -168,17 +169,19 @@ class MdPacker {
   std::vector<Vec3> best_center_;
   std::vector<int> oriented_;  // bodies that are not spheres
   std::vector<Shape> best_oriented_;
+  std::vector<Inclusion> pop_;  // drawn cores and modifiers
   std::chrono::steady_clock::time_point t0_, last_progress_;
 };
 
 void MdPacker::init_bodies() {
   Random rng(scene_.seed);
-  const std::vector<Inclusion> pop = draw_population(scene_, rng);
+  pop_ = draw_population(scene_, rng);
+  const std::vector<Inclusion>& pop = pop_;
   bodies_.resize(pop.size());
   double total = 0.0;
   for (size_t i = 0; i < pop.size(); ++i) {
     Body& b = bodies_[i];
-    b.shape = pop[i].shape;
+    b.shape = envelope(pop[i]);  // modified inclusions are packed by their envelopes
     b.family = pop[i].family;
     b.volume = b.shape.volume();
     b.bound = b.shape.bounding_radius();
@@ -630,9 +633,9 @@ PackingResult MdPacker::run() {
   const int nf = static_cast<int>(scene_.families.size());
   res.target_count.assign(nf, 0);
   res.target_volume_fraction.assign(nf, 0.0);
-  for (const Body& b : bodies_) {
-    ++res.target_count[b.family];
-    res.target_volume_fraction[b.family] += b.volume / box_.volume();
+  for (const Inclusion& inc : pop_) {
+    ++res.target_count[inc.family];
+    res.target_volume_fraction[inc.family] += inc.shape.volume() / box_.volume();
   }
   std::string why = "target reached";
   if (bodies_.empty()) best_scale_ = 1.0;
@@ -682,10 +685,8 @@ PackingResult MdPacker::run() {
     Body b = bodies_[i];
     b.shape.center = best_center_[i];
     wrap(b);
-    Inclusion inc;
+    Inclusion inc = place_like(pop_[i], b.shape, res.scale);
     inc.id = static_cast<int>(res.set.inclusions.size());
-    inc.family = b.family;
-    inc.shape = b.shape.scaled(res.scale);
     res.set.inclusions.push_back(inc);
     ++res.placed_count[inc.family];
   }

@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <numeric>
 
+#include "rvegen/body.hpp"
+
 namespace rvegen {
 
 PackingResult pack_rsa(const Scene& scene, const ProgressFn& progress) {
@@ -22,11 +24,11 @@ PackingResult pack_rsa(const Scene& scene, const ProgressFn& progress) {
   for (const auto& inc : pop) {
     ++res.target_count[inc.family];
     res.target_volume_fraction[inc.family] += inc.shape.volume() / scene.box.volume();
-    rmax = std::max(rmax, inc.shape.bounding_radius());
+    rmax = std::max(rmax, envelope(inc).bounding_radius());
   }
   // Bulkiest inclusions first (largest smallest width): they are the hardest to place late.
   std::stable_sort(pop.begin(), pop.end(), [](const Inclusion& a, const Inclusion& b) {
-    return a.shape.min_size() > b.shape.min_size();
+    return envelope(a).min_size() > envelope(b).min_size();
   });
   const long long total = static_cast<long long>(pop.size());
   const Box& box = scene.box;
@@ -40,7 +42,7 @@ PackingResult pack_rsa(const Scene& scene, const ProgressFn& progress) {
       bool placed = false;
       for (int attempt = 0; attempt < scene.rsa_max_attempts && !placed; ++attempt) {
         ++res.attempts;
-        Shape s = drawn.shape;
+        Shape s = envelope(drawn);  // modified inclusions are placed by their envelopes
         Vec3 lo, hi;
         s.aabb(&lo, &hi);  // around the origin: half extents are hi
         Vec3 c;
@@ -69,7 +71,7 @@ PackingResult pack_rsa(const Scene& scene, const ProgressFn& progress) {
         if (clear) {
           grid.for_each_candidate(c, [&](int j) {
             if (!clear) return;
-            const Shape& o = out[j].shape;
+            const Shape o = envelope(out[j]);
             for_each_image(box, c, rs + scene.min_gap, o.center, o.bounding_radius(),
                            [&](const Vec3& sh) {
                              if (clear) clear = clear_of(s, o.translated(sh), scene.min_gap);
@@ -77,10 +79,8 @@ PackingResult pack_rsa(const Scene& scene, const ProgressFn& progress) {
           });
         }
         if (!clear) continue;
-        Inclusion inc;
+        Inclusion inc = place_like(drawn, s, 1.0);
         inc.id = static_cast<int>(out.size());
-        inc.family = f;
-        inc.shape = s;
         grid.insert(inc.id, c);
         out.push_back(inc);
         placed = true;
@@ -110,7 +110,9 @@ PackingResult pack_rsa(const Scene& scene, const ProgressFn& progress) {
 }
 
 PackingResult generate(const Scene& scene, const ProgressFn& progress) {
-  return scene.method == "rsa" ? pack_rsa(scene, progress) : pack_md(scene, progress);
+  PackingResult r = scene.method == "rsa" ? pack_rsa(scene, progress) : pack_md(scene, progress);
+  for (const Family& f : scene.families) r.set.family_names.push_back(f.name);
+  return r;
 }
 
 }  // namespace rvegen

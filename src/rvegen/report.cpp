@@ -2,6 +2,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "rvegen/body.hpp"
 #include "rvegen/stats.hpp"
 
 namespace rvegen {
@@ -21,11 +22,11 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
   const int nf = static_cast<int>(scene.families.size());
   const std::vector<double> vf = family_volume_fractions(r.set, nf);
   std::vector<double> voxel_vf(nf, 0.0);
+  std::vector<double> label_vf;
   if (image) {
-    for (uint8_t p : image->phase) {
-      if (p > 0 && p <= nf) voxel_vf[p - 1] += 1.0;
-    }
-    for (double& v : voxel_vf) v /= static_cast<double>(image->phase.size());
+    label_vf = label_fractions(*image);
+    for (int f = 0; f < nf && f + 1 < static_cast<int>(label_vf.size()); ++f)
+      voxel_vf[f] = label_vf[f + 1];
   }
   OJson root;
   root["status"] = r.status;
@@ -72,6 +73,44 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
   root["target_volume_fraction"] = target_total;
   root["count"] = r.set.inclusions.size();
   root["families"] = fams;
+  // Every phase: the exact volume fraction from the geometry and, with an image, the share of
+  // voxel centres carrying the label.
+  const std::vector<Phase> phases = image ? image->phases : phase_table(r.set);
+  std::vector<double> exact(phases.size(), 0.0);
+  bool merged_shells = false;
+  for (const auto& inc : r.set.inclusions) {
+    const RegionVolumes v = region_volumes(inc);
+    merged_shells = merged_shells || (inc.mod.coated() && inc.mod.shells_may_touch);
+    for (const auto& p : phases) {
+      if (p.family != inc.family) continue;
+      if (p.kind == "core") exact[p.label] += v.core;
+      if (p.kind == "interphase") exact[p.label] += v.shell;
+      if (p.kind == "void") exact[p.label] += v.void_;
+    }
+  }
+  double solid = 0.0;
+  for (double& v : exact) {
+    v /= r.set.box.volume();
+    solid += v;
+  }
+  exact[0] = 1.0 - solid;
+  OJson ph = OJson::array();
+  for (const auto& p : phases) {
+    OJson j;
+    j["label"] = p.label;
+    j["name"] = p.name;
+    j["kind"] = p.kind;
+    if (p.family >= 0) j["family"] = p.family;
+    j["volume_fraction"] = exact[p.label];
+    if (image) j["voxel_volume_fraction"] = label_vf[p.label];
+    ph.push_back(j);
+  }
+  root["phases"] = ph;
+  if (merged_shells) {
+    root["phases_note"] =
+        "shells_may_touch: interphase volume fractions are the sum of the shells, an upper bound "
+        "(merged shells count once in the image)";
+  }
   const Summary nn = nearest_neighbour_distances(r.set);
   if (nn.n > 0) {
     root["nearest_neighbour_distance"] = {
@@ -86,7 +125,16 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
   }
   root["packing_seconds"] = r.seconds;
   root["seconds"] = total_seconds;
-  if (image) root["voxels"] = {{"resolution", {image->dims[0], image->dims[1], image->dims[2]}}};
+  if (image) {
+    OJson vox;
+    vox["resolution"] = {image->dims[0], image->dims[1], image->dims[2]};
+    if (!image->fraction.empty()) {
+      // The partial-volume estimate of the total core volume fraction.
+      vox["partial_volume_fraction"] = partial_volume_fraction(*image);
+    }
+    vox["conflicts"] = image->conflicts;
+    root["voxels"] = vox;
+  }
   return root.dump(2) + "\n";
 }
 

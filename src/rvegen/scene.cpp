@@ -4,6 +4,7 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 
+#include "rvegen/body.hpp"
 #include "rvegen/json_util.hpp"
 
 namespace rvegen {
@@ -140,28 +141,100 @@ double Family::mean_volume() const {
   return 0.0;
 }
 
+namespace {
+// Bounds on how modifiers grow a core of largest size `size` into its envelope: the factor of
+// a deformation (lambda (1 + e) <= (1 + e) / (1 - e)) and the added thickness.
+double grown_size(const FamilyModifiers& m, double size) {
+  const double e = m.deform_amplitude;
+  return size * (1.0 + e) / (1.0 - e) + m.coating + m.wave_amplitude + m.debond_gap;
+}
+}  // namespace
+
 double Family::max_bounding_radius() const {
+  const FamilyModifiers& m = modifiers;
   switch (shape) {
     case ShapeKind::Sphere:
-      return radius.upper();
+      return grown_size(m, radius.upper());
     case ShapeKind::Cylinder:
-      return radius.upper() * std::sqrt(1.0 + std::pow(aspect_ratio.upper(), 2));
-    case ShapeKind::Ellipsoid:
-      return std::max({semi_axes[0].upper(), semi_axes[1].upper(), semi_axes[2].upper()});
+      return std::hypot(radius.upper() + m.coating + m.wave_amplitude,
+                        radius.upper() * aspect_ratio.upper() + m.coating);
+    case ShapeKind::Ellipsoid: {
+      const double big =
+          std::max({semi_axes[0].upper(), semi_axes[1].upper(), semi_axes[2].upper()});
+      const double small =
+          std::min({semi_axes[0].lower(), semi_axes[1].lower(), semi_axes[2].lower()});
+      const double e = m.deform_amplitude;
+      return big * (1.0 + e) / (1.0 - e) * (1.0 + m.coating / small);
+    }
   }
   return 0.0;
 }
 
 double Family::max_min_width() const {
+  const FamilyModifiers& m = modifiers;
   switch (shape) {
     case ShapeKind::Sphere:
-      return 2.0 * radius.upper();
+      return 2.0 * grown_size(m, radius.upper());
     case ShapeKind::Cylinder:
-      return 2.0 * radius.upper() * std::min(1.0, aspect_ratio.upper());
-    case ShapeKind::Ellipsoid:
-      return 2.0 * std::min({semi_axes[0].upper(), semi_axes[1].upper(), semi_axes[2].upper()});
+      return 2.0 * std::min(radius.upper() + m.coating + m.wave_amplitude,
+                            radius.upper() * aspect_ratio.upper() + m.coating);
+    case ShapeKind::Ellipsoid: {
+      const double small =
+          std::min({semi_axes[0].upper(), semi_axes[1].upper(), semi_axes[2].upper()});
+      return 2.0 * grown_size(m, small);
+    }
   }
   return 0.0;
+}
+
+double Family::envelope_ratio() const {
+  const FamilyModifiers& m = modifiers;
+  if (!m.any()) return 1.0;
+  // A representative inclusion of mean sizes; deformation counted at its smallest growth 1 + e.
+  Random rng(0);
+  Inclusion inc;
+  Family mean = *this;
+  mean.radius = radius.mean();
+  mean.aspect_ratio = aspect_ratio.mean();
+  for (int k = 0; k < 3; ++k) mean.semi_axes[k] = semi_axes[k].mean();
+  inc.shape = mean.draw(Vec3::Zero(), rng);
+  inc.mod = m.draw(rng);
+  if (inc.mod.deformed()) inc.mod.deform_scale = 1.0;
+  return envelope(inc).volume() / inc.shape.volume();
+}
+
+Modifiers FamilyModifiers::draw(Random& rng) const {
+  Modifiers m;
+  m.coating = coating;
+  m.shells_may_touch = shells_may_touch;
+  if (wave_amplitude > 0.0) {
+    m.wave_amplitude = wave_amplitude;
+    m.wave_length = wave_length;
+    m.wave_phase = 2.0 * M_PI * rng.uniform();
+    m.wave_angle = 2.0 * M_PI * rng.uniform();
+  }
+  if (deform_amplitude > 0.0) {
+    // Eight waves of angular half-wavelength `smoothness` radians, weights summing to 1.
+    m.deform_amplitude = deform_amplitude;
+    double sum = 0.0;
+    for (int k = 0; k < 8; ++k) {
+      DeformationWave w;
+      w.direction = rng.unit_vector();
+      w.weight = rng.uniform(0.5, 1.0);
+      w.wavenumber = M_PI / smoothness;
+      w.phase = 2.0 * M_PI * rng.uniform();
+      sum += w.weight;
+      m.deform_waves.push_back(w);
+    }
+    for (auto& w : m.deform_waves) w.weight /= sum;
+    m.deform_scale = deformation_volume_scale(m);
+  }
+  if (debond_gap > 0.0) {
+    m.debond_fraction = debond_fraction;
+    m.debond_gap = debond_gap;
+    m.debond_axis = rng.unit_vector();
+  }
+  return m;
 }
 
 Shape Family::draw(const Vec3& center, Random& rng) const {
@@ -206,6 +279,7 @@ double Scene::expected_volume_fraction() const {
 std::vector<Inclusion> draw_population(const Scene& scene, Random& rng) {
   std::vector<Inclusion> out;
   const double V = scene.box.volume();
+  Random mod_rng(scene.seed ^ 0x6d6f646966696572ULL);  // modifiers: their own stream
   for (size_t f = 0; f < scene.families.size(); ++f) {
     const Family& fam = scene.families[f];
     auto add = [&](const Shape& s) {
@@ -213,6 +287,7 @@ std::vector<Inclusion> draw_population(const Scene& scene, Random& rng) {
       inc.id = static_cast<int>(out.size());
       inc.family = static_cast<int>(f);
       inc.shape = s;
+      if (fam.modifiers.any()) inc.mod = fam.modifiers.draw(mod_rng);
       out.push_back(inc);
     };
     if (fam.count >= 0) {
@@ -314,6 +389,56 @@ SizeLaw parse_size(const Json& j, const std::string& p) {
   return law;
 }
 
+FamilyModifiers parse_modifiers(const Json& j, ShapeKind shape, const std::string& p) {
+  using namespace json_util;
+  FamilyModifiers m;
+  if (j.contains("coating")) {
+    const std::string q = p + ".coating";
+    const Json& c = j["coating"];
+    only_keys(c, {"thickness", "shells_may_touch"}, q);
+    m.coating = positive(require(c, "thickness", q), q + ".thickness");
+    if (c.contains("shells_may_touch"))
+      m.shells_may_touch = boolean(c["shells_may_touch"], q + ".shells_may_touch");
+  }
+  if (j.contains("waviness")) {
+    const std::string q = p + ".waviness";
+    if (shape != ShapeKind::Cylinder) fail(q, "waviness applies to cylinders only");
+    const Json& w = j["waviness"];
+    only_keys(w, {"amplitude", "wavelength"}, q);
+    m.wave_amplitude = positive(require(w, "amplitude", q), q + ".amplitude");
+    m.wave_length = positive(require(w, "wavelength", q), q + ".wavelength");
+  }
+  if (j.contains("deformation")) {
+    const std::string q = p + ".deformation";
+    if (shape == ShapeKind::Cylinder) fail(q, "deformation applies to spheres and ellipsoids only");
+    const Json& d = j["deformation"];
+    only_keys(d, {"amplitude", "smoothness"}, q);
+    m.deform_amplitude = positive(require(d, "amplitude", q), q + ".amplitude");
+    if (m.deform_amplitude > 0.5) fail(q + ".amplitude", "must be in (0, 0.5]");
+    if (d.contains("smoothness")) {
+      m.smoothness = positive(d["smoothness"], q + ".smoothness");
+      if (m.smoothness < 0.1 || m.smoothness > 10.0)
+        fail(q + ".smoothness", "must be in [0.1, 10]");
+    }
+  }
+  if (j.contains("debonding")) {
+    const std::string q = p + ".debonding";
+    if (shape != ShapeKind::Sphere) fail(q, "debonding applies to spheres only");
+    const Json& d = j["debonding"];
+    only_keys(d, {"fraction", "gap"}, q);
+    m.debond_fraction = positive(require(d, "fraction", q), q + ".fraction");
+    if (m.debond_fraction > 1.0) fail(q + ".fraction", "must be in (0, 1]");
+    m.debond_gap = positive(require(d, "gap", q), q + ".gap");
+  }
+  if (m.coating > 0.0 && m.deform_amplitude > 0.0)
+    fail(p, "coating and deformation together are not supported");
+  if (m.coating > 0.0 && m.debond_gap > 0.0)
+    fail(p, "coating and debonding together are not supported");
+  if (m.deform_amplitude > 0.0 && m.debond_gap > 0.0)
+    fail(p, "deformation and debonding together are not supported");
+  return m;
+}
+
 Family parse_family(const Json& j, const std::string& p, double box_volume) {
   using namespace json_util;
   Family f;
@@ -340,7 +465,10 @@ Family parse_family(const Json& j, const std::string& p, double box_volume) {
   const double per = derived ? f.volume_fraction * box_volume / f.count : 0.0;
   switch (f.shape) {
     case ShapeKind::Sphere:
-      only_keys(j, {"name", "shape", "radius", "volume_fraction", "count"}, p);
+      only_keys(j,
+                {"name", "shape", "radius", "volume_fraction", "count", "coating", "deformation",
+                 "debonding"},
+                p);
       if (derived) {
         if (j.contains("radius"))
           fail(p + ".radius",
@@ -351,9 +479,10 @@ Family parse_family(const Json& j, const std::string& p, double box_volume) {
       }
       break;
     case ShapeKind::Cylinder:
-      only_keys(
-          j, {"name", "shape", "radius", "aspect_ratio", "volume_fraction", "count", "orientation"},
-          p);
+      only_keys(j,
+                {"name", "shape", "radius", "aspect_ratio", "volume_fraction", "count",
+                 "orientation", "coating", "waviness"},
+                p);
       f.aspect_ratio = parse_size(require(j, "aspect_ratio", p), p + ".aspect_ratio");
       if (derived) {
         if (j.contains("radius"))
@@ -365,10 +494,10 @@ Family parse_family(const Json& j, const std::string& p, double box_volume) {
       }
       break;
     case ShapeKind::Ellipsoid: {
-      only_keys(
-          j,
-          {"name", "shape", "semi_axes", "axis_ratios", "volume_fraction", "count", "orientation"},
-          p);
+      only_keys(j,
+                {"name", "shape", "semi_axes", "axis_ratios", "volume_fraction", "count",
+                 "orientation", "coating", "deformation"},
+                p);
       if (derived) {
         if (j.contains("semi_axes"))
           fail(p + ".semi_axes",
@@ -395,6 +524,7 @@ Family parse_family(const Json& j, const std::string& p, double box_volume) {
   f.name = j.contains("name") ? string(j["name"], p + ".name") : std::string(shape_name(f.shape));
   if (j.contains("orientation"))
     f.orientation = parse_orientation(j["orientation"], p + ".orientation");
+  f.modifiers = parse_modifiers(j, f.shape, p);
   if (derived) f.volume_fraction = -1.0;  // the count now says it all
   return f;
 }
@@ -447,6 +577,20 @@ void validate_scene(const Scene& s) {
     std::snprintf(buf, sizeof buf,
                   "total volume fraction %.4f exceeds %.4f, the densest packing these shapes allow",
                   total, limit);
+    fail("families", buf);
+  }
+  // Modified inclusions are packed by their envelopes (core + shell, waves, bumps, voids).
+  double packed = 0.0;
+  for (size_t f = 0; f < s.families.size(); ++f) {
+    packed += s.expected_count(static_cast<int>(f)) * s.families[f].mean_volume() *
+              s.families[f].envelope_ratio() / s.box.volume();
+  }
+  if (packed > limit) {
+    char buf[200];
+    std::snprintf(buf, sizeof buf,
+                  "the envelopes of the inclusions (with coatings, waves, deformations, voids) "
+                  "would fill %.4f of the box, above %.4f, the densest packing these shapes allow",
+                  packed, limit);
     fail("families", buf);
   }
 }
@@ -618,6 +762,15 @@ std::string scene_to_json(const Scene& s) {
           break;
       }
     }
+    const FamilyModifiers& m = f.modifiers;
+    if (m.coating > 0.0)
+      j["coating"] = {{"thickness", m.coating}, {"shells_may_touch", m.shells_may_touch}};
+    if (m.wave_amplitude > 0.0)
+      j["waviness"] = {{"amplitude", m.wave_amplitude}, {"wavelength", m.wave_length}};
+    if (m.deform_amplitude > 0.0)
+      j["deformation"] = {{"amplitude", m.deform_amplitude}, {"smoothness", m.smoothness}};
+    if (m.debond_gap > 0.0)
+      j["debonding"] = {{"fraction", m.debond_fraction}, {"gap", m.debond_gap}};
     fams.push_back(j);
   }
   root["families"] = fams;

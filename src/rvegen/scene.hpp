@@ -43,8 +43,23 @@ struct OrientationLaw {
   Vec3 sample(Random& rng) const;
 };
 
+/// Modifiers of a family (all zero: plain inclusions). See body.hpp for the geometry.
+struct FamilyModifiers {
+  double coating = 0.0;  // interphase thickness
+  bool shells_may_touch = false;
+  double wave_amplitude = 0.0, wave_length = 0.0;   // cylinders
+  double deform_amplitude = 0.0, smoothness = 1.0;  // spheres, ellipsoids; amplitude < 0.5
+  double debond_fraction = 0.0, debond_gap = 0.0;   // spheres
+  bool any() const {
+    return coating > 0.0 || wave_amplitude > 0.0 || deform_amplitude > 0.0 || debond_gap > 0.0;
+  }
+  /// Draws the per-inclusion modifiers (random phases, planes, waves, cap axes).
+  Modifiers draw(Random& rng) const;
+};
+
 struct Family {
   std::string name;
+  FamilyModifiers modifiers;
   ShapeKind shape = ShapeKind::Sphere;
   SizeLaw radius;        // sphere, cylinder
   SizeLaw aspect_ratio;  // cylinder: a = |l| / r
@@ -59,6 +74,8 @@ struct Family {
   double max_bounding_radius() const;
   /// Largest smallest-width of any inclusion (the least box size every inclusion passes through).
   double max_min_width() const;
+  /// Volume of a mean-size inclusion's packing envelope over its core volume (1 unmodified).
+  double envelope_ratio() const;
   /// One inclusion drawn from the family's laws, centred at `center`.
   Shape draw(const Vec3& center, Random& rng) const;
 };
@@ -106,9 +123,10 @@ std::string scene_to_json(const Scene& scene);
 double max_packable_fraction(const Scene& scene);
 
 /// The inclusions a scene asks for, drawn from its laws (deterministic in scene.seed), centres
-/// not yet placed. A `volume_fraction` family draws inclusions until the next one would take
-/// the family's volume further from its target than stopping, so the drawn volume is the
-/// target to within half an inclusion.
+/// not yet placed; `shape` is each core, `mod` its modifiers (drawn from a second stream, so
+/// adding a modifier does not change the cores). A `volume_fraction` family draws inclusions until
+/// the next one would take the family's volume further from its target than stopping, so the drawn
+/// volume is the target to within half an inclusion.
 std::vector<Inclusion> draw_population(const Scene& scene, Random& rng);
 
 }  // namespace rvegen

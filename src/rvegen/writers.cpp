@@ -53,19 +53,54 @@ std::string vti_bytes(const VoxelImage& im) {
   Appended app;
   const size_t o_phase = app.add(im.phase.data(), im.phase.size());
   const size_t o_id = app.add(im.inclusion_id.data(), im.inclusion_id.size());
+  const size_t o_frac = app.add(im.fraction.data(), im.fraction.size());
   std::ostringstream s;
   s.precision(17);
   s << header("ImageData");
   s << "  <ImageData WholeExtent=\"0 " << im.dims[0] << " 0 " << im.dims[1] << " 0 " << im.dims[2]
     << "\" Origin=\"" << im.origin[0] << " " << im.origin[1] << " " << im.origin[2]
     << "\" Spacing=\"" << im.spacing[0] << " " << im.spacing[1] << " " << im.spacing[2] << "\">\n";
-  s << "    <Piece Extent=\"0 " << im.dims[0] << " 0 " << im.dims[1] << " 0 " << im.dims[2]
-    << "\">\n";
+  // Cell extents [lo, hi) are point extents lo..hi.
+  s << "    <Piece Extent=\"" << im.extent[0] << " " << im.extent[1] << " " << im.extent[2] << " "
+    << im.extent[3] << " " << im.extent[4] << " " << im.extent[5] << "\">\n";
   s << "    <CellData Scalars=\"phase\">\n";
   s << array_tag("UInt8", "phase", 1, o_phase);
   s << array_tag("Int32", "inclusion_id", 1, o_id);
+  if (!im.fraction.empty()) s << array_tag("Float32", "fraction", 1, o_frac);
   s << "    </CellData>\n    </Piece>\n  </ImageData>\n";
   return s.str() + footer(app);
+}
+
+std::string material_vtk_bytes(const VoxelImage& im) {
+  // AMITEX_FFTP's header, exactly 10 lines; materials numbered 1..N (phase label + 1) as
+  // big-endian unsigned shorts. Phases absent from the image would leave holes in 1..N, which
+  // AMITEX rejects: labels are renumbered densely in label order.
+  std::vector<int> present(256, 0);
+  for (uint8_t p : im.phase) present[p] = 1;
+  std::vector<uint16_t> id(256, 0);
+  uint16_t next = 1;
+  for (int l = 0; l < 256; ++l) {
+    if (present[l]) id[l] = next++;
+  }
+  std::ostringstream s;
+  s.precision(17);
+  s << "# vtk DataFile Version 4.5\nMateriau\nBINARY\nDATASET STRUCTURED_POINTS\n";
+  s << "DIMENSIONS " << im.size(0) + 1 << " " << im.size(1) + 1 << " " << im.size(2) + 1 << "\n";
+  s << "ORIGIN " << im.origin[0] + im.extent[0] * im.spacing[0] << " "
+    << im.origin[1] + im.extent[2] * im.spacing[1] << " "
+    << im.origin[2] + im.extent[4] * im.spacing[2] << "\n";
+  s << "SPACING " << im.spacing[0] << " " << im.spacing[1] << " " << im.spacing[2] << "\n";
+  s << "CELL_DATA " << im.count() << "\n";
+  s << "SCALARS MaterialId unsigned_short\nLOOKUP_TABLE default\n";
+  std::string out = s.str();
+  const size_t head = out.size();
+  out.resize(head + 2 * im.phase.size());
+  for (size_t i = 0; i < im.phase.size(); ++i) {
+    const uint16_t v = id[im.phase[i]];
+    out[head + 2 * i] = static_cast<char>(v >> 8);
+    out[head + 2 * i + 1] = static_cast<char>(v & 0xff);
+  }
+  return out;
 }
 
 std::string vtp_bytes(const SurfaceMesh& m) {

@@ -12,8 +12,13 @@
 
 namespace rvegen {
 
-/// VTK XML ImageData, one cell per voxel, cell arrays "phase" (UInt8) and "inclusion_id" (Int32).
+/// VTK XML ImageData, one cell per voxel, cell arrays "phase" (UInt8), "inclusion_id" (Int32)
+/// and, when computed, "fraction" (Float32).
 std::string vti_bytes(const VoxelImage& image);
+/// Legacy VTK STRUCTURED_POINTS material map as AMITEX_FFTP reads it (materialID.vtk): binary
+/// big-endian unsigned short "MaterialId" per cell, numbered 1..N in phase-label order over the
+/// labels present in the image.
+std::string material_vtk_bytes(const VoxelImage& image);
 /// VTK XML PolyData with cell arrays "inclusion_id", "family", "shape" (Int32).
 std::string vtp_bytes(const SurfaceMesh& mesh);
 

@@ -7,7 +7,9 @@
 #include <string>
 #include <vector>
 
+#include "io/hdf5_writer.hpp"
 #include "rvegen/inclusion_set.hpp"
+#include "rvegen/levelset.hpp"
 #include "rvegen/mesh.hpp"
 #include "rvegen/packing.hpp"
 #include "rvegen/report.hpp"
@@ -25,10 +27,13 @@ constexpr int kExitNotReached = 3;
 const char* kUsage =
     "usage:\n"
     "  rvegen generate [SCENE.json] [-o DIR] [--quiet]\n"
-    "      Packs the scene (the built-in default scene when none is given) and writes\n"
-    "      DIR/inclusions.json, DIR/inclusions.vtp, DIR/voxels.vti and DIR/report.json\n"
-    "      (DIR defaults to ./rve). Exit 0 on success, 2 on invalid input (nothing written),\n"
-    "      3 when the target volume fraction cannot be reached (report.json says so).\n"
+    "      Packs the scene (the built-in default scene when none is given) and writes, in DIR\n"
+    "      (default ./rve): inclusions.json (the inclusion list), inclusions.vtp (surfaces),\n"
+    "      voxels.vti (phase, inclusion_id, fraction), rve.h5 + rve.xdmf (voxels, inclusion\n"
+    "      table, metadata), material.vtk (AMITEX_FFTP material map), report.json and, when\n"
+    "      inclusions are wavy, deformed or coated, levelsets.vdb.\n"
+    "      Exit 0 on success, 2 on invalid input (nothing written), 3 when the target volume\n"
+    "      fraction cannot be reached (report.json says so).\n"
     "  rvegen check FILE.json [--json]\n"
     "      Audits an inclusion list with the exact pair tests. Exit 0 when no pair overlaps,\n"
     "      1 when some do, 2 on invalid input.\n"
@@ -73,15 +78,50 @@ int cmd_generate(const std::vector<std::string>& args) {
   rvegen::ProgressFn progress;
   if (!quiet) progress = [](const std::string& line) { std::cerr << line << "\n"; };
   const rvegen::PackingResult result = rvegen::generate(scene, progress);
-  const rvegen::VoxelImage image = rvegen::voxelize(result.set, scene.resolution);
-  const rvegen::SurfaceMesh mesh = rvegen::tessellate(result.set);
+  rvegen::VoxelOptions vopt;
+  vopt.partial_volume = scene.partial_volume;
+  vopt.subsamples = scene.subsamples;
+  const auto tv = std::chrono::steady_clock::now();
+  const rvegen::VoxelImage image = rvegen::voxelize(result.set, scene.resolution, vopt);
+  if (progress) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "voxels: %d x %d x %d in %.2f s", image.dims[0], image.dims[1],
+                  image.dims[2],
+                  std::chrono::duration<double>(std::chrono::steady_clock::now() - tv).count());
+    progress(buf);
+  }
+  rvegen::MeshOptions mopt;
+  mopt.clip_to_box = scene.clip_surfaces;
+  const rvegen::SurfaceMesh mesh = rvegen::tessellate(result.set, mopt);
+  rvegen::LevelSetOptions lopt;
+  lopt.voxel_size = scene.levelset_voxel_size;
+  lopt.half_width = scene.levelset_half_width;
+  const rvegen::LevelSets levelsets = rvegen::build_level_sets(result.set, lopt);
+  if (progress && !levelsets.empty()) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "level sets: %zu grids, %.1f MB sparse (dense: %.1f MB)",
+                  levelsets.grids.size(), levelsets.memory_bytes / 1e6, levelsets.dense_bytes / 1e6);
+    progress(buf);
+  }
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const std::string report = rvegen::report_json(scene, result, &image, seconds, &levelsets);
   rvegen::OutputTransaction out(out_dir);
   out.add("inclusions.json", rvegen::write_inclusions_json(result.set));
   out.add("inclusions.vtp", rvegen::vtp_bytes(mesh));
   out.add("voxels.vti", rvegen::vti_bytes(image));
-  out.add("report.json", rvegen::report_json(scene, result, &image, seconds));
+  out.add("material.vtk", rvegen::material_vtk_bytes(image));
+  try {
+    out.add("rve.h5", rvegen::hdf5_bytes(image, result.set, rvegen::scene_to_json(scene), report));
+  } catch (const std::exception& e) {
+    std::cerr << "rvegen: " << e.what() << "\n";
+    return 1;
+  }
+  out.add("rve.xdmf", rvegen::xdmf_text(image, "rve.h5"));
+  if (!levelsets.empty()) {
+    out.add("levelsets.vdb", rvegen::vdb_bytes(levelsets, result.set));
+  }
+  out.add("report.json", report);
   try {
     out.commit();
   } catch (const std::exception& e) {

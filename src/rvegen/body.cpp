@@ -370,6 +370,26 @@ bool BodyQuery::x_interval(const Vec3& p, double* t0, double* t1) const {
   return false;
 }
 
+double BodyQuery::core_distance(const Vec3& x) const {
+  switch (s_.kind) {
+    case ShapeKind::Sphere:
+    case ShapeKind::Ellipsoid: {
+      const Vec3 y = to_unit_ * (x - c_);
+      const double q = y.norm();
+      if (m_.deformed()) {
+        if (q == 0.0) return -m_.deform_scale * (1.0 - m_.deform_amplitude) * amin_;
+        return (q - m_.deform_scale * (1.0 + m_.deform_amplitude * deformation_field(m_, y / q))) *
+               amin_;
+      }
+      if (s_.kind == ShapeKind::Sphere) return (x - c_).norm() - s_.radius;
+      return q > 1.0 ? ellipsoid_distance(s_, x) : (q - 1.0) * amin_;
+    }
+    case ShapeKind::Cylinder:
+      return cylinder_sdf(x);
+  }
+  return 0.0;
+}
+
 Region region_at(const Inclusion& inc, const Vec3& x) {
   return BodyQuery(inc).region(x);
 }

@@ -38,6 +38,14 @@ class BodyQuery {
   /// A lower bound on the distance from x to the nearest boundary between two regions of the
   /// inclusion (including the outer boundary): a ball of that radius about x lies in one region.
   double clearance(const Vec3& x) const;
+  /// Signed distance to the core's surface (negative inside): exact for spheres, straight
+  /// cylinders and outside ellipsoids; for wavy fibres measured in their sheared frame, for
+  /// deformed shapes radially (|y| - R(n)) a_min, inside ellipsoids (q - 1) a_min. The sign is
+  /// always exact (it agrees with region()).
+  double core_distance(const Vec3& x) const;
+  /// Signed distance to the interphase shell (negative inside it): max(d - t, -d) with d the
+  /// core distance above (exact for spheres and straight cylinders).
+  double shell_distance(const Vec3& x) const { const double d = core_distance(x); return std::max(d - m_.coating, -d); }
   /// True for an inclusion without modifiers (a core only, exact line intersections).
   bool plain() const { return !m_.any(); }
   /// Plain inclusions: the parameters [t0, t1] where the line p + t e_x lies in the core;

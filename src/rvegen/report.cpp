@@ -17,7 +17,7 @@ std::vector<double> family_volume_fractions(const InclusionSet& set, int n_famil
 }
 
 std::string report_json(const Scene& scene, const PackingResult& r, const VoxelImage* image,
-                        double total_seconds) {
+                        double total_seconds, const LevelSets* levelsets) {
   using OJson = nlohmann::ordered_json;
   const int nf = static_cast<int>(scene.families.size());
   const std::vector<double> vf = family_volume_fractions(r.set, nf);
@@ -115,6 +115,27 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
   if (nn.n > 0) {
     root["nearest_neighbour_distance"] = {
         {"mean", nn.mean}, {"std", nn.std}, {"min", nn.min}, {"max", nn.max}};
+  }
+  if (levelsets && !levelsets->empty()) {
+    OJson ls;
+    ls["voxel_size"] = levelsets->voxel_size;
+    ls["half_width_voxels"] = levelsets->half_width;
+    OJson grids = OJson::array();
+    for (const auto& g : levelsets->grids) {
+      grids.push_back({{"name", g.name},
+                       {"kind", g.kind},
+                       {"family", g.family},
+                       {"phase", g.phase},
+                       {"inclusions", g.inclusions},
+                       {"active_voxels", g.active_voxels},
+                       {"memory_bytes", g.memory_bytes}});
+    }
+    ls["grids"] = grids;
+    ls["memory_bytes"] = levelsets->memory_bytes;
+    ls["dense_bytes"] = levelsets->dense_bytes;
+    ls["memory_ratio"] = static_cast<double>(levelsets->memory_bytes) /
+                         static_cast<double>(std::max(1LL, levelsets->dense_bytes));
+    root["levelsets"] = ls;
   }
   root["stop_reason"] = r.stop_reason;
   if (scene.method == "md") {

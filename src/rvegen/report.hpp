@@ -3,6 +3,7 @@
 
 #include <string>
 
+#include "rvegen/levelset.hpp"
 #include "rvegen/packing.hpp"
 #include "rvegen/voxelize.hpp"
 
@@ -11,8 +12,9 @@ namespace rvegen {
 /// Exact (analytic) volume fraction of each family, from the inclusion volumes.
 std::vector<double> family_volume_fractions(const InclusionSet& set, int n_families);
 
-/// report.json text. `image` may be null (then no voxel statistics).
+/// report.json text. `image` may be null (then no voxel statistics), `levelsets` too (then no
+/// level-set section).
 std::string report_json(const Scene& scene, const PackingResult& result, const VoxelImage* image,
-                        double total_seconds);
+                        double total_seconds, const LevelSets* levelsets = nullptr);
 
 }  // namespace rvegen

@@ -549,6 +549,9 @@ void validate_scene(const Scene& s) {
     }
   }
   const double box_min = s.box.size.minCoeff();
+  if (s.levelset_voxel_size > 0.0 && s.box.size.maxCoeff() / s.levelset_voxel_size > 8192) {
+    fail("levelsets.voxel_size", "too small: more than 8192 voxels along the box");
+  }
   double count = 0.0;
   for (size_t i = 0; i < s.families.size(); ++i) {
     const Family& f = s.families[i];
@@ -599,7 +602,10 @@ Scene parse_scene(const std::string& text) {
   using namespace json_util;
   const Json root = parse(text, "scene file");
   if (!root.is_object()) fail("(root)", "expected an object");
-  only_keys(root, {"box", "seed", "method", "min_gap", "families", "voxels", "md", "rsa"}, "");
+  only_keys(root,
+            {"box", "seed", "method", "min_gap", "families", "voxels", "levelsets", "surfaces",
+             "md", "rsa"},
+            "");
   Scene s;
   s.box = box(require(root, "box", ""), "box");
   if (root.contains("seed")) {
@@ -650,7 +656,14 @@ Scene parse_scene(const std::string& text) {
   }
   if (root.contains("voxels")) {
     const Json& v = root["voxels"];
-    only_keys(v, {"resolution"}, "voxels");
+    only_keys(v, {"resolution", "partial_volume", "subsamples"}, "voxels");
+    if (v.contains("partial_volume"))
+      s.partial_volume = boolean(v["partial_volume"], "voxels.partial_volume");
+    if (v.contains("subsamples")) {
+      const double n = number(v["subsamples"], "voxels.subsamples");
+      if (n != std::floor(n) || n < 1 || n > 16) fail("voxels.subsamples", "must be an integer in [1, 16]");
+      s.subsamples = static_cast<int>(n);
+    }
     const Json& r = require(v, "resolution", "voxels");
     if (r.is_number()) {
       const double n = number(r, "voxels.resolution");
@@ -665,6 +678,22 @@ Scene parse_scene(const std::string& text) {
         s.resolution[k] = static_cast<int>(n[k]);
       }
     }
+  }
+  if (root.contains("levelsets")) {
+    const Json& l = root["levelsets"];
+    only_keys(l, {"voxel_size", "half_width"}, "levelsets");
+    if (l.contains("voxel_size"))
+      s.levelset_voxel_size = positive(l["voxel_size"], "levelsets.voxel_size");
+    if (l.contains("half_width")) {
+      s.levelset_half_width = positive(l["half_width"], "levelsets.half_width");
+      if (s.levelset_half_width < 1.0 || s.levelset_half_width > 20.0)
+        fail("levelsets.half_width", "must be in [1, 20] voxels");
+    }
+  }
+  if (root.contains("surfaces")) {
+    const Json& m = root["surfaces"];
+    only_keys(m, {"clip"}, "surfaces");
+    if (m.contains("clip")) s.clip_surfaces = boolean(m["clip"], "surfaces.clip");
   }
   validate_scene(s);
   return s;
@@ -774,7 +803,12 @@ std::string scene_to_json(const Scene& s) {
     fams.push_back(j);
   }
   root["families"] = fams;
-  root["voxels"] = {{"resolution", {s.resolution[0], s.resolution[1], s.resolution[2]}}};
+  root["voxels"] = {{"resolution", {s.resolution[0], s.resolution[1], s.resolution[2]}},
+                    {"partial_volume", s.partial_volume},
+                    {"subsamples", s.subsamples}};
+  root["levelsets"] = {{"half_width", s.levelset_half_width}};
+  if (s.levelset_voxel_size > 0.0) root["levelsets"]["voxel_size"] = s.levelset_voxel_size;
+  root["surfaces"] = {{"clip", s.clip_surfaces}};
   return root.dump(2) + "\n";
 }
 

@@ -97,6 +97,14 @@ struct Scene {
   double min_gap = 0.0;
   std::vector<Family> families;
   std::array<int, 3> resolution = {64, 64, 64};
+  /// Voxel image: partial volumes ("fraction") and the subsamples per axis of boundary voxels.
+  bool partial_volume = true;
+  int subsamples = 4;
+  /// Level sets: voxel size (0: smallest box size / 256) and narrow-band half width in voxels.
+  double levelset_voxel_size = 0.0;
+  double levelset_half_width = 3.0;
+  /// Surfaces: cut periodic images at the box faces.
+  bool clip_surfaces = false;
   /// RSA: attempts per inclusion before the target is declared out of reach.
   int rsa_max_attempts = 20000;
   MdSettings md;

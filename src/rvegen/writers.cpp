@@ -120,6 +120,8 @@ std::string vtp_bytes(const SurfaceMesh& m) {
   const size_t o_id = app.add(m.inclusion_id.data(), m.inclusion_id.size());
   const size_t o_fam = app.add(m.family.data(), m.family.size());
   const size_t o_shape = app.add(m.shape.data(), m.shape.size());
+  const size_t o_phase = app.add(m.phase.data(), m.phase.size());
+  const size_t o_axis = app.add(reinterpret_cast<const float*>(m.axis.data()), 3 * m.axis.size());
   std::ostringstream s;
   s << header("PolyData") << "  <PolyData>\n";
   s << "    <Piece NumberOfPoints=\"" << m.points.size()
@@ -131,7 +133,8 @@ std::string vtp_bytes(const SurfaceMesh& m) {
     << "    </Polys>\n";
   s << "    <CellData Scalars=\"family\">\n"
     << array_tag("Int32", "inclusion_id", 1, o_id) << array_tag("Int32", "family", 1, o_fam)
-    << array_tag("Int32", "shape", 1, o_shape) << "    </CellData>\n";
+    << array_tag("Int32", "shape", 1, o_shape) << array_tag("Int32", "phase", 1, o_phase)
+    << array_tag("Float32", "axis", 3, o_axis) << "    </CellData>\n";
   s << "    </Piece>\n  </PolyData>\n";
   return s.str() + footer(app);
 }

@@ -19,7 +19,8 @@ std::string vti_bytes(const VoxelImage& image);
 /// big-endian unsigned short "MaterialId" per cell, numbered 1..N in phase-label order over the
 /// labels present in the image.
 std::string material_vtk_bytes(const VoxelImage& image);
-/// VTK XML PolyData with cell arrays "inclusion_id", "family", "shape" (Int32).
+/// VTK XML PolyData with cell arrays "inclusion_id", "family", "shape", "phase" (Int32) and
+/// "axis" (Float32 x 3).
 std::string vtp_bytes(const SurfaceMesh& mesh);
 
 /// Collects output files and writes them all or none: each goes to a hidden temporary file in

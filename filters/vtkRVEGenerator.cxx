@@ -2,6 +2,7 @@
 
 #include <exception>
 
+#include "rvegen/levelset.hpp"
 #include "rvegen/mesh.hpp"
 #include "rvegen/packing.hpp"
 #include "rvegen/scene.hpp"
@@ -9,8 +10,10 @@
 #include "rvegen/writers.hpp"
 #include "vtkCellArray.h"
 #include "vtkCellData.h"
+#include "vtkDemandDrivenPipeline.h"
 #include "vtkDoubleArray.h"
 #include "vtkFieldData.h"
+#include "vtkFloatArray.h"
 #include "vtkImageData.h"
 #include "vtkInformation.h"
 #include "vtkInformationVector.h"
@@ -33,7 +36,7 @@ struct vtkRVEGenerator::Cache {
 
 vtkRVEGenerator::vtkRVEGenerator() {
   this->SetNumberOfInputPorts(0);
-  this->SetNumberOfOutputPorts(2);
+  this->SetNumberOfOutputPorts(3);
   const rvegen::Scene d = rvegen::default_scene();
   this->Seed = static_cast<int>(d.seed);
   for (int a = 0; a < 3; ++a) {
@@ -50,6 +53,7 @@ vtkRVEGenerator::vtkRVEGenerator() {
   this->FibreVolumeFraction = d.families[1].volume_fraction;
   this->EllipsoidVolumeFraction = d.families[2].volume_fraction;
   this->SceneFile = nullptr;
+  this->ClipSurfaces = d.clip_surfaces;
 }
 
 vtkRVEGenerator::~vtkRVEGenerator() {
@@ -57,7 +61,7 @@ vtkRVEGenerator::~vtkRVEGenerator() {
 }
 
 int vtkRVEGenerator::FillOutputPortInformation(int port, vtkInformation* info) {
-  info->Set(vtkDataObject::DATA_TYPE_NAME(), port == 0 ? "vtkPolyData" : "vtkImageData");
+  info->Set(vtkDataObject::DATA_TYPE_NAME(), port == 1 ? "vtkImageData" : "vtkPolyData");
   return 1;
 }
 
@@ -83,7 +87,47 @@ rvegen::Scene SceneFromProperties(const vtkRVEGenerator* g) {
   }
   s.families = kept;
   for (int a = 0; a < 3; ++a) s.resolution[a] = self->GetResolution()[a];
+  s.clip_surfaces = self->GetClipSurfaces();
   return s;
+}
+
+// Copies a core mesh into a vtkPolyData (points, triangles, cell arrays).
+void ToPolyData(const rvegen::SurfaceMesh& mesh, vtkPolyData* out) {
+  vtkNew<vtkPoints> points;
+  points->SetDataTypeToDouble();
+  points->SetNumberOfPoints(static_cast<vtkIdType>(mesh.points.size()));
+  for (size_t i = 0; i < mesh.points.size(); ++i) {
+    points->SetPoint(static_cast<vtkIdType>(i), mesh.points[i].data());
+  }
+  vtkNew<vtkTypeInt64Array> offsets, connectivity;
+  offsets->SetNumberOfValues(static_cast<vtkIdType>(mesh.triangles.size() + 1));
+  connectivity->SetNumberOfValues(static_cast<vtkIdType>(3 * mesh.triangles.size()));
+  for (size_t t = 0; t <= mesh.triangles.size(); ++t) offsets->SetValue(t, 3 * t);
+  for (size_t t = 0; t < mesh.triangles.size(); ++t) {
+    for (int k = 0; k < 3; ++k) connectivity->SetValue(3 * t + k, mesh.triangles[t][k]);
+  }
+  vtkNew<vtkCellArray> polys;
+  polys->SetData(offsets, connectivity);
+  out->SetPoints(points);
+  out->SetPolys(polys);
+  auto int_array = [](const char* name, const std::vector<int32_t>& v) {
+    vtkNew<vtkIntArray> a;
+    a->SetName(name);
+    a->SetNumberOfValues(static_cast<vtkIdType>(v.size()));
+    std::copy(v.begin(), v.end(), a->GetPointer(0));
+    return a;
+  };
+  out->GetCellData()->AddArray(int_array("inclusion_id", mesh.inclusion_id));
+  out->GetCellData()->AddArray(int_array("family", mesh.family));
+  out->GetCellData()->AddArray(int_array("shape", mesh.shape));
+  out->GetCellData()->AddArray(int_array("phase", mesh.phase));
+  vtkNew<vtkFloatArray> axis;
+  axis->SetName("axis");
+  axis->SetNumberOfComponents(3);
+  axis->SetNumberOfTuples(static_cast<vtkIdType>(mesh.axis.size()));
+  for (size_t t = 0; t < mesh.axis.size(); ++t) axis->SetTypedTuple(t, mesh.axis[t].data());
+  out->GetCellData()->AddArray(axis);
+  out->GetCellData()->SetActiveScalars("family");
 }
 }  // namespace
 
@@ -109,6 +153,25 @@ int vtkRVEGenerator::RequestInformation(vtkInformation*, vtkInformationVector**,
   info->Set(vtkDataObject::SPACING(), spacing, 3);
   info->Set(vtkDataObject::ORIGIN(), origin, 3);
   return 1;
+}
+
+vtkTypeBool vtkRVEGenerator::ProcessRequest(vtkInformation* request, vtkInformationVector** in,
+                                            vtkInformationVector* out) {
+  if (request->Has(vtkDemandDrivenPipeline::REQUEST_DATA_NOT_GENERATED())) {
+    // Only the port that asked is computed; the others are marked not generated, so their
+    // previous data stays and the pipeline executes again (reusing the cached packing) when
+    // they are asked for.
+    if (request->Has(vtkDemandDrivenPipeline::FROM_OUTPUT_PORT())) {
+      const int asked = request->Get(vtkDemandDrivenPipeline::FROM_OUTPUT_PORT());
+      for (int port = 0; asked >= 0 && port < this->GetNumberOfOutputPorts(); ++port) {
+        if (port != asked) {
+          out->GetInformationObject(port)->Set(vtkDemandDrivenPipeline::DATA_NOT_GENERATED(), 1);
+        }
+      }
+    }
+    return 1;
+  }
+  return this->Superclass::ProcessRequest(request, in, out);
 }
 
 int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
@@ -141,57 +204,64 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
                     << "); showing the best configuration found");
   }
 
-  // Port 0: surfaces.
-  const rvegen::SurfaceMesh mesh = rvegen::tessellate(result.set);
-  vtkNew<vtkPoints> points;
-  points->SetDataTypeToDouble();
-  points->SetNumberOfPoints(static_cast<vtkIdType>(mesh.points.size()));
-  for (size_t i = 0; i < mesh.points.size(); ++i) {
-    points->SetPoint(static_cast<vtkIdType>(i), mesh.points[i].data());
-  }
-  vtkNew<vtkTypeInt64Array> offsets, connectivity;
-  offsets->SetNumberOfValues(static_cast<vtkIdType>(mesh.triangles.size() + 1));
-  connectivity->SetNumberOfValues(static_cast<vtkIdType>(3 * mesh.triangles.size()));
-  for (size_t t = 0; t <= mesh.triangles.size(); ++t) offsets->SetValue(t, 3 * t);
-  for (size_t t = 0; t < mesh.triangles.size(); ++t) {
-    for (int k = 0; k < 3; ++k) connectivity->SetValue(3 * t + k, mesh.triangles[t][k]);
-  }
-  vtkNew<vtkCellArray> polys;
-  polys->SetData(offsets, connectivity);
-  surfaces->SetPoints(points);
-  surfaces->SetPolys(polys);
-  auto int_array = [](const char* name, const std::vector<int32_t>& v) {
-    vtkNew<vtkIntArray> a;
-    a->SetName(name);
-    a->SetNumberOfValues(static_cast<vtkIdType>(v.size()));
-    for (size_t i = 0; i < v.size(); ++i) a->SetValue(static_cast<vtkIdType>(i), v[i]);
-    return a;
+  // Ports marked not generated (see ProcessRequest) keep their data and are skipped.
+  auto wanted = [&](int port) {
+    return !outVec->GetInformationObject(port)->Get(vtkDemandDrivenPipeline::DATA_NOT_GENERATED());
   };
-  surfaces->GetCellData()->AddArray(int_array("inclusion_id", mesh.inclusion_id));
-  surfaces->GetCellData()->AddArray(int_array("family", mesh.family));
-  surfaces->GetCellData()->AddArray(int_array("shape", mesh.shape));
-  surfaces->GetCellData()->SetActiveScalars("family");
   vtkNew<vtkStringArray> status;
   status->SetName("status");
   status->InsertNextValue(result.status);
-  surfaces->GetFieldData()->AddArray(status);
 
-  // Port 1: voxels.
-  const rvegen::VoxelImage vox = rvegen::voxelize(result.set, scene.resolution);
-  image->SetExtent(0, vox.dims[0], 0, vox.dims[1], 0, vox.dims[2]);
-  image->SetOrigin(vox.origin.data());
-  image->SetSpacing(vox.spacing.data());
-  vtkNew<vtkUnsignedCharArray> phase;
-  phase->SetName("phase");
-  phase->SetNumberOfValues(static_cast<vtkIdType>(vox.phase.size()));
-  std::copy(vox.phase.begin(), vox.phase.end(), phase->GetPointer(0));
-  vtkNew<vtkIntArray> ids;
-  ids->SetName("inclusion_id");
-  ids->SetNumberOfValues(static_cast<vtkIdType>(vox.inclusion_id.size()));
-  std::copy(vox.inclusion_id.begin(), vox.inclusion_id.end(), ids->GetPointer(0));
-  image->GetCellData()->AddArray(phase);
-  image->GetCellData()->AddArray(ids);
-  image->GetCellData()->SetActiveScalars("phase");
+  if (wanted(0)) {
+    rvegen::MeshOptions mopt;
+    mopt.clip_to_box = scene.clip_surfaces;
+    ToPolyData(rvegen::tessellate(result.set, mopt), surfaces);
+    surfaces->GetFieldData()->AddArray(status);
+    ++this->PortExecutions[0];
+  }
+
+  if (wanted(1)) {
+    rvegen::VoxelOptions vopt;
+    vopt.partial_volume = scene.partial_volume;
+    vopt.subsamples = scene.subsamples;
+    const rvegen::VoxelImage vox = rvegen::voxelize(result.set, scene.resolution, vopt);
+    image->SetExtent(0, vox.dims[0], 0, vox.dims[1], 0, vox.dims[2]);
+    image->SetOrigin(vox.origin.data());
+    image->SetSpacing(vox.spacing.data());
+    vtkNew<vtkUnsignedCharArray> phase;
+    phase->SetName("phase");
+    phase->SetNumberOfValues(static_cast<vtkIdType>(vox.phase.size()));
+    std::copy(vox.phase.begin(), vox.phase.end(), phase->GetPointer(0));
+    vtkNew<vtkIntArray> ids;
+    ids->SetName("inclusion_id");
+    ids->SetNumberOfValues(static_cast<vtkIdType>(vox.inclusion_id.size()));
+    std::copy(vox.inclusion_id.begin(), vox.inclusion_id.end(), ids->GetPointer(0));
+    image->GetCellData()->AddArray(phase);
+    image->GetCellData()->AddArray(ids);
+    if (!vox.fraction.empty()) {
+      vtkNew<vtkFloatArray> fraction;
+      fraction->SetName("fraction");
+      fraction->SetNumberOfValues(static_cast<vtkIdType>(vox.fraction.size()));
+      std::copy(vox.fraction.begin(), vox.fraction.end(), fraction->GetPointer(0));
+      image->GetCellData()->AddArray(fraction);
+    }
+    image->GetCellData()->SetActiveScalars("phase");
+    vtkNew<vtkStringArray> names;
+    names->SetName("phase_names");
+    for (const auto& p : vox.phases) names->InsertNextValue(p.name);
+    image->GetFieldData()->AddArray(names);
+    ++this->PortExecutions[1];
+  }
+
+  if (wanted(2)) {
+    // Zero iso-surfaces of the level sets (wavy, deformed, coated inclusions); empty otherwise.
+    rvegen::LevelSetOptions lopt;
+    lopt.voxel_size = scene.levelset_voxel_size;
+    lopt.half_width = scene.levelset_half_width;
+    const rvegen::LevelSets ls = rvegen::build_level_sets(result.set, lopt);
+    ToPolyData(rvegen::level_set_surfaces(ls), vtkPolyData::GetData(outVec, 2));
+    ++this->PortExecutions[2];
+  }
   return 1;
 }
 

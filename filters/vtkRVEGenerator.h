@@ -2,8 +2,13 @@
  * @class vtkRVEGenerator
  * @brief Generates a Representative Volume Element: inclusions packed without overlap.
  *
- * Output port 0: vtkPolyData of the inclusion surfaces (cell data inclusion_id, family, shape).
- * Output port 1: vtkImageData with one cell per voxel (cell data phase, inclusion_id).
+ * Output port 0: vtkPolyData of the inclusion surfaces (cell data inclusion_id, family, shape,
+ *                phase, axis).
+ * Output port 1: vtkImageData with one cell per voxel (cell data phase, inclusion_id and
+ *                fraction, the partial volume of the inclusions; field data phase_names).
+ * Output port 2: vtkPolyData of the level-set surfaces (wavy, deformed and coated inclusions:
+ *                OpenVDB narrow-band grids meshed at their zero level); empty without them.
+ * Only the port that is asked for is computed.
  * Properties describe the built-in three-family scene (spheres, fibres, ellipsoids); a scene
  * file (JSON, the format `rvegen generate` reads) overrides all of them when set.
  * The packing is computed once per change of the properties and shared by both ports.
@@ -48,6 +53,11 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   vtkSetMacro(EllipsoidVolumeFraction, double);
   vtkGetMacro(EllipsoidVolumeFraction, double);
 
+  /// Cut the surfaces of periodic images at the box faces.
+  vtkSetMacro(ClipSurfaces, bool);
+  vtkGetMacro(ClipSurfaces, bool);
+  vtkBooleanMacro(ClipSurfaces, bool);
+
   vtkSetVector3Macro(Resolution, int);
   vtkGetVector3Macro(Resolution, int);
 
@@ -57,12 +67,16 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
 
   /// "ok" or "target_not_reached" after an update (empty before, "invalid" on bad input).
   const char* GetStatus() const { return this->Status.c_str(); }
+  /// How many times each output port has been computed (shows that ports are lazy).
+  vtkGetVector3Macro(PortExecutions, int);
 
  protected:
   vtkRVEGenerator();
   ~vtkRVEGenerator() override;
 
   int FillOutputPortInformation(int port, vtkInformation* info) override;
+  vtkTypeBool ProcessRequest(vtkInformation* request, vtkInformationVector** inInfo,
+                             vtkInformationVector* outInfo) override;
   int RequestInformation(vtkInformation* request, vtkInformationVector** inInfo,
                          vtkInformationVector* outInfo) override;
   int RequestData(vtkInformation* request, vtkInformationVector** inInfo,
@@ -81,6 +95,8 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   double EllipsoidVolumeFraction;
   int Resolution[3];
   char* SceneFile;
+  bool ClipSurfaces;
+  int PortExecutions[3] = {0, 0, 0};
 
  private:
   vtkRVEGenerator(const vtkRVEGenerator&) = delete;

@@ -100,7 +100,8 @@ int cmd_generate(const std::vector<std::string>& args) {
   if (progress && !levelsets.empty()) {
     char buf[160];
     std::snprintf(buf, sizeof buf, "level sets: %zu grids, %.1f MB sparse (dense: %.1f MB)",
-                  levelsets.grids.size(), levelsets.memory_bytes / 1e6, levelsets.dense_bytes / 1e6);
+                  levelsets.grids.size(), levelsets.memory_bytes / 1e6,
+                  levelsets.dense_bytes / 1e6);
     progress(buf);
   }
   const double seconds =

@@ -94,12 +94,14 @@ std::string hdf5_bytes(const VoxelImage& im, const InclusionSet& set, const std:
     dataset(vox, "phase", H5T_NATIVE_UINT8, dims, im.phase.data());
     dataset(vox, "inclusion_id", H5T_NATIVE_INT32, dims, im.inclusion_id.data());
     if (!im.fraction.empty()) dataset(vox, "fraction", H5T_NATIVE_FLOAT, dims, im.fraction.data());
-    attribute(vox, "origin",
-              {im.origin[0] + im.extent[0] * im.spacing[0], im.origin[1] + im.extent[2] * im.spacing[1],
-               im.origin[2] + im.extent[4] * im.spacing[2]});
+    attribute(
+        vox, "origin",
+        {im.origin[0] + im.extent[0] * im.spacing[0], im.origin[1] + im.extent[2] * im.spacing[1],
+         im.origin[2] + im.extent[4] * im.spacing[2]});
     attribute(vox, "spacing", {im.spacing[0], im.spacing[1], im.spacing[2]});
-    attribute(vox, "resolution", {static_cast<double>(im.dims[0]), static_cast<double>(im.dims[1]),
-                                  static_cast<double>(im.dims[2])});
+    attribute(vox, "resolution",
+              {static_cast<double>(im.dims[0]), static_cast<double>(im.dims[1]),
+               static_cast<double>(im.dims[2])});
     H5Gclose(vox);
 
     const hid_t ph = H5Gcreate2(file, "phases", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);

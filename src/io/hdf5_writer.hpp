@@ -15,8 +15,8 @@ namespace rvegen {
 ///   /phases/{label,name,kind,family}; /inclusions/{id,family,shape,center,radius,half_axis,
 ///   semi_axes,rotation} (one row per inclusion; unused fields 0);
 ///   root attributes format = "rvegen.h5/1", box_origin, box_size, periodic, scene, report.
-std::string hdf5_bytes(const VoxelImage& image, const InclusionSet& set, const std::string& scene_json,
-                       const std::string& report_json);
+std::string hdf5_bytes(const VoxelImage& image, const InclusionSet& set,
+                       const std::string& scene_json, const std::string& report_json);
 
 /// XDMF 3 text describing the image arrays of `h5_name` (a path relative to the .xdmf file).
 std::string xdmf_text(const VoxelImage& image, const std::string& h5_name);

@@ -45,7 +45,10 @@ class BodyQuery {
   double core_distance(const Vec3& x) const;
   /// Signed distance to the interphase shell (negative inside it): max(d - t, -d) with d the
   /// core distance above (exact for spheres and straight cylinders).
-  double shell_distance(const Vec3& x) const { const double d = core_distance(x); return std::max(d - m_.coating, -d); }
+  double shell_distance(const Vec3& x) const {
+    const double d = core_distance(x);
+    return std::max(d - m_.coating, -d);
+  }
   /// True for an inclusion without modifiers (a core only, exact line intersections).
   bool plain() const { return !m_.any(); }
   /// Plain inclusions: the parameters [t0, t1] where the line p + t e_x lies in the core;

@@ -28,7 +28,9 @@ void init_openvdb() {
   std::call_once(once, [] { openvdb::initialize(); });
 }
 
-const Grids& grids_of(const LevelSets& ls) { return *static_cast<const Grids*>(ls.data.get()); }
+const Grids& grids_of(const LevelSets& ls) {
+  return *static_cast<const Grids*>(ls.data.get());
+}
 
 }  // namespace
 
@@ -58,8 +60,7 @@ LevelSets build_level_sets(const InclusionSet& set, const LevelSetOptions& opt) 
       std::vector<const Inclusion*> members;
       for (const auto& inc : set.inclusions) {
         if (inc.family != f) continue;
-        const bool wanted =
-            kind == 0 ? (inc.mod.wavy() || inc.mod.deformed()) : inc.mod.coated();
+        const bool wanted = kind == 0 ? (inc.mod.wavy() || inc.mod.deformed()) : inc.mod.coated();
         if (wanted) members.push_back(&inc);
       }
       if (members.empty()) continue;
@@ -78,7 +79,8 @@ LevelSets build_level_sets(const InclusionSet& set, const LevelSetOptions& opt) 
         if (box.periodic) {
           for (int a = 0; a < 3; ++a) {
             k0[a] = static_cast<int>(std::ceil((box.origin[a] - hi[a]) / box.size[a]));
-            k1[a] = static_cast<int>(std::floor((box.origin[a] + box.size[a] - lo[a]) / box.size[a]));
+            k1[a] =
+                static_cast<int>(std::floor((box.origin[a] + box.size[a] - lo[a]) / box.size[a]));
           }
         }
         for (int si = k0[0]; si <= k1[0]; ++si) {
@@ -126,7 +128,8 @@ LevelSets build_level_sets(const InclusionSet& set, const LevelSetOptions& opt) 
       grid->insertMeta("family", openvdb::Int32Metadata(f));
       grid->insertMeta("kind", openvdb::StringMetadata(info.kind));
       grid->insertMeta("inclusions", openvdb::Int32Metadata(info.inclusions));
-      grid->insertMeta("half_width_voxels", openvdb::FloatMetadata(static_cast<float>(opt.half_width)));
+      grid->insertMeta("half_width_voxels",
+                       openvdb::FloatMetadata(static_cast<float>(opt.half_width)));
       ls.memory_bytes += info.memory_bytes;
       ls.grids.push_back(info);
       data->grids.push_back(grid);
@@ -154,8 +157,8 @@ std::string vdb_bytes(const LevelSets& ls, const InclusionSet& set) {
   meta.insertMeta("format", openvdb::StringMetadata("rvegen.levelsets/1"));
   meta.insertMeta("box_origin", openvdb::Vec3DMetadata(openvdb::Vec3d(
                                     set.box.origin[0], set.box.origin[1], set.box.origin[2])));
-  meta.insertMeta("box_size", openvdb::Vec3DMetadata(
-                                  openvdb::Vec3d(set.box.size[0], set.box.size[1], set.box.size[2])));
+  meta.insertMeta("box_size", openvdb::Vec3DMetadata(openvdb::Vec3d(
+                                  set.box.size[0], set.box.size[1], set.box.size[2])));
   meta.insertMeta("periodic", openvdb::BoolMetadata(set.box.periodic));
   meta.insertMeta("voxel_size", openvdb::DoubleMetadata(ls.voxel_size));
   std::ostringstream out(std::ios::binary);

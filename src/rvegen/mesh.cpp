@@ -106,8 +106,9 @@ void mesh_one(SurfaceMesh& m, const Inclusion& inc, const Vec3& center, const Me
   const Shape& s = inc.shape;
   const Modifiers& mod = inc.mod;
   auto radial = [&](const Vec3& n) {
-    return mod.deformed() ? mod.deform_scale * (1.0 + mod.deform_amplitude * deformation_field(mod, n))
-                          : 1.0;
+    return mod.deformed()
+               ? mod.deform_scale * (1.0 + mod.deform_amplitude * deformation_field(mod, n))
+               : 1.0;
   };
   switch (s.kind) {
     case ShapeKind::Sphere:
@@ -121,7 +122,8 @@ void mesh_one(SurfaceMesh& m, const Inclusion& inc, const Vec3& center, const Me
     case ShapeKind::Cylinder: {
       // Straight: one segment along the axis; wavy: 16 rings per wavelength.
       const double len = 2.0 * s.half_axis.norm();
-      const int rings = mod.wavy() ? std::max(1, static_cast<int>(std::ceil(16.0 * len / mod.wave_length))) : 1;
+      const int rings =
+          mod.wavy() ? std::max(1, static_cast<int>(std::ceil(16.0 * len / mod.wave_length))) : 1;
       mesh_cylinder(m, inc, center, segments_for(2.0 * M_PI * s.radius, o, box_min), rings);
       break;
     }
@@ -196,7 +198,8 @@ SurfaceMesh clip_to_box(const SurfaceMesh& m, const Box& box) {
       }
       poly.swap(next);
     }
-    for (size_t i = 1; i + 1 < poly.size(); ++i) add_clipped(out, m, t, poly[0], poly[i], poly[i + 1]);
+    for (size_t i = 1; i + 1 < poly.size(); ++i)
+      add_clipped(out, m, t, poly[0], poly[i], poly[i + 1]);
   }
   return out;
 }

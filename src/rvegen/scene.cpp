@@ -661,7 +661,8 @@ Scene parse_scene(const std::string& text) {
       s.partial_volume = boolean(v["partial_volume"], "voxels.partial_volume");
     if (v.contains("subsamples")) {
       const double n = number(v["subsamples"], "voxels.subsamples");
-      if (n != std::floor(n) || n < 1 || n > 16) fail("voxels.subsamples", "must be an integer in [1, 16]");
+      if (n != std::floor(n) || n < 1 || n > 16)
+        fail("voxels.subsamples", "must be an integer in [1, 16]");
       s.subsamples = static_cast<int>(n);
     }
     const Json& r = require(v, "resolution", "voxels");

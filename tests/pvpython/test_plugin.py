@@ -63,6 +63,32 @@ if ids is not None:
 for name in ("family", "shape"):
     check(surfaces.GetCellData().GetArray(name) is not None, "surface array %s missing" % name)
 
+# Partial volumes: the mean of `fraction` is the inclusions' volume fraction (35 % here).
+frac = image.GetCellData().GetArray("fraction")
+check(frac is not None, "voxel port has no fraction array")
+if frac is not None:
+    mean = sum(frac.GetValue(i) for i in range(frac.GetNumberOfTuples())) / frac.GetNumberOfTuples()
+    check(abs(mean - 0.3501) < 0.005, "mean partial volume %.4f" % mean)
+
+# Ports are computed only when asked for: a fresh source asked for port 0 alone runs port 0.
+lazy = RVEGenerator()
+servermanager.Fetch(lazy, idx=0)
+
+
+def port_runs(proxy):
+    proxy.UpdatePropertyInformation()
+    return list(proxy.GetProperty("PortExecutions"))
+
+
+runs = port_runs(lazy)
+check(runs == [1, 0, 0], "asking port 0 computed ports %s" % (runs,))
+servermanager.Fetch(lazy, idx=1)
+runs = port_runs(lazy)
+check(runs == [1, 1, 0], "asking port 1 then computed ports %s" % (runs,))
+lset = servermanager.Fetch(lazy, idx=2)
+check(lset.GetNumberOfCells() == 0, "default scene (straight inclusions) has level-set surfaces")
+Delete(lazy)
+
 # A scene file overrides the properties.
 scene_path = os.path.join(tempfile.mkdtemp(), "scene.json")
 with open(scene_path, "w") as f:
@@ -73,6 +99,16 @@ gen.SceneFile = scene_path
 gen.UpdatePipeline()
 small = servermanager.Fetch(gen, idx=1)
 check(small.GetNumberOfCells() == 16 ** 3, "scene file not honoured (%d cells)" % small.GetNumberOfCells())
+# Coated spheres: the level-set port holds their interphase surfaces.
+coated_path = os.path.join(tempfile.mkdtemp(), "coated.json")
+with open(coated_path, "w") as f:
+    json.dump({"box": {"size": [1, 1, 1]}, "seed": 2,
+               "families": [{"shape": "sphere", "radius": 0.1, "volume_fraction": 0.1,
+                             "coating": {"thickness": 0.02}}],
+               "voxels": {"resolution": 16}, "levelsets": {"voxel_size": 0.01}}, f)
+gen.SceneFile = coated_path
+lset = servermanager.Fetch(gen, idx=2)
+check(lset.GetNumberOfCells() > 1000, "coated scene: %d level-set triangles" % lset.GetNumberOfCells())
 gen.SceneFile = ""
 gen.UpdatePipeline()
 

@@ -158,9 +158,10 @@ double ellipsoid_distance(const Shape& e, const Vec3& x) {
 }
 
 Shape envelope(const Inclusion& inc) {
-  if (!inc.mod.any()) return inc.shape;
-  const double t = inc.mod.shells_may_touch ? 0.5 * inc.mod.coating : inc.mod.coating;
-  return grown(inc, t);
+  const Modifiers& m = inc.mod;
+  if (!m.any() && m.packing_pad == 0.0) return inc.shape;
+  // Touching shells: the core alone, padded; other shells whole, padded.
+  return grown(inc, (m.shells_may_touch ? 0.0 : m.coating) + m.packing_pad);
 }
 
 Shape outer_bound(const Inclusion& inc) {
@@ -182,6 +183,7 @@ Inclusion place_like(const Inclusion& drawn, const Shape& packed, double scale) 
   m.wave_amplitude *= scale;
   m.wave_length *= scale;
   m.debond_gap *= scale;
+  m.packing_pad *= scale;
   return out;
 }
 

@@ -16,9 +16,10 @@ namespace rvegen {
 
 enum class Region : uint8_t { kOutside = 0, kCore = 1, kShell = 2, kVoid = 3 };
 
-/// The convex shape the packers keep apart: it holds the core, the void and the shell (only the
-/// inner half of the shell when shells_may_touch, so neighbouring shells may merge but never
-/// reach a neighbour's core).
+/// The convex shape the packers keep apart: it holds the core, the void and the shell, grown by
+/// Modifiers::packing_pad. With shells_may_touch it holds the core only (grown by the pad, half
+/// the largest touching coating of the scene): such a shell reaches at most one pad beyond the
+/// envelope, and every other body lies one pad inside its own, so only touching shells meet.
 Shape envelope(const Inclusion& inc);
 /// A convex shape holding every region of the inclusion (the envelope with the whole shell).
 Shape outer_bound(const Inclusion& inc);

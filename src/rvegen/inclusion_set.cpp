@@ -147,7 +147,7 @@ Modifiers read_modifiers(const json_util::Json& j, const Shape& shape, const std
   only_keys(j,
             {"coating", "shells_may_touch", "wave_amplitude", "wave_length", "wave_phase",
              "wave_angle", "deform_amplitude", "deform_scale", "deform_waves", "debond_fraction",
-             "debond_gap", "debond_axis"},
+             "debond_gap", "debond_axis", "packing_pad"},
             p);
   Modifiers m;
   auto num = [&](const char* key, double* out) {
@@ -176,7 +176,10 @@ Modifiers read_modifiers(const json_util::Json& j, const Shape& shape, const std
     for (size_t k = 0; k < waves.size(); ++k) {
       const std::string q = p + ".deform_waves[" + std::to_string(k) + "]";
       DeformationWave w;
-      w.direction = vec3(require(waves[k], "direction", q), q + ".direction").normalized();
+      w.direction = vec3(require(waves[k], "direction", q), q + ".direction");
+      if (!(w.direction.norm() > 0.0)) fail(q + ".direction", "must be non-zero");
+      // Unit vectors written by rvegen read back bit for bit; others are normalised.
+      if (std::abs(w.direction.norm() - 1.0) > 1e-12) w.direction.normalize();
       w.weight = positive(require(waves[k], "weight", q), q + ".weight");
       w.wavenumber = positive(require(waves[k], "wavenumber", q), q + ".wavenumber");
       w.phase = number(require(waves[k], "phase", q), q + ".phase");
@@ -185,6 +188,10 @@ Modifiers read_modifiers(const json_util::Json& j, const Shape& shape, const std
     }
     if (sum > 1.0 + 1e-9) fail(p + ".deform_waves", "weights must sum to at most 1");
   }
+  if (j.contains("packing_pad")) {
+    m.packing_pad = number(j["packing_pad"], p + ".packing_pad");
+    if (m.packing_pad < 0.0) fail(p + ".packing_pad", "must be >= 0");
+  }
   if (j.contains("debond_gap")) {
     if (shape.kind != ShapeKind::Sphere) fail(p + ".debond_gap", "spheres only");
     m.debond_gap = positive(j["debond_gap"], p + ".debond_gap");
@@ -192,7 +199,7 @@ Modifiers read_modifiers(const json_util::Json& j, const Shape& shape, const std
     if (m.debond_fraction > 1.0) fail(p + ".debond_fraction", "must be in (0, 1]");
     const Vec3 a = vec3(require(j, "debond_axis", p), p + ".debond_axis");
     if (!(a.norm() > 0.0)) fail(p + ".debond_axis", "must be non-zero");
-    m.debond_axis = a.normalized();
+    m.debond_axis = std::abs(a.norm() - 1.0) > 1e-12 ? Vec3(a.normalized()) : a;
   }
   return m;
 }
@@ -303,7 +310,7 @@ std::string write_inclusions_json(const InclusionSet& set) {
       }
     }
     const Modifiers& m = inc.mod;
-    if (m.any()) {
+    if (m.any() || m.packing_pad > 0.0) {
       OJson mj;
       if (m.coated()) {
         mj["coating"] = m.coating;
@@ -332,6 +339,7 @@ std::string write_inclusions_json(const InclusionSet& set) {
         mj["debond_gap"] = m.debond_gap;
         mj["debond_axis"] = v3(m.debond_axis);
       }
+      if (m.packing_pad > 0.0) mj["packing_pad"] = m.packing_pad;
       e["modifiers"] = mj;
     }
     list.push_back(e);

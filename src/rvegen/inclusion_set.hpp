@@ -55,6 +55,11 @@ struct Modifiers {
   double debond_fraction = 0.0, debond_gap = 0.0;
   Vec3 debond_axis = Vec3::UnitZ();
 
+  /// Clearance added to the packing envelope of every inclusion of a scene in which shells may
+  /// touch: half the largest such coating, so a shell that reaches beyond its own envelope
+  /// never meets another inclusion's body (only another touching shell).
+  double packing_pad = 0.0;
+
   bool coated() const { return coating > 0.0; }
   bool wavy() const { return wave_amplitude > 0.0; }
   bool deformed() const { return deform_amplitude > 0.0; }

@@ -280,6 +280,10 @@ std::vector<Inclusion> draw_population(const Scene& scene, Random& rng) {
   std::vector<Inclusion> out;
   const double V = scene.box.volume();
   Random mod_rng(scene.seed ^ 0x6d6f646966696572ULL);  // modifiers: their own stream
+  double pad = 0.0;  // half the largest coating whose shells may touch (see envelope())
+  for (const Family& f : scene.families) {
+    if (f.modifiers.shells_may_touch) pad = std::max(pad, 0.5 * f.modifiers.coating);
+  }
   for (size_t f = 0; f < scene.families.size(); ++f) {
     const Family& fam = scene.families[f];
     auto add = [&](const Shape& s) {
@@ -288,6 +292,7 @@ std::vector<Inclusion> draw_population(const Scene& scene, Random& rng) {
       inc.family = static_cast<int>(f);
       inc.shape = s;
       if (fam.modifiers.any()) inc.mod = fam.modifiers.draw(mod_rng);
+      inc.mod.packing_pad = pad;
       out.push_back(inc);
     };
     if (fam.count >= 0) {
@@ -447,6 +452,8 @@ Family parse_family(const Json& j, const std::string& p, double box_volume) {
   if (!parse_shape_name(shape, &f.shape)) {
     fail(p + ".shape", "unknown shape \"" + shape + "\" (sphere, cylinder, ellipsoid)");
   }
+  // Modifiers first: a modifier on the wrong shape gets its own message, not "unknown key".
+  f.modifiers = parse_modifiers(j, f.shape, p);
   const bool has_vf = j.contains("volume_fraction"), has_n = j.contains("count");
   if (!has_vf && !has_n) fail(p, "give \"volume_fraction\", \"count\" or both");
   if (has_vf) {
@@ -524,7 +531,6 @@ Family parse_family(const Json& j, const std::string& p, double box_volume) {
   f.name = j.contains("name") ? string(j["name"], p + ".name") : std::string(shape_name(f.shape));
   if (j.contains("orientation"))
     f.orientation = parse_orientation(j["orientation"], p + ".orientation");
-  f.modifiers = parse_modifiers(j, f.shape, p);
   if (derived) f.volume_fraction = -1.0;  // the count now says it all
   return f;
 }

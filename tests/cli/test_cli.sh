@@ -17,9 +17,41 @@ py=/usr/bin/python3
 
 # Default scene: all four files, no overlap by the independent audit.
 expect_rc 0 "$RVEGEN" generate -q -o "$WORK/default"
-for f in inclusions.json inclusions.vtp voxels.vti report.json; do
+for f in inclusions.json inclusions.vtp voxels.vti report.json rve.h5 rve.xdmf material.vtk; do
   [ -s "$WORK/default/$f" ] || fail "default run did not write $f"
 done
+# Straight inclusions need no level set.
+[ -e "$WORK/default/levelsets.vdb" ] && fail "levelsets.vdb written for straight inclusions"
+# The HDF5 file read back with h5py: labels, partial volumes, inclusion table, metadata.
+$py - "$WORK/default" <<'PY' || fail "rve.h5 read back"
+import json, sys
+import h5py
+d = sys.argv[1]
+report = json.load(open(d + "/report.json"))
+inclusions = json.load(open(d + "/inclusions.json"))["inclusions"]
+with h5py.File(d + "/rve.h5", "r") as f:
+    assert f.attrs["format"] in (b"rvegen.h5/1", "rvegen.h5/1"), f.attrs["format"]
+    phase = f["voxels/phase"][:]
+    assert phase.shape == (64, 64, 64), phase.shape
+    frac = f["voxels/fraction"][:]
+    assert abs(frac.mean() - report["voxels"]["partial_volume_fraction"]) < 1e-6
+    assert abs(frac.mean() - report["volume_fraction"]) < 0.005
+    assert f["inclusions/center"].shape == (len(inclusions), 3)
+    assert list(f["inclusions/id"][:]) == [i["id"] for i in inclusions]
+    names = [n.decode() for n in f["phases/name"][:]]
+    assert names == [p["name"] for p in report["phases"]], names
+    assert json.loads(f.attrs["report"])["status"] == "ok"
+PY
+# The AMITEX material map: 10-line header, big-endian unsigned shorts 1..N.
+$py - "$WORK/default/material.vtk" <<'PY' || fail "material.vtk"
+import sys
+import numpy as np
+raw = open(sys.argv[1], "rb").read()
+lines = raw.split(b"\n", 10)
+assert lines[0] == b"# vtk DataFile Version 4.5" and lines[4] == b"DIMENSIONS 65 65 65", lines[:5]
+data = np.frombuffer(lines[10], dtype=">u2")
+assert data.size == 64 ** 3 and data.min() == 1 and data.max() == 4, (data.size, data.min(), data.max())
+PY
 ls -A "$WORK/default" | grep -q '^\.' && fail "temporary files left behind"
 expect_rc 0 "$RVEGEN" check "$WORK/default/inclusions.json"
 expect_rc 0 "$RVEGEN" check --json "$WORK/default/inclusions.json"
@@ -86,6 +118,39 @@ PY
 echo '{"format": "rvegen.inclusions/1", "box": {"size": [1,1,1]}, "inclusions": [{"id": 0, "shape": "sphere", "center": [0,0,0], "radius": -1}]}' >"$WORK/bad_list.json"
 expect_rc 2 "$RVEGEN" check "$WORK/bad_list.json"
 grep -q "inclusions\[0\].radius" "$WORK/last.err" || fail "check error does not name the key"
+
+# Modifiers: coated, wavy, deformed and debonded inclusions; level sets written and exact phases.
+cat >"$WORK/modified.json" <<'JSON'
+{"box": {"size": [1, 1, 1]}, "seed": 4,
+ "families": [
+  {"name": "coated", "shape": "sphere", "radius": 0.08, "volume_fraction": 0.1, "coating": {"thickness": 0.015}},
+  {"name": "wavy", "shape": "cylinder", "radius": 0.025, "aspect_ratio": 5, "volume_fraction": 0.04,
+   "waviness": {"amplitude": 0.01, "wavelength": 0.1}},
+  {"name": "bumpy", "shape": "sphere", "radius": 0.06, "volume_fraction": 0.05, "deformation": {"amplitude": 0.2}},
+  {"name": "debonded", "shape": "sphere", "radius": 0.06, "volume_fraction": 0.04,
+   "debonding": {"fraction": 0.25, "gap": 0.01}}],
+ "voxels": {"resolution": 80}, "levelsets": {"voxel_size": 0.01}}
+JSON
+expect_rc 0 "$RVEGEN" generate -q "$WORK/modified.json" -o "$WORK/modified"
+[ -s "$WORK/modified/levelsets.vdb" ] || fail "modified scene: no levelsets.vdb"
+expect_rc 0 "$RVEGEN" check "$WORK/modified/inclusions.json"
+$py - "$WORK/modified/report.json" <<'PY' || fail "modified scene report"
+import json, sys
+r = json.load(open(sys.argv[1]))
+kinds = sorted(p["kind"] for p in r["phases"])
+assert kinds == ["core"] * 4 + ["interphase", "matrix", "void"], kinds
+for p in r["phases"]:
+    assert abs(p["volume_fraction"] - p["voxel_volume_fraction"]) < 0.004, p
+names = sorted(g["name"] for g in r["levelsets"]["grids"])
+assert names == ["bumpy_core", "coated_interphase", "wavy_core"], names
+assert r["voxels"]["conflicts"] == 0
+PY
+bad waviness_sphere '{"box": {"size": [1,1,1]}, "families": [{"shape": "sphere", "radius": 0.05, "volume_fraction": 0.1, "waviness": {"amplitude": 0.01, "wavelength": 0.1}}]}' \
+  "families\[0\].waviness: waviness applies to cylinders only"
+bad thick_coating '{"box": {"size": [1,1,1]}, "families": [{"shape": "sphere", "radius": 0.05, "volume_fraction": 0.5, "coating": {"thickness": 0.03}}]}' \
+  "envelopes"
+bad nan_gap '{"box": {"size": [1,1,1]}, "families": [{"shape": "sphere", "radius": 0.05, "volume_fraction": 0.1, "debonding": {"fraction": 0.2, "gap": -1}}]}' \
+  "families\[0\].debonding.gap"
 
 if [ "$fails" -ne 0 ]; then
   echo "$fails failure(s)"

@@ -52,6 +52,21 @@ for name in ("phase", "inclusion_id"):
 phase = image.GetCellData().GetArray("phase")
 check(phase.GetRange() == (0.0, 3.0), "phase range %s" % (phase.GetRange(),))
 
+# rve.xdmf (over rve.h5) opens in ParaView with the same labels and partial volumes.
+xdmf = OpenDataFile(cli_dir + "/rve.xdmf")
+check(xdmf is not None, "ParaView cannot open rve.xdmf")
+if xdmf is not None:
+    xd = servermanager.Fetch(xdmf)
+    check(xd.GetNumberOfCells() == 64 ** 3, "rve.xdmf has %d cells" % xd.GetNumberOfCells())
+    for name in ("phase", "fraction"):
+        a = xd.GetCellData().GetArray(name)
+        b = cli.GetCellData().GetArray(name)
+        check(a is not None and b is not None, "rve.xdmf array %s missing" % name)
+        if a is not None and b is not None:
+            diff = sum(1 for i in range(a.GetNumberOfTuples()) if a.GetValue(i) != b.GetValue(i))
+            check(diff == 0, "rve.xdmf %s differs from voxels.vti in %d voxels" % (name, diff))
+    Delete(xdmf)
+
 # Port 0: surfaces with the inclusion ids of inclusions.json.
 with open(cli_dir + "/inclusions.json") as f:
     n_inclusions = len(json.load(f)["inclusions"])

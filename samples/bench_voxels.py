@@ -53,7 +53,7 @@ if big:
     for r in big:
         lines.append("| %s | %s | %s | %s |" % (r[8], r[3], r[4], r[7]))
 lines += ["", "Level sets of samples/scenes/modified.json (coated spheres, wavy fibres, deformed"
-          " ellipsoids; 3 grids), voxel size = box / N, one thread:", "",
+          " ellipsoids; 3 grids), voxel size = box / N, 2 threads:", "",
           "| N | seconds | sparse MB | dense MB | sparse / dense | volume error |",
           "|---:|---:|---:|---:|---:|---:|"]
 for r in ls_rows:

@@ -52,7 +52,10 @@ class BodyQuery {
   }
   /// True for an inclusion without modifiers (a core only, exact line intersections).
   bool plain() const { return !m_.any(); }
-  /// Plain inclusions: the parameters [t0, t1] where the line p + t e_x lies in the core;
+  /// True when the core is the straight convex shape (not wavy, not deformed): x_interval
+  /// applies to it whatever shell or void surrounds it.
+  bool straight_core() const { return !m_.wavy() && !m_.deformed(); }
+  /// Straight cores: the parameters [t0, t1] where the line p + t e_x lies in the core;
   /// false when it misses the core.
   bool x_interval(const Vec3& p, double* t0, double* t1) const;
 

@@ -6,6 +6,7 @@
 #include <openvdb/tools/Prune.h>
 #include <openvdb/tools/SignedFloodFill.h>
 #include <openvdb/tools/VolumeToMesh.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
@@ -67,8 +68,12 @@ LevelSets build_level_sets(const InclusionSet& set, const LevelSetOptions& opt) 
       auto grid = openvdb::FloatGrid::create(static_cast<float>(band));
       grid->setTransform(openvdb::math::Transform::createLinearTransform(vs));
       grid->setGridClass(openvdb::GRID_LEVEL_SET);
-      auto acc = grid->getAccessor();
-      for (const Inclusion* inc : members) {
+      // Narrow-band values of each inclusion, computed in parallel, then written in inclusion
+      // order taking the minimum (the union: merged shells, self images): the same grid
+      // whatever the number of threads.
+      std::vector<std::vector<std::pair<openvdb::Coord, float>>> values(members.size());
+      tbb::parallel_for(size_t(0), members.size(), [&](size_t m) {
+        const Inclusion* inc = members[m];
         const BodyQuery body(*inc);
         Vec3 lo, hi;
         outer_bound(*inc).aabb(&lo, &hi);
@@ -98,17 +103,22 @@ LevelSets build_level_sets(const InclusionSet& set, const LevelSetOptions& opt) 
                     // Voxel centres of the grid sit at integer coordinates times vs.
                     const Vec3 p = Vec3(x, y, z) * vs - shift;
                     const double d = kind == 0 ? body.core_distance(p) : body.shell_distance(p);
-                    if (std::abs(d) >= band) continue;
-                    const openvdb::Coord ijk(x, y, z);
-                    float v;
-                    // Union with what is already there (merged shells, self images).
-                    if (acc.probeValue(ijk, v) && v <= d) continue;
-                    acc.setValue(ijk, static_cast<float>(d));
+                    if (std::abs(d) < band) {
+                      values[m].emplace_back(openvdb::Coord(x, y, z), static_cast<float>(d));
+                    }
                   }
                 }
               }
             }
           }
+        }
+      });
+      auto acc = grid->getAccessor();
+      for (const auto& list : values) {
+        for (const auto& [ijk, d] : list) {
+          float v;
+          if (acc.probeValue(ijk, v) && v <= d) continue;
+          acc.setValue(ijk, d);
         }
       }
       openvdb::tools::signedFloodFill(grid->tree());

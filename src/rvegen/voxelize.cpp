@@ -131,14 +131,32 @@ VoxelImage voxelize(const InclusionSet& set, const std::array<int, 3>& dims,
         ph = core_label;
         img.inclusion_id[idx] = inc.id;
       };
+      auto label_outer = [&](size_t idx, Region r) {
+        if (img.phase[idx] != 0) return;
+        img.phase[idx] = static_cast<uint8_t>(r == Region::kShell ? shell_label[inc.family]
+                                                                  : void_label[inc.family]);
+        img.inclusion_id[idx] = inc.id;
+      };
+      // Shell and void labels of a row (voxels the core did not take).
+      auto label_outer_regions = [&](int, int jj, double y) {
+        int ii;
+        for (int i = f.lo[0]; i <= f.hi[0]; ++i) {
+          if (!in_x(i, &ii)) continue;
+          const size_t idx = img.index(ii, jj, kk);
+          if (img.phase[idx] != 0) continue;
+          const Region r = body.region(Vec3(img.origin[0] + (i + 0.5) * img.spacing[0], y, z));
+          if (r == Region::kShell || r == Region::kVoid) label_outer(idx, r);
+        }
+      };
       for (int j = f.lo[1]; j <= f.hi[1]; ++j) {
         const int jj = periodic ? wrap(j, dims[1]) : j;
         if (jj < img.extent[2] || jj >= img.extent[3]) continue;
         const double y = img.origin[1] + (j + 0.5) * img.spacing[1];
         const double ox = img.origin[0], hx = img.spacing[0];
-        if (body.plain()) {
+        if (body.straight_core()) {
           // Exact intersections of x lines with the core: the centre line gives the labels,
-          // ss^2 lines across the row give the partial volumes (exact along x).
+          // ss^2 lines across the row give the partial volumes (exact along x). A shell or a
+          // void is then labelled by its centre test where the core left the matrix.
           double t0, t1;
           if (body.x_interval(Vec3(0.0, y, z), &t0, &t1)) {
             const int i0 = std::max(f.lo[0], static_cast<int>(std::ceil((t0 - ox) / hx - 0.5)));
@@ -148,6 +166,7 @@ VoxelImage voxelize(const InclusionSet& set, const std::array<int, 3>& dims,
               if (in_x(i, &ii)) label_core(img.index(ii, jj, kk));
             }
           }
+          if (!body.plain()) label_outer_regions(j, jj, y);
           if (!opt.partial_volume) continue;
           // Coverage of the row's voxels, accumulated as a difference array (+1 where a line
           // enters whole voxels, -1 after) plus the partly covered end voxels.
@@ -216,10 +235,8 @@ VoxelImage voxelize(const InclusionSet& set, const std::array<int, 3>& dims,
           if (r == Region::kOutside) continue;
           if (r == Region::kCore) {
             label_core(idx);
-          } else if (img.phase[idx] == 0) {
-            img.phase[idx] = static_cast<uint8_t>(r == Region::kShell ? shell_label[inc.family]
-                                                                      : void_label[inc.family]);
-            img.inclusion_id[idx] = inc.id;
+          } else {
+            label_outer(idx, r);
           }
         }
       }

@@ -150,6 +150,8 @@ int vtkRVEGenerator::RequestInformation(vtkInformation*, vtkInformationVector**,
     origin[a] = scene.box.origin[a];
   }
   info->Set(vtkStreamingDemandDrivenPipeline::WHOLE_EXTENT(), extent, 6);
+  // The image is computed for whatever extent is asked (under MPI each rank its own slab).
+  info->Set(vtkAlgorithm::CAN_PRODUCE_SUB_EXTENT(), 1);
   info->Set(vtkDataObject::SPACING(), spacing, 3);
   info->Set(vtkDataObject::ORIGIN(), origin, 3);
   return 1;
@@ -224,8 +226,16 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
     rvegen::VoxelOptions vopt;
     vopt.partial_volume = scene.partial_volume;
     vopt.subsamples = scene.subsamples;
+    // The update extent (point extent: cells lo..hi-1); the whole image when none is set.
+    vtkInformation* imageInfo = outVec->GetInformationObject(1);
+    int ext[6] = {0, scene.resolution[0], 0, scene.resolution[1], 0, scene.resolution[2]};
+    if (imageInfo->Has(vtkStreamingDemandDrivenPipeline::UPDATE_EXTENT())) {
+      imageInfo->Get(vtkStreamingDemandDrivenPipeline::UPDATE_EXTENT(), ext);
+    }
+    vopt.extent = {ext[0], ext[1], ext[2], ext[3], ext[4], ext[5]};
     const rvegen::VoxelImage vox = rvegen::voxelize(result.set, scene.resolution, vopt);
-    image->SetExtent(0, vox.dims[0], 0, vox.dims[1], 0, vox.dims[2]);
+    image->SetExtent(vox.extent[0], vox.extent[1], vox.extent[2], vox.extent[3], vox.extent[4],
+                     vox.extent[5]);
     image->SetOrigin(vox.origin.data());
     image->SetSpacing(vox.spacing.data());
     vtkNew<vtkUnsignedCharArray> phase;

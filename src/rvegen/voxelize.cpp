@@ -59,6 +59,8 @@ VoxelImage voxelize(const InclusionSet& set, const std::array<int, 3>& dims,
     const bool whole = opt.extent[2 * a + 1] < 0;
     img.extent[2 * a] = whole ? 0 : std::clamp(opt.extent[2 * a], 0, dims[a]);
     img.extent[2 * a + 1] = whole ? dims[a] : std::clamp(opt.extent[2 * a + 1], 0, dims[a]);
+    img.extent[2 * a + 1] =
+        std::max(img.extent[2 * a + 1], img.extent[2 * a]);  // empty, not negative
   }
   img.phases = phase_table(set);
   const size_t n = img.count();

@@ -22,6 +22,7 @@
 #include "vtkObjectFactory.h"
 #include "vtkPoints.h"
 #include "vtkPolyData.h"
+#include "vtkRVECommon.h"
 #include "vtkStreamingDemandDrivenPipeline.h"
 #include "vtkStringArray.h"
 #include "vtkTypeInt64Array.h"
@@ -91,44 +92,6 @@ rvegen::Scene SceneFromProperties(const vtkRVEGenerator* g) {
   return s;
 }
 
-// Copies a core mesh into a vtkPolyData (points, triangles, cell arrays).
-void ToPolyData(const rvegen::SurfaceMesh& mesh, vtkPolyData* out) {
-  vtkNew<vtkPoints> points;
-  points->SetDataTypeToDouble();
-  points->SetNumberOfPoints(static_cast<vtkIdType>(mesh.points.size()));
-  for (size_t i = 0; i < mesh.points.size(); ++i) {
-    points->SetPoint(static_cast<vtkIdType>(i), mesh.points[i].data());
-  }
-  vtkNew<vtkTypeInt64Array> offsets, connectivity;
-  offsets->SetNumberOfValues(static_cast<vtkIdType>(mesh.triangles.size() + 1));
-  connectivity->SetNumberOfValues(static_cast<vtkIdType>(3 * mesh.triangles.size()));
-  for (size_t t = 0; t <= mesh.triangles.size(); ++t) offsets->SetValue(t, 3 * t);
-  for (size_t t = 0; t < mesh.triangles.size(); ++t) {
-    for (int k = 0; k < 3; ++k) connectivity->SetValue(3 * t + k, mesh.triangles[t][k]);
-  }
-  vtkNew<vtkCellArray> polys;
-  polys->SetData(offsets, connectivity);
-  out->SetPoints(points);
-  out->SetPolys(polys);
-  auto int_array = [](const char* name, const std::vector<int32_t>& v) {
-    vtkNew<vtkIntArray> a;
-    a->SetName(name);
-    a->SetNumberOfValues(static_cast<vtkIdType>(v.size()));
-    std::copy(v.begin(), v.end(), a->GetPointer(0));
-    return a;
-  };
-  out->GetCellData()->AddArray(int_array("inclusion_id", mesh.inclusion_id));
-  out->GetCellData()->AddArray(int_array("family", mesh.family));
-  out->GetCellData()->AddArray(int_array("shape", mesh.shape));
-  out->GetCellData()->AddArray(int_array("phase", mesh.phase));
-  vtkNew<vtkFloatArray> axis;
-  axis->SetName("axis");
-  axis->SetNumberOfComponents(3);
-  axis->SetNumberOfTuples(static_cast<vtkIdType>(mesh.axis.size()));
-  for (size_t t = 0; t < mesh.axis.size(); ++t) axis->SetTypedTuple(t, mesh.axis[t].data());
-  out->GetCellData()->AddArray(axis);
-  out->GetCellData()->SetActiveScalars("family");
-}
 }  // namespace
 
 int vtkRVEGenerator::RequestInformation(vtkInformation*, vtkInformationVector**,
@@ -217,8 +180,12 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
   if (wanted(0)) {
     rvegen::MeshOptions mopt;
     mopt.clip_to_box = scene.clip_surfaces;
-    ToPolyData(rvegen::tessellate(result.set, mopt), surfaces);
+    RVEPolyDataFromMesh(rvegen::tessellate(result.set, mopt), surfaces);
     surfaces->GetFieldData()->AddArray(status);
+    vtkNew<vtkStringArray> inclusions;  // for the RVE filters
+    inclusions->SetName("rvegen_inclusions");
+    inclusions->InsertNextValue(rvegen::write_inclusions_json(result.set));
+    surfaces->GetFieldData()->AddArray(inclusions);
     ++this->PortExecutions[0];
   }
 
@@ -234,32 +201,7 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
     }
     vopt.extent = {ext[0], ext[1], ext[2], ext[3], ext[4], ext[5]};
     const rvegen::VoxelImage vox = rvegen::voxelize(result.set, scene.resolution, vopt);
-    image->SetExtent(vox.extent[0], vox.extent[1], vox.extent[2], vox.extent[3], vox.extent[4],
-                     vox.extent[5]);
-    image->SetOrigin(vox.origin.data());
-    image->SetSpacing(vox.spacing.data());
-    vtkNew<vtkUnsignedCharArray> phase;
-    phase->SetName("phase");
-    phase->SetNumberOfValues(static_cast<vtkIdType>(vox.phase.size()));
-    std::copy(vox.phase.begin(), vox.phase.end(), phase->GetPointer(0));
-    vtkNew<vtkIntArray> ids;
-    ids->SetName("inclusion_id");
-    ids->SetNumberOfValues(static_cast<vtkIdType>(vox.inclusion_id.size()));
-    std::copy(vox.inclusion_id.begin(), vox.inclusion_id.end(), ids->GetPointer(0));
-    image->GetCellData()->AddArray(phase);
-    image->GetCellData()->AddArray(ids);
-    if (!vox.fraction.empty()) {
-      vtkNew<vtkFloatArray> fraction;
-      fraction->SetName("fraction");
-      fraction->SetNumberOfValues(static_cast<vtkIdType>(vox.fraction.size()));
-      std::copy(vox.fraction.begin(), vox.fraction.end(), fraction->GetPointer(0));
-      image->GetCellData()->AddArray(fraction);
-    }
-    image->GetCellData()->SetActiveScalars("phase");
-    vtkNew<vtkStringArray> names;
-    names->SetName("phase_names");
-    for (const auto& p : vox.phases) names->InsertNextValue(p.name);
-    image->GetFieldData()->AddArray(names);
+    RVEImageFromVoxels(vox, image);
     ++this->PortExecutions[1];
   }
 
@@ -269,7 +211,7 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
     lopt.voxel_size = scene.levelset_voxel_size;
     lopt.half_width = scene.levelset_half_width;
     const rvegen::LevelSets ls = rvegen::build_level_sets(result.set, lopt);
-    ToPolyData(rvegen::level_set_surfaces(ls), vtkPolyData::GetData(outVec, 2));
+    RVEPolyDataFromMesh(rvegen::level_set_surfaces(ls), vtkPolyData::GetData(outVec, 2));
     ++this->PortExecutions[2];
   }
   return 1;

@@ -108,8 +108,9 @@ int cmd_generate(const std::vector<std::string>& args) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const std::string report = rvegen::report_json(scene, result, &image, seconds, &levelsets);
   rvegen::OutputTransaction out(out_dir);
-  out.add("inclusions.json", rvegen::write_inclusions_json(result.set));
-  out.add("inclusions.vtp", rvegen::vtp_bytes(mesh));
+  const std::string inclusions = rvegen::write_inclusions_json(result.set);
+  out.add("inclusions.json", inclusions);
+  out.add("inclusions.vtp", rvegen::vtp_bytes(mesh, inclusions));
   out.add("voxels.vti", rvegen::vti_bytes(image));
   out.add("material.vtk", rvegen::material_vtk_bytes(image));
   try {

@@ -16,6 +16,27 @@ std::vector<double> family_volume_fractions(const InclusionSet& set, int n_famil
   return vf;
 }
 
+std::vector<double> phase_volume_fractions(const InclusionSet& set,
+                                           const std::vector<Phase>& phases) {
+  std::vector<double> exact(phases.size(), 0.0);
+  for (const auto& inc : set.inclusions) {
+    const RegionVolumes v = region_volumes(inc);
+    for (const auto& p : phases) {
+      if (p.family != inc.family) continue;
+      if (p.kind == "core") exact[p.label] += v.core;
+      if (p.kind == "interphase") exact[p.label] += v.shell;
+      if (p.kind == "void") exact[p.label] += v.void_;
+    }
+  }
+  double solid = 0.0;
+  for (double& v : exact) {
+    v /= set.box.volume();
+    solid += v;
+  }
+  if (!exact.empty()) exact[0] = 1.0 - solid;
+  return exact;
+}
+
 std::string report_json(const Scene& scene, const PackingResult& r, const VoxelImage* image,
                         double total_seconds, const LevelSets* levelsets) {
   using OJson = nlohmann::ordered_json;
@@ -76,24 +97,11 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
   // Every phase: the exact volume fraction from the geometry and, with an image, the share of
   // voxel centres carrying the label.
   const std::vector<Phase> phases = image ? image->phases : phase_table(r.set);
-  std::vector<double> exact(phases.size(), 0.0);
+  const std::vector<double> exact = phase_volume_fractions(r.set, phases);
   bool merged_shells = false;
   for (const auto& inc : r.set.inclusions) {
-    const RegionVolumes v = region_volumes(inc);
     merged_shells = merged_shells || (inc.mod.coated() && inc.mod.shells_may_touch);
-    for (const auto& p : phases) {
-      if (p.family != inc.family) continue;
-      if (p.kind == "core") exact[p.label] += v.core;
-      if (p.kind == "interphase") exact[p.label] += v.shell;
-      if (p.kind == "void") exact[p.label] += v.void_;
-    }
   }
-  double solid = 0.0;
-  for (double& v : exact) {
-    v /= r.set.box.volume();
-    solid += v;
-  }
-  exact[0] = 1.0 - solid;
   OJson ph = OJson::array();
   for (const auto& p : phases) {
     OJson j;

@@ -103,7 +103,7 @@ std::string material_vtk_bytes(const VoxelImage& im) {
   return out;
 }
 
-std::string vtp_bytes(const SurfaceMesh& m) {
+std::string vtp_bytes(const SurfaceMesh& m, const std::string& inclusions_json) {
   Appended app;
   std::vector<double> pts(3 * m.points.size());
   for (size_t i = 0; i < m.points.size(); ++i) {
@@ -124,6 +124,14 @@ std::string vtp_bytes(const SurfaceMesh& m) {
   const size_t o_axis = app.add(reinterpret_cast<const float*>(m.axis.data()), 3 * m.axis.size());
   std::ostringstream s;
   s << header("PolyData") << "  <PolyData>\n";
+  if (!inclusions_json.empty()) {
+    // The inclusion list as a string in field data (VTK's ascii form: byte values, then 0), so
+    // the RVE filters work on surfaces read back from the file.
+    s << "    <FieldData>\n      <Array type=\"String\" Name=\"rvegen_inclusions\" "
+         "NumberOfTuples=\"1\" format=\"ascii\">\n";
+    for (unsigned char c : inclusions_json) s << static_cast<int>(c) << ' ';
+    s << "0\n      </Array>\n    </FieldData>\n";
+  }
   s << "    <Piece NumberOfPoints=\"" << m.points.size()
     << "\" NumberOfVerts=\"0\" NumberOfLines=\"0\""
     << " NumberOfStrips=\"0\" NumberOfPolys=\"" << m.triangles.size() << "\">\n";

@@ -21,7 +21,8 @@ std::string vti_bytes(const VoxelImage& image);
 std::string material_vtk_bytes(const VoxelImage& image);
 /// VTK XML PolyData with cell arrays "inclusion_id", "family", "shape", "phase" (Int32) and
 /// "axis" (Float32 x 3).
-std::string vtp_bytes(const SurfaceMesh& mesh);
+/// With `inclusions_json` (write_inclusions_json), field data "rvegen_inclusions" holds it.
+std::string vtp_bytes(const SurfaceMesh& mesh, const std::string& inclusions_json = "");
 
 /// Collects output files and writes them all or none: each goes to a hidden temporary file in
 /// the target directory; commit() renames them into place once every write has succeeded.

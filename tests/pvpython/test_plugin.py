@@ -104,6 +104,48 @@ lset = servermanager.Fetch(lazy, idx=2)
 check(lset.GetNumberOfCells() == 0, "default scene (straight inclusions) has level-set surfaces")
 Delete(lazy)
 
+# RVE Statistics: the same numbers as report.json, from the live source and from the file.
+with open(cli_dir + "/report.json") as f:
+    report = json.load(f)
+
+
+def stats_rows(source):
+    t = servermanager.Fetch(RVEStatistics(Input=source))
+    return [(t.GetValue(r, 0).ToString(), t.GetValue(r, 1).ToString(), t.GetValue(r, 2).ToInt(),
+             t.GetValue(r, 3).ToDouble()) for r in range(t.GetNumberOfRows())]
+
+
+live = stats_rows(OutputPort(gen, 0))
+vf = {n: v for q, n, i, v in live if q == "volume_fraction"}
+for p in report["phases"]:
+    check(abs(vf.get(p["name"], -1) - p["volume_fraction"]) < 1e-9,
+          "statistics volume fraction of %s: %s" % (p["name"], vf.get(p["name"])))
+counts = {n: v for q, n, i, v in live if q == "count"}
+for fam in report["families"]:
+    check(counts.get(fam["name"]) == fam["count"], "statistics count of %s" % fam["name"])
+check(sum(1 for q, n, i, v in live if q == "orientation_tensor") == 18, "orientation tensors")
+check(any(q == "g_r" for q, n, i, v in live), "no g(r) rows")
+from_file = stats_rows(XMLPolyDataReader(FileName=[cli_dir + "/inclusions.vtp"]))
+check(from_file == live, "statistics of inclusions.vtp differ from the live source's")
+
+# RVE Voxelize at the generator's resolution gives the generator's image; at another one, the
+# partial volumes still add up to the volume fraction.
+revox = servermanager.Fetch(RVEVoxelize(Input=OutputPort(gen, 0), Resolution=[64, 64, 64]))
+for name in ("phase", "fraction"):
+    a = revox.GetCellData().GetArray(name)
+    b = image.GetCellData().GetArray(name)
+    diff = sum(1 for i in range(a.GetNumberOfTuples()) if a.GetValue(i) != b.GetValue(i))
+    check(diff == 0, "RVE Voxelize %s differs from the generator's in %d voxels" % (name, diff))
+fine = servermanager.Fetch(RVEVoxelize(Input=XMLPolyDataReader(FileName=[cli_dir + "/inclusions.vtp"]),
+                                       Resolution=[40, 48, 56]))
+fr = fine.GetCellData().GetArray("fraction")
+check(fine.GetNumberOfCells() == 40 * 48 * 56, "RVE Voxelize resolution per axis")
+mean = sum(fr.GetValue(i) for i in range(fr.GetNumberOfTuples())) / fr.GetNumberOfTuples()
+check(abs(mean - report["volume_fraction"]) < 0.002, "RVE Voxelize partial volume %.4f" % mean)
+# Not an RVE: an error in the output window, no crash, an empty result.
+bad = servermanager.Fetch(RVEStatistics(Input=Sphere()))
+check(bad.GetNumberOfRows() == 0, "statistics of a plain sphere source")
+
 # A scene file overrides the properties.
 scene_path = os.path.join(tempfile.mkdtemp(), "scene.json")
 with open(scene_path, "w") as f:

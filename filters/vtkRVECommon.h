@@ -1,0 +1,118 @@
+// Shared by the RVE algorithms: core results copied into VTK data, and the inclusion list an
+// RVE carries in its field data. Header-only, thin.
+#ifndef vtkRVECommon_h
+#define vtkRVECommon_h
+
+#include <algorithm>
+#include <string>
+
+#include "rvegen/inclusion_set.hpp"
+#include "rvegen/mesh.hpp"
+#include "rvegen/voxelize.hpp"
+#include "vtkCellArray.h"
+#include "vtkCellData.h"
+#include "vtkDataObject.h"
+#include "vtkFieldData.h"
+#include "vtkFloatArray.h"
+#include "vtkImageData.h"
+#include "vtkIntArray.h"
+#include "vtkNew.h"
+#include "vtkPoints.h"
+#include "vtkPolyData.h"
+#include "vtkStringArray.h"
+#include "vtkTypeInt64Array.h"
+#include "vtkUnsignedCharArray.h"
+
+// Copies a core mesh into a vtkPolyData (points, triangles, cell arrays).
+inline void RVEPolyDataFromMesh(const rvegen::SurfaceMesh& mesh, vtkPolyData* out) {
+  vtkNew<vtkPoints> points;
+  points->SetDataTypeToDouble();
+  points->SetNumberOfPoints(static_cast<vtkIdType>(mesh.points.size()));
+  for (size_t i = 0; i < mesh.points.size(); ++i) {
+    points->SetPoint(static_cast<vtkIdType>(i), mesh.points[i].data());
+  }
+  vtkNew<vtkTypeInt64Array> offsets, connectivity;
+  offsets->SetNumberOfValues(static_cast<vtkIdType>(mesh.triangles.size() + 1));
+  connectivity->SetNumberOfValues(static_cast<vtkIdType>(3 * mesh.triangles.size()));
+  for (size_t t = 0; t <= mesh.triangles.size(); ++t) offsets->SetValue(t, 3 * t);
+  for (size_t t = 0; t < mesh.triangles.size(); ++t) {
+    for (int k = 0; k < 3; ++k) connectivity->SetValue(3 * t + k, mesh.triangles[t][k]);
+  }
+  vtkNew<vtkCellArray> polys;
+  polys->SetData(offsets, connectivity);
+  out->SetPoints(points);
+  out->SetPolys(polys);
+  auto int_array = [](const char* name, const std::vector<int32_t>& v) {
+    vtkNew<vtkIntArray> a;
+    a->SetName(name);
+    a->SetNumberOfValues(static_cast<vtkIdType>(v.size()));
+    std::copy(v.begin(), v.end(), a->GetPointer(0));
+    return a;
+  };
+  out->GetCellData()->AddArray(int_array("inclusion_id", mesh.inclusion_id));
+  out->GetCellData()->AddArray(int_array("family", mesh.family));
+  out->GetCellData()->AddArray(int_array("shape", mesh.shape));
+  out->GetCellData()->AddArray(int_array("phase", mesh.phase));
+  vtkNew<vtkFloatArray> axis;
+  axis->SetName("axis");
+  axis->SetNumberOfComponents(3);
+  axis->SetNumberOfTuples(static_cast<vtkIdType>(mesh.axis.size()));
+  for (size_t t = 0; t < mesh.axis.size(); ++t) axis->SetTypedTuple(t, mesh.axis[t].data());
+  out->GetCellData()->AddArray(axis);
+  out->GetCellData()->SetActiveScalars("family");
+}
+
+/// Copies a voxel image (its computed extent) into `out`: cell data phase, inclusion_id,
+/// fraction (when computed), field data phase_names.
+inline void RVEImageFromVoxels(const rvegen::VoxelImage& vox, vtkImageData* out) {
+  out->SetExtent(vox.extent[0], vox.extent[1], vox.extent[2], vox.extent[3], vox.extent[4],
+                 vox.extent[5]);
+  out->SetOrigin(vox.origin.data());
+  out->SetSpacing(vox.spacing.data());
+  vtkNew<vtkUnsignedCharArray> phase;
+  phase->SetName("phase");
+  phase->SetNumberOfValues(static_cast<vtkIdType>(vox.phase.size()));
+  std::copy(vox.phase.begin(), vox.phase.end(), phase->GetPointer(0));
+  vtkNew<vtkIntArray> ids;
+  ids->SetName("inclusion_id");
+  ids->SetNumberOfValues(static_cast<vtkIdType>(vox.inclusion_id.size()));
+  std::copy(vox.inclusion_id.begin(), vox.inclusion_id.end(), ids->GetPointer(0));
+  out->GetCellData()->AddArray(phase);
+  out->GetCellData()->AddArray(ids);
+  if (!vox.fraction.empty()) {
+    vtkNew<vtkFloatArray> fraction;
+    fraction->SetName("fraction");
+    fraction->SetNumberOfValues(static_cast<vtkIdType>(vox.fraction.size()));
+    std::copy(vox.fraction.begin(), vox.fraction.end(), fraction->GetPointer(0));
+    out->GetCellData()->AddArray(fraction);
+  }
+  out->GetCellData()->SetActiveScalars("phase");
+  vtkNew<vtkStringArray> names;
+  names->SetName("phase_names");
+  for (const auto& p : vox.phases) names->InsertNextValue(p.name);
+  out->GetFieldData()->AddArray(names);
+}
+
+/// Reads field data "rvegen_inclusions" (the JSON of inclusions.json) of `input`: what the RVE
+/// Generator's surfaces carry, and inclusions.vtp written by `rvegen generate`. Returns false
+/// with `error` set when it is missing or invalid.
+inline bool RVEInclusionsFromFieldData(vtkDataObject* input, rvegen::InclusionSet* set,
+                                       std::string* error) {
+  vtkFieldData* fd = input ? input->GetFieldData() : nullptr;
+  auto* a = fd ? vtkStringArray::SafeDownCast(fd->GetAbstractArray("rvegen_inclusions")) : nullptr;
+  if (!a || a->GetNumberOfValues() < 1) {
+    *error =
+        "the input has no field data \"rvegen_inclusions\" (use the Inclusions output of the "
+        "RVE Generator, or inclusions.vtp written by rvegen generate)";
+    return false;
+  }
+  try {
+    *set = rvegen::read_inclusions_json(a->GetValue(0));
+  } catch (const std::exception& e) {
+    *error = std::string("invalid rvegen_inclusions: ") + e.what();
+    return false;
+  }
+  return true;
+}
+
+#endif

@@ -1,0 +1,16 @@
+"""Image regression helper shared by the pvpython tests."""
+from vtkmodules.vtkImagingCore import vtkImageDifference
+from vtkmodules.vtkIOImage import vtkPNGReader
+
+
+def image_error(png, baseline):
+    """Thresholded error of vtkImageDifference between two PNG files (0 = same picture)."""
+    a = vtkPNGReader()
+    a.SetFileName(png)
+    b = vtkPNGReader()
+    b.SetFileName(baseline)
+    cmp = vtkImageDifference()
+    cmp.SetInputConnection(a.GetOutputPort())
+    cmp.SetImageConnection(b.GetOutputPort())
+    cmp.Update()
+    return cmp.GetThresholdedError()

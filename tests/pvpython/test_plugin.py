@@ -147,6 +147,18 @@ check(abs(mean - report["volume_fraction"]) < 0.002, "RVE Voxelize partial volum
 bad = servermanager.Fetch(RVEStatistics(Input=Sphere()))
 check(bad.GetNumberOfRows() == 0, "statistics of a plain sphere source")
 
+# Invalid settings: an error in the output window, status "invalid", no crash; fixing the
+# setting brings the RVE back.
+gen.SphereVolumeFraction = 0.9
+gen.UpdatePipeline()
+gen.UpdatePropertyInformation()
+check(gen.GetProperty("Status").GetElement(0) == "invalid",
+      "status after an impossible volume fraction: %s" % gen.GetProperty("Status").GetElement(0))
+gen.SphereVolumeFraction = 0.2
+gen.UpdatePipeline()
+gen.UpdatePropertyInformation()
+check(gen.GetProperty("Status").GetElement(0) == "ok", "status after fixing the setting")
+
 # A scene file overrides the properties.
 scene_path = os.path.join(tempfile.mkdtemp(), "scene.json")
 with open(scene_path, "w") as f:

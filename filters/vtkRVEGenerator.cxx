@@ -55,6 +55,30 @@ vtkRVEGenerator::vtkRVEGenerator() {
   this->EllipsoidVolumeFraction = d.families[2].volume_fraction;
   this->SceneFile = nullptr;
   this->ClipSurfaces = d.clip_surfaces;
+  this->Method = d.method == "rsa" ? 1 : 0;
+  this->SphereRadiusStd = 0.0;
+  this->SphereCount = -1;
+  this->FibreRadiusStd = 0.0;
+  this->FibreCount = -1;
+  this->EllipsoidCount = -1;
+  this->FibreOrientation = 0;
+  this->FibreKappa = 10.0;
+  this->EllipsoidOrientation = 0;
+  this->EllipsoidKappa = 10.0;
+  this->SphereCoating = 0.0;
+  this->FibreCoating = 0.0;
+  this->EllipsoidCoating = 0.0;
+  this->ShellsMayTouch = false;
+  this->FibreWaveAmplitude = 0.0;
+  this->FibreWavelength = 0.2;
+  this->SphereDeformation = 0.0;
+  this->EllipsoidDeformation = 0.0;
+  this->DeformationSmoothness = 1.0;
+  this->SphereDebondFraction = 0.0;
+  this->SphereDebondGap = 0.0;
+  this->PartialVolume = d.partial_volume;
+  this->LevelSetVoxelSize = d.levelset_voxel_size;
+  for (int a = 0; a < 3; ++a) this->FibreAxis[a] = this->EllipsoidAxis[a] = a == 2 ? 1.0 : 0.0;
 }
 
 vtkRVEGenerator::~vtkRVEGenerator() {
@@ -75,20 +99,66 @@ rvegen::Scene SceneFromProperties(const vtkRVEGenerator* g) {
   s.box.size = rvegen::Vec3(self->GetBoxSize()[0], self->GetBoxSize()[1], self->GetBoxSize()[2]);
   s.box.periodic = self->GetPeriodic();
   s.min_gap = self->GetMinGap();
-  s.families[0].radius = self->GetSphereRadius();
-  s.families[0].volume_fraction = self->GetSphereVolumeFraction();
-  s.families[1].radius = self->GetFibreRadius();
-  s.families[1].aspect_ratio = self->GetFibreAspectRatio();
-  s.families[1].volume_fraction = self->GetFibreVolumeFraction();
-  for (int a = 0; a < 3; ++a) s.families[2].semi_axes[a] = self->GetEllipsoidSemiAxes()[a];
-  s.families[2].volume_fraction = self->GetEllipsoidVolumeFraction();
+  s.method = self->GetMethod() == 1 ? "rsa" : "md";
+  auto size = [](double value, double std) {
+    rvegen::SizeLaw law(value);
+    if (std > 0.0) {
+      law.kind = rvegen::SizeLaw::Kind::kLognormal;
+      law.p2 = std;
+    }
+    return law;
+  };
+  auto amount = [](rvegen::Family& f, double vf, int count) {
+    f.volume_fraction = count >= 1 ? -1.0 : vf;
+    f.count = count >= 1 ? count : -1;
+  };
+  auto orientation = [](int kind, const double* axis, double kappa) {
+    rvegen::OrientationLaw law;
+    const rvegen::Vec3 u(axis[0], axis[1], axis[2]);
+    law.axis = u.norm() > 0.0 ? rvegen::Vec3(u.normalized()) : rvegen::Vec3::UnitZ();
+    law.kappa = kappa;
+    law.kind = kind == 1   ? rvegen::OrientationLaw::Kind::kAligned
+               : kind == 2 ? rvegen::OrientationLaw::Kind::kVonMisesFisher
+               : kind == 3 ? rvegen::OrientationLaw::Kind::kPlanar
+                           : rvegen::OrientationLaw::Kind::kIsotropic;
+    return law;
+  };
+  rvegen::Family& sph = s.families[0];
+  rvegen::Family& fib = s.families[1];
+  rvegen::Family& ell = s.families[2];
+  sph.radius = size(self->GetSphereRadius(), self->GetSphereRadiusStd());
+  amount(sph, self->GetSphereVolumeFraction(), self->GetSphereCount());
+  fib.radius = size(self->GetFibreRadius(), self->GetFibreRadiusStd());
+  fib.aspect_ratio = self->GetFibreAspectRatio();
+  amount(fib, self->GetFibreVolumeFraction(), self->GetFibreCount());
+  fib.orientation =
+      orientation(self->GetFibreOrientation(), self->GetFibreAxis(), self->GetFibreKappa());
+  for (int a = 0; a < 3; ++a) ell.semi_axes[a] = self->GetEllipsoidSemiAxes()[a];
+  amount(ell, self->GetEllipsoidVolumeFraction(), self->GetEllipsoidCount());
+  ell.orientation = orientation(self->GetEllipsoidOrientation(), self->GetEllipsoidAxis(),
+                                self->GetEllipsoidKappa());
+  const double coat[3] = {self->GetSphereCoating(), self->GetFibreCoating(),
+                          self->GetEllipsoidCoating()};
+  for (int f = 0; f < 3; ++f) {
+    s.families[f].modifiers.coating = coat[f];
+    s.families[f].modifiers.shells_may_touch = self->GetShellsMayTouch();
+    s.families[f].modifiers.smoothness = self->GetDeformationSmoothness();
+  }
+  fib.modifiers.wave_amplitude = self->GetFibreWaveAmplitude();
+  fib.modifiers.wave_length = self->GetFibreWavelength();
+  sph.modifiers.deform_amplitude = self->GetSphereDeformation();
+  ell.modifiers.deform_amplitude = self->GetEllipsoidDeformation();
+  sph.modifiers.debond_fraction = self->GetSphereDebondFraction();
+  sph.modifiers.debond_gap = self->GetSphereDebondGap();
   std::vector<rvegen::Family> kept;
   for (const auto& f : s.families) {
-    if (f.volume_fraction > 0.0) kept.push_back(f);
+    if (f.volume_fraction > 0.0 || f.count >= 1) kept.push_back(f);
   }
   s.families = kept;
   for (int a = 0; a < 3; ++a) s.resolution[a] = self->GetResolution()[a];
   s.clip_surfaces = self->GetClipSurfaces();
+  s.partial_volume = self->GetPartialVolume();
+  s.levelset_voxel_size = self->GetLevelSetVoxelSize();
   return s;
 }
 

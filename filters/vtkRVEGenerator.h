@@ -58,6 +58,62 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   vtkGetMacro(ClipSurfaces, bool);
   vtkBooleanMacro(ClipSurfaces, bool);
 
+  /// Method: 0 molecular dynamics, 1 random sequential adsorption. Family amounts: a count
+  /// >= 1 replaces the volume fraction. Size spreads: lognormal standard deviation (0: fixed).
+  /// Orientation laws: 0 isotropic, 1 aligned (axis), 2 von Mises-Fisher (axis, kappa), 3 planar
+  /// (axis = the plane normal). Modifiers: see the scene file's "coating", "waviness",
+  /// "deformation", "debonding" (0 leaves a modifier out).
+  vtkSetMacro(Method, int);
+  vtkGetMacro(Method, int);
+  vtkSetMacro(SphereRadiusStd, double);
+  vtkGetMacro(SphereRadiusStd, double);
+  vtkSetMacro(SphereCount, int);
+  vtkGetMacro(SphereCount, int);
+  vtkSetMacro(FibreRadiusStd, double);
+  vtkGetMacro(FibreRadiusStd, double);
+  vtkSetMacro(FibreCount, int);
+  vtkGetMacro(FibreCount, int);
+  vtkSetMacro(EllipsoidCount, int);
+  vtkGetMacro(EllipsoidCount, int);
+  vtkSetMacro(FibreOrientation, int);
+  vtkGetMacro(FibreOrientation, int);
+  vtkSetMacro(FibreKappa, double);
+  vtkGetMacro(FibreKappa, double);
+  vtkSetMacro(EllipsoidOrientation, int);
+  vtkGetMacro(EllipsoidOrientation, int);
+  vtkSetMacro(EllipsoidKappa, double);
+  vtkGetMacro(EllipsoidKappa, double);
+  vtkSetMacro(SphereCoating, double);
+  vtkGetMacro(SphereCoating, double);
+  vtkSetMacro(FibreCoating, double);
+  vtkGetMacro(FibreCoating, double);
+  vtkSetMacro(EllipsoidCoating, double);
+  vtkGetMacro(EllipsoidCoating, double);
+  vtkSetMacro(ShellsMayTouch, bool);
+  vtkGetMacro(ShellsMayTouch, bool);
+  vtkSetMacro(FibreWaveAmplitude, double);
+  vtkGetMacro(FibreWaveAmplitude, double);
+  vtkSetMacro(FibreWavelength, double);
+  vtkGetMacro(FibreWavelength, double);
+  vtkSetMacro(SphereDeformation, double);
+  vtkGetMacro(SphereDeformation, double);
+  vtkSetMacro(EllipsoidDeformation, double);
+  vtkGetMacro(EllipsoidDeformation, double);
+  vtkSetMacro(DeformationSmoothness, double);
+  vtkGetMacro(DeformationSmoothness, double);
+  vtkSetMacro(SphereDebondFraction, double);
+  vtkGetMacro(SphereDebondFraction, double);
+  vtkSetMacro(SphereDebondGap, double);
+  vtkGetMacro(SphereDebondGap, double);
+  vtkSetMacro(PartialVolume, bool);
+  vtkGetMacro(PartialVolume, bool);
+  vtkSetMacro(LevelSetVoxelSize, double);
+  vtkGetMacro(LevelSetVoxelSize, double);
+  vtkSetVector3Macro(FibreAxis, double);
+  vtkGetVector3Macro(FibreAxis, double);
+  vtkSetVector3Macro(EllipsoidAxis, double);
+  vtkGetVector3Macro(EllipsoidAxis, double);
+
   vtkSetVector3Macro(Resolution, int);
   vtkGetVector3Macro(Resolution, int);
 
@@ -96,6 +152,31 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   int Resolution[3];
   char* SceneFile;
   bool ClipSurfaces;
+  int Method;
+  double SphereRadiusStd;
+  int SphereCount;
+  double FibreRadiusStd;
+  int FibreCount;
+  int EllipsoidCount;
+  int FibreOrientation;
+  double FibreKappa;
+  int EllipsoidOrientation;
+  double EllipsoidKappa;
+  double SphereCoating;
+  double FibreCoating;
+  double EllipsoidCoating;
+  bool ShellsMayTouch;
+  double FibreWaveAmplitude;
+  double FibreWavelength;
+  double SphereDeformation;
+  double EllipsoidDeformation;
+  double DeformationSmoothness;
+  double SphereDebondFraction;
+  double SphereDebondGap;
+  bool PartialVolume;
+  double LevelSetVoxelSize;
+  double FibreAxis[3];
+  double EllipsoidAxis[3];
   int PortExecutions[3] = {0, 0, 0};
 
  private:

@@ -435,13 +435,7 @@ FamilyModifiers parse_modifiers(const Json& j, ShapeKind shape, const std::strin
     if (m.debond_fraction > 1.0) fail(q + ".fraction", "must be in (0, 1]");
     m.debond_gap = positive(require(d, "gap", q), q + ".gap");
   }
-  if (m.coating > 0.0 && m.deform_amplitude > 0.0)
-    fail(p, "coating and deformation together are not supported");
-  if (m.coating > 0.0 && m.debond_gap > 0.0)
-    fail(p, "coating and debonding together are not supported");
-  if (m.deform_amplitude > 0.0 && m.debond_gap > 0.0)
-    fail(p, "deformation and debonding together are not supported");
-  return m;
+  return m;  // combinations: validate_scene
 }
 
 Family parse_family(const Json& j, const std::string& p, double box_volume) {
@@ -562,6 +556,39 @@ void validate_scene(const Scene& s) {
   for (size_t i = 0; i < s.families.size(); ++i) {
     const Family& f = s.families[i];
     const std::string p = "families[" + std::to_string(i) + "]";
+    // Modifiers (parse_modifiers checks the same for files; scenes built in code, such as the
+    // ParaView source's, come through here only).
+    const FamilyModifiers& m = f.modifiers;
+    auto finite_at_least_0 = [](double v) { return std::isfinite(v) && v >= 0.0; };
+    if (!finite_at_least_0(m.coating)) fail(p + ".coating.thickness", "must be >= 0");
+    if (!finite_at_least_0(m.wave_amplitude)) fail(p + ".waviness.amplitude", "must be >= 0");
+    if (m.wave_amplitude > 0.0) {
+      if (f.shape != ShapeKind::Cylinder)
+        fail(p + ".waviness", "waviness applies to cylinders only");
+      if (!(m.wave_length > 0.0) || !std::isfinite(m.wave_length))
+        fail(p + ".waviness.wavelength", "must be positive");
+    }
+    if (!(m.deform_amplitude >= 0.0 && m.deform_amplitude <= 0.5))
+      fail(p + ".deformation.amplitude", "must be in (0, 0.5]");
+    if (m.deform_amplitude > 0.0) {
+      if (f.shape == ShapeKind::Cylinder)
+        fail(p + ".deformation", "deformation applies to spheres and ellipsoids only");
+      if (!(m.smoothness >= 0.1 && m.smoothness <= 10.0))
+        fail(p + ".deformation.smoothness", "must be in [0.1, 10]");
+    }
+    if (!finite_at_least_0(m.debond_gap)) fail(p + ".debonding.gap", "must be positive");
+    if (!(m.debond_fraction >= 0.0 && m.debond_fraction <= 1.0))
+      fail(p + ".debonding.fraction", "must be in (0, 1]");
+    if ((m.debond_gap > 0.0) != (m.debond_fraction > 0.0))
+      fail(p + ".debonding", "give both a fraction and a gap");
+    if (m.debond_gap > 0.0 && f.shape != ShapeKind::Sphere)
+      fail(p + ".debonding", "debonding applies to spheres only");
+    if (m.coating > 0.0 && m.deform_amplitude > 0.0)
+      fail(p, "coating and deformation together are not supported");
+    if (m.coating > 0.0 && m.debond_gap > 0.0)
+      fail(p, "coating and debonding together are not supported");
+    if (m.deform_amplitude > 0.0 && m.debond_gap > 0.0)
+      fail(p, "deformation and debonding together are not supported");
     if (f.max_min_width() + 2.0 * s.min_gap >= box_min) {
       fail(p, "inclusion does not fit in the box (smallest width " +
                   std::to_string(f.max_min_width()) + " >= smallest box size " +

@@ -159,6 +159,23 @@ gen.UpdatePipeline()
 gen.UpdatePropertyInformation()
 check(gen.GetProperty("Status").GetElement(0) == "ok", "status after fixing the setting")
 
+# Panel properties reach the scene: aligned fibres, coated spheres (interphase phase and level
+# sets), a coating with a deformation on the same family is refused.
+props = RVEGenerator(FibreOrientation=1, FibreAxis=[1, 0, 0], SphereCoating=0.01,
+                     Resolution=[32, 32, 32], LevelSetVoxelSize=0.02)
+rows = stats_rows(OutputPort(props, 0))
+a = {i: v for q, n, i, v in rows if q == "orientation_tensor" and n == "fibres"}
+check(abs(a.get(0, 0) - 1.0) < 1e-9, "aligned fibres: A_xx = %s" % a.get(0))
+names = servermanager.Fetch(props, idx=1).GetFieldData().GetAbstractArray("phase_names")
+check(names is not None and names.GetNumberOfValues() == 5 and names.GetValue(4) == "spheres interphase",
+      "phase names with a coating")
+check(servermanager.Fetch(props, idx=2).GetNumberOfCells() > 1000, "coated spheres: no level-set surfaces")
+props.SphereDeformation = 0.1
+props.UpdatePipeline()
+props.UpdatePropertyInformation()
+check(props.GetProperty("Status").GetElement(0) == "invalid", "coating + deformation accepted")
+Delete(props)
+
 # A scene file overrides the properties.
 scene_path = os.path.join(tempfile.mkdtemp(), "scene.json")
 with open(scene_path, "w") as f:

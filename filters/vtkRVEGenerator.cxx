@@ -1,5 +1,7 @@
 #include "vtkRVEGenerator.h"
 
+#include <tbb/task_arena.h>
+
 #include <exception>
 
 #include "rvegen/levelset.hpp"
@@ -270,7 +272,9 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
       imageInfo->Get(vtkStreamingDemandDrivenPipeline::UPDATE_EXTENT(), ext);
     }
     vopt.extent = {ext[0], ext[1], ext[2], ext[3], ext[4], ext[5]};
-    const rvegen::VoxelImage vox = rvegen::voxelize(result.set, scene.resolution, vopt);
+    rvegen::VoxelImage vox;
+    tbb::task_arena arena(this->Threads > 0 ? this->Threads : tbb::task_arena::automatic);
+    arena.execute([&] { vox = rvegen::voxelize(result.set, scene.resolution, vopt); });
     RVEImageFromVoxels(vox, image);
     ++this->PortExecutions[1];
   }

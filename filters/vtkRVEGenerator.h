@@ -114,6 +114,11 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   vtkSetVector3Macro(EllipsoidAxis, double);
   vtkGetVector3Macro(EllipsoidAxis, double);
 
+  /// Threads for the voxels (0: all cores). Under MPI with several ranks on one machine, give
+  /// each rank its share (cores / ranks) rather than letting every rank use all cores.
+  vtkSetClampMacro(Threads, int, 0, 1024);
+  vtkGetMacro(Threads, int);
+
   vtkSetVector3Macro(Resolution, int);
   vtkGetVector3Macro(Resolution, int);
 
@@ -175,6 +180,7 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   double SphereDebondGap;
   bool PartialVolume;
   double LevelSetVoxelSize;
+  int Threads = 0;
   double FibreAxis[3];
   double EllipsoidAxis[3];
   int PortExecutions[3] = {0, 0, 0};

@@ -199,6 +199,11 @@ check(lset.GetNumberOfCells() > 1000, "coated scene: %d level-set triangles" % l
 gen.SceneFile = ""
 gen.UpdatePipeline()
 
+# The voxel port shows as a slice without extra steps.
+slice_view = CreateView("RenderView")
+check(Show(OutputPort(gen, 1), slice_view).Representation == "Slice", "voxel port not shown as a slice")
+Delete(slice_view)
+
 # Headless picture, compared with the baseline.
 save_rve_picture(OutputPort(gen, 0), OutputPort(gen, 1), out_png, 400)
 

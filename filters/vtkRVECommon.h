@@ -62,35 +62,40 @@ inline void RVEPolyDataFromMesh(const rvegen::SurfaceMesh& mesh, vtkPolyData* ou
   out->GetCellData()->SetActiveScalars("family");
 }
 
-/// Copies a voxel image (its computed extent) into `out`: cell data phase, inclusion_id,
-/// fraction (when computed), field data phase_names.
-inline void RVEImageFromVoxels(const rvegen::VoxelImage& vox, vtkImageData* out) {
-  out->SetExtent(vox.extent[0], vox.extent[1], vox.extent[2], vox.extent[3], vox.extent[4],
-                 vox.extent[5]);
-  out->SetOrigin(vox.origin.data());
-  out->SetSpacing(vox.spacing.data());
+/// Voxelizes `set` straight into the arrays of `out` (no copy): cell data phase, inclusion_id,
+/// fraction (with partial volumes), field data phase_names; the geometry of `layout`
+/// (voxel_layout). Runs in `arena` when given (the source's Threads). Returns the conflicts.
+template <class Arena>
+long long RVEVoxelizeInto(const rvegen::InclusionSet& set, const rvegen::VoxelImage& layout,
+                          const rvegen::VoxelOptions& opt, vtkImageData* out, Arena& arena) {
+  out->SetExtent(layout.extent[0], layout.extent[1], layout.extent[2], layout.extent[3],
+                 layout.extent[4], layout.extent[5]);
+  out->SetOrigin(layout.origin.data());
+  out->SetSpacing(layout.spacing.data());
+  const vtkIdType n = static_cast<vtkIdType>(layout.count());
   vtkNew<vtkUnsignedCharArray> phase;
   phase->SetName("phase");
-  phase->SetNumberOfValues(static_cast<vtkIdType>(vox.phase.size()));
-  std::copy(vox.phase.begin(), vox.phase.end(), phase->GetPointer(0));
+  phase->SetNumberOfValues(n);
   vtkNew<vtkIntArray> ids;
   ids->SetName("inclusion_id");
-  ids->SetNumberOfValues(static_cast<vtkIdType>(vox.inclusion_id.size()));
-  std::copy(vox.inclusion_id.begin(), vox.inclusion_id.end(), ids->GetPointer(0));
+  ids->SetNumberOfValues(n);
+  vtkNew<vtkFloatArray> fraction;
+  fraction->SetName("fraction");
+  if (opt.partial_volume) fraction->SetNumberOfValues(n);
+  long long conflicts = 0;
+  arena.execute([&] {
+    conflicts = rvegen::voxelize_into(set, layout, opt, phase->GetPointer(0), ids->GetPointer(0),
+                                      opt.partial_volume ? fraction->GetPointer(0) : nullptr);
+  });
   out->GetCellData()->AddArray(phase);
   out->GetCellData()->AddArray(ids);
-  if (!vox.fraction.empty()) {
-    vtkNew<vtkFloatArray> fraction;
-    fraction->SetName("fraction");
-    fraction->SetNumberOfValues(static_cast<vtkIdType>(vox.fraction.size()));
-    std::copy(vox.fraction.begin(), vox.fraction.end(), fraction->GetPointer(0));
-    out->GetCellData()->AddArray(fraction);
-  }
+  if (opt.partial_volume) out->GetCellData()->AddArray(fraction);
   out->GetCellData()->SetActiveScalars("phase");
   vtkNew<vtkStringArray> names;
   names->SetName("phase_names");
-  for (const auto& p : vox.phases) names->InsertNextValue(p.name);
+  for (const auto& p : layout.phases) names->InsertNextValue(p.name);
   out->GetFieldData()->AddArray(names);
+  return conflicts;
 }
 
 /// Reads field data "rvegen_inclusions" (the JSON of inclusions.json) of `input`: what the RVE

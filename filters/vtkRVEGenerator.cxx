@@ -272,10 +272,9 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
       imageInfo->Get(vtkStreamingDemandDrivenPipeline::UPDATE_EXTENT(), ext);
     }
     vopt.extent = {ext[0], ext[1], ext[2], ext[3], ext[4], ext[5]};
-    rvegen::VoxelImage vox;
     tbb::task_arena arena(this->Threads > 0 ? this->Threads : tbb::task_arena::automatic);
-    arena.execute([&] { vox = rvegen::voxelize(result.set, scene.resolution, vopt); });
-    RVEImageFromVoxels(vox, image);
+    RVEVoxelizeInto(result.set, rvegen::voxel_layout(result.set, scene.resolution, vopt), vopt,
+                    image, arena);
     ++this->PortExecutions[1];
   }
 

@@ -1,5 +1,7 @@
 #include "vtkRVEVoxelize.h"
 
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 
 #include "rvegen/voxelize.hpp"
@@ -62,9 +64,9 @@ vtkTypeBool vtkRVEVoxelize::ProcessRequest(vtkInformation* request, vtkInformati
     rvegen::VoxelOptions opt;
     opt.partial_volume = this->PartialVolume;
     opt.subsamples = this->Subsamples;
-    const rvegen::VoxelImage vox =
-        rvegen::voxelize(set, {this->Resolution[0], this->Resolution[1], this->Resolution[2]}, opt);
-    RVEImageFromVoxels(vox, image);
+    const std::array<int, 3> dims = {this->Resolution[0], this->Resolution[1], this->Resolution[2]};
+    tbb::task_arena arena;
+    RVEVoxelizeInto(set, rvegen::voxel_layout(set, dims, opt), opt, image, arena);
     return 1;
   }
   return this->Superclass::ProcessRequest(request, in, out);

@@ -49,8 +49,8 @@ std::vector<Phase> phase_table(const InclusionSet& set) {
   return out;
 }
 
-VoxelImage voxelize(const InclusionSet& set, const std::array<int, 3>& dims,
-                    const VoxelOptions& opt) {
+VoxelImage voxel_layout(const InclusionSet& set, const std::array<int, 3>& dims,
+                        const VoxelOptions& opt) {
   VoxelImage img;
   img.dims = dims;
   img.origin = set.box.origin;
@@ -63,11 +63,29 @@ VoxelImage voxelize(const InclusionSet& set, const std::array<int, 3>& dims,
         std::max(img.extent[2 * a + 1], img.extent[2 * a]);  // empty, not negative
   }
   img.phases = phase_table(set);
+  return img;
+}
+
+VoxelImage voxelize(const InclusionSet& set, const std::array<int, 3>& dims,
+                    const VoxelOptions& opt) {
+  VoxelImage img = voxel_layout(set, dims, opt);
   const size_t n = img.count();
-  img.phase.assign(n, 0);
-  img.inclusion_id.assign(n, -1);
-  if (opt.partial_volume) img.fraction.assign(n, 0.0f);
-  if (n == 0) return img;
+  img.phase.resize(n);
+  img.inclusion_id.resize(n);
+  if (opt.partial_volume) img.fraction.resize(n);
+  img.conflicts = voxelize_into(set, img, opt, img.phase.data(), img.inclusion_id.data(),
+                                opt.partial_volume ? img.fraction.data() : nullptr);
+  return img;
+}
+
+long long voxelize_into(const InclusionSet& set, const VoxelImage& img, const VoxelOptions& opt,
+                        uint8_t* phase_out, int32_t* id_out, float* frac_out) {
+  const std::array<int, 3>& dims = img.dims;
+  const size_t n = img.count();
+  std::fill(phase_out, phase_out + n, uint8_t{0});
+  std::fill(id_out, id_out + n, int32_t{-1});
+  if (frac_out) std::fill(frac_out, frac_out + n, 0.0f);
+  if (n == 0) return 0;
 
   // Labels of each inclusion's regions.
   std::vector<int> shell_label(img.phases.size(), 0), void_label(img.phases.size(), 0);
@@ -89,7 +107,7 @@ VoxelImage voxelize(const InclusionSet& set, const std::array<int, 3>& dims,
     Footprint& f = fp[m];
     for (int a = 0; a < 3; ++a) {
       const double h = img.spacing[a];
-      if (opt.partial_volume) {
+      if (frac_out) {
         // Every voxel [i h, (i + 1) h] that meets [lo, hi].
         f.lo[a] = static_cast<int>(std::floor((lo[a] - img.origin[a]) / h));
         f.hi[a] = static_cast<int>(std::ceil((hi[a] - img.origin[a]) / h)) - 1;
@@ -128,16 +146,16 @@ VoxelImage voxelize(const InclusionSet& set, const std::array<int, 3>& dims,
         return *ii >= img.extent[0] && *ii < img.extent[1];
       };
       auto label_core = [&](size_t idx) {
-        uint8_t& ph = img.phase[idx];
+        uint8_t& ph = phase_out[idx];
         if (is_core[ph]) ++conflicts[p];
         ph = core_label;
-        img.inclusion_id[idx] = inc.id;
+        id_out[idx] = inc.id;
       };
       auto label_outer = [&](size_t idx, Region r) {
-        if (img.phase[idx] != 0) return;
-        img.phase[idx] = static_cast<uint8_t>(r == Region::kShell ? shell_label[inc.family]
+        if (phase_out[idx] != 0) return;
+        phase_out[idx] = static_cast<uint8_t>(r == Region::kShell ? shell_label[inc.family]
                                                                   : void_label[inc.family]);
-        img.inclusion_id[idx] = inc.id;
+        id_out[idx] = inc.id;
       };
       // Shell and void labels of a row (voxels the core did not take).
       auto label_outer_regions = [&](int, int jj, double y) {
@@ -145,7 +163,7 @@ VoxelImage voxelize(const InclusionSet& set, const std::array<int, 3>& dims,
         for (int i = f.lo[0]; i <= f.hi[0]; ++i) {
           if (!in_x(i, &ii)) continue;
           const size_t idx = img.index(ii, jj, kk);
-          if (img.phase[idx] != 0) continue;
+          if (phase_out[idx] != 0) continue;
           const Region r = body.region(Vec3(img.origin[0] + (i + 0.5) * img.spacing[0], y, z));
           if (r == Region::kShell || r == Region::kVoid) label_outer(idx, r);
         }
@@ -169,7 +187,7 @@ VoxelImage voxelize(const InclusionSet& set, const std::array<int, 3>& dims,
             }
           }
           if (!body.plain()) label_outer_regions(j, jj, y);
-          if (!opt.partial_volume) continue;
+          if (!frac_out) continue;
           // Coverage of the row's voxels, accumulated as a difference array (+1 where a line
           // enters whole voxels, -1 after) plus the partly covered end voxels.
           const int span = f.hi[0] - f.lo[0] + 1;
@@ -207,7 +225,7 @@ VoxelImage voxelize(const InclusionSet& set, const std::array<int, 3>& dims,
             run += diff[q];
             const double cover = (run + row[q]) * w;
             if (cover > 0.0 && ii >= img.extent[0] && ii < img.extent[1]) {
-              img.fraction[img.index(ii, jj, kk)] += static_cast<float>(cover);
+              frac_out[img.index(ii, jj, kk)] += static_cast<float>(cover);
             }
           }
           continue;
@@ -218,9 +236,9 @@ VoxelImage voxelize(const InclusionSet& set, const std::array<int, 3>& dims,
           const Vec3 x(ox + (i + 0.5) * hx, y, z);
           const size_t idx = img.index(ii, jj, kk);
           const Region r = body.region(x);
-          if (opt.partial_volume) {
+          if (frac_out) {
             if (body.clearance(x) >= half_diagonal) {
-              if (r == Region::kCore) img.fraction[idx] += 1.0f;
+              if (r == Region::kCore) frac_out[idx] += 1.0f;
             } else {
               int inside = 0;
               for (int c = 0; c < ss; ++c) {
@@ -231,7 +249,7 @@ VoxelImage voxelize(const InclusionSet& set, const std::array<int, 3>& dims,
                   }
                 }
               }
-              img.fraction[idx] += static_cast<float>(inside) / (ss * ss * ss);
+              frac_out[idx] += static_cast<float>(inside) / (ss * ss * ss);
             }
           }
           if (r == Region::kOutside) continue;
@@ -244,11 +262,10 @@ VoxelImage voxelize(const InclusionSet& set, const std::array<int, 3>& dims,
       }
     }
   });
-  img.conflicts = std::accumulate(conflicts.begin(), conflicts.end(), 0LL);
-  if (opt.partial_volume) {
-    for (float& v : img.fraction) v = std::min(v, 1.0f);
+  if (frac_out) {
+    for (size_t i = 0; i < n; ++i) frac_out[i] = std::min(frac_out[i], 1.0f);
   }
-  return img;
+  return std::accumulate(conflicts.begin(), conflicts.end(), 0LL);
 }
 
 std::vector<double> label_fractions(const VoxelImage& image) {

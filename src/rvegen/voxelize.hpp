@@ -66,6 +66,17 @@ struct VoxelImage {
 VoxelImage voxelize(const InclusionSet& set, const std::array<int, 3>& dims,
                     const VoxelOptions& options = {});
 
+/// The image voxelize() makes, without its arrays: dims, extent, origin, spacing, phases.
+VoxelImage voxel_layout(const InclusionSet& set, const std::array<int, 3>& dims,
+                        const VoxelOptions& options = {});
+
+/// voxelize() into arrays the caller owns (layout.count() values each, x fastest over
+/// layout.extent; `fraction` null for labels only), so a caller such as the VTK source fills its
+/// own arrays without a copy. Returns the number of conflicts.
+long long voxelize_into(const InclusionSet& set, const VoxelImage& layout,
+                        const VoxelOptions& options, uint8_t* phase, int32_t* inclusion_id,
+                        float* fraction);
+
 /// Volume fraction of each phase label in the image (by centre labels).
 std::vector<double> label_fractions(const VoxelImage& image);
 /// Mean of `fraction` (the partial-volume estimate of the core volume fraction).

@@ -229,7 +229,14 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
     return 0;
   }
   rvegen::Scene key_scene = scene;
+  // Output settings do not change the packing: keep them out of the cache key.
+  const rvegen::Scene defaults;
   key_scene.resolution = {0, 0, 0};
+  key_scene.partial_volume = defaults.partial_volume;
+  key_scene.subsamples = defaults.subsamples;
+  key_scene.clip_surfaces = defaults.clip_surfaces;
+  key_scene.levelset_voxel_size = defaults.levelset_voxel_size;
+  key_scene.levelset_half_width = defaults.levelset_half_width;
   const std::string key = rvegen::scene_to_json(key_scene);
   if (!this->Cached || this->Cached->key != key) {
     this->Cached.reset(new Cache{key, rvegen::generate(scene)});

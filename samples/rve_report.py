@@ -15,13 +15,13 @@ import os
 import shutil
 import sys
 
-from paraview.simple import (AssignViewToLayout, ColorBy, CreateLayout, CreateView,
-                             GetColorTransferFunction, Render, SaveScreenshot, Show, Slice,
-                             XMLImageDataReader, XMLPolyDataReader)
+from paraview.simple import (AssignViewToLayout, ColorBy, CreateLayout, GetColorTransferFunction,
+                             Render, SaveScreenshot, Show, Slice, XMLImageDataReader,
+                             XMLPolyDataReader)
 
 here = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, here)
-from rve_view import save_rve_picture  # noqa: E402
+from rve_view import save_rve_picture, white_view  # noqa: E402
 
 rve, out = sys.argv[1], sys.argv[2]
 size = int(sys.argv[3]) if len(sys.argv) > 3 else 600
@@ -65,13 +65,7 @@ def phase_lut(highlight):
 
 
 def slice_view(normal, highlight):
-    view = CreateView("RenderView")
-    view.OrientationAxesVisibility = 0
-    view.Background = [1, 1, 1]
-    try:
-        view.UseColorPaletteForBackground = 0
-    except AttributeError:
-        pass
+    view = white_view()
     cut = Slice(Input=voxels)
     cut.SliceType = "Plane"
     cut.SliceType.Origin = centre

@@ -6,17 +6,23 @@ from paraview.simple import (ColorBy, CreateView, GetColorTransferFunction, Outl
                              SaveScreenshot, Show)
 
 
-def save_rve_picture(surfaces, box_source, out_png, size):
-    """Renders `surfaces` (polydata with cell array `family`) and the outline of `box_source`
-    (the voxel image) to `out_png`, `size` pixels square."""
+def white_view():
+    """A render view with a white background and no orientation axes."""
     view = CreateView("RenderView")
-    view.ViewSize = [size, size]
     view.OrientationAxesVisibility = 0
     view.Background = [1, 1, 1]
     try:
         view.UseColorPaletteForBackground = 0
     except AttributeError:
         pass
+    return view
+
+
+def save_rve_picture(surfaces, box_source, out_png, size):
+    """Renders `surfaces` (polydata with cell array `family`) and the outline of `box_source`
+    (the voxel image) to `out_png`, `size` pixels square."""
+    view = white_view()
+    view.ViewSize = [size, size]
     disp = Show(surfaces, view)
     ColorBy(disp, ("CELLS", "family"))
     GetColorTransferFunction("family").ApplyPreset("Rainbow Uniform", True)

@@ -117,6 +117,10 @@ double deformation_field(const Modifiers& m, const Vec3& n) {
   return g;
 }
 
+double deformed_radius(const Modifiers& m, const Vec3& n) {
+  return m.deform_scale * (1.0 + m.deform_amplitude * deformation_field(m, n));
+}
+
 double deformation_volume_scale(const Modifiers& m) {
   double k = 0.0;
   for (const auto& wv : m.deform_waves) k = std::max(k, wv.wavenumber);
@@ -244,9 +248,7 @@ Region BodyQuery::region(const Vec3& x) const {
       if (m_.deformed()) {
         if (q2 == 0.0) return Region::kCore;
         const double rho = std::sqrt(q2);
-        const double bound =
-            m_.deform_scale * (1.0 + m_.deform_amplitude * deformation_field(m_, y / rho));
-        return rho <= bound ? Region::kCore : Region::kOutside;
+        return rho <= deformed_radius(m_, y / rho) ? Region::kCore : Region::kOutside;
       }
       if (q2 <= 1.0) return Region::kCore;
       if (!m_.coated() && !m_.debonded()) return Region::kOutside;
@@ -287,7 +289,7 @@ double BodyQuery::clearance(const Vec3& x) const {
         // a_min times them in space.
         const double e = m_.deform_amplitude, lam = m_.deform_scale, rb = lam * (1.0 - e);
         if (q < 0.5 * rb) return (rb - q) * amin_;
-        const double phi = q - lam * (1.0 + e * deformation_field(m_, y / q));
+        const double phi = q - deformed_radius(m_, y / q);
         const double L = std::sqrt(1.0 + std::pow(2.0 * e * kmax_ / (1.0 - e), 2));
         return std::min(std::abs(phi) / L, 0.5 * rb) * amin_;
       }
@@ -380,8 +382,7 @@ double BodyQuery::core_distance(const Vec3& x) const {
       const double q = y.norm();
       if (m_.deformed()) {
         if (q == 0.0) return -m_.deform_scale * (1.0 - m_.deform_amplitude) * amin_;
-        return (q - m_.deform_scale * (1.0 + m_.deform_amplitude * deformation_field(m_, y / q))) *
-               amin_;
+        return (q - deformed_radius(m_, y / q)) * amin_;
       }
       if (s_.kind == ShapeKind::Sphere) return (x - c_).norm() - s_.radius;
       return q > 1.0 ? ellipsoid_distance(s_, x) : (q - 1.0) * amin_;
@@ -390,14 +391,6 @@ double BodyQuery::core_distance(const Vec3& x) const {
       return cylinder_sdf(x);
   }
   return 0.0;
-}
-
-Region region_at(const Inclusion& inc, const Vec3& x) {
-  return BodyQuery(inc).region(x);
-}
-
-double clearance(const Inclusion& inc, const Vec3& x) {
-  return BodyQuery(inc).clearance(x);
 }
 
 RegionVolumes region_volumes(const Inclusion& inc) {

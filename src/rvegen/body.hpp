@@ -74,13 +74,6 @@ class BodyQuery {
   double cos_cap_ = 1.0, theta_cap_ = 0.0;
 };
 
-/// Region of the point x (core first, then void, then shell).
-Region region_at(const Inclusion& inc, const Vec3& x);
-
-/// A lower bound on the distance from x to the nearest boundary between two regions of the
-/// inclusion (including the outer boundary): a ball of that radius about x lies in one region.
-double clearance(const Inclusion& inc, const Vec3& x);
-
 struct RegionVolumes {
   double core = 0.0;
   double shell = 0.0;
@@ -93,6 +86,9 @@ RegionVolumes region_volumes(const Inclusion& inc);
 
 /// Deformation field g(n) of the inclusion for a unit direction n in its own frame, |g| <= 1.
 double deformation_field(const Modifiers& m, const Vec3& n);
+/// Radius of a deformed shape's surface in its normalised frame along unit n:
+/// deform_scale (1 + deform_amplitude g(n)) (1 for an undeformed one).
+double deformed_radius(const Modifiers& m, const Vec3& n);
 /// Scale that gives a deformed shape (|y| <= scale (1 + e g)) the volume of the unit ball.
 double deformation_volume_scale(const Modifiers& m);
 

@@ -105,11 +105,7 @@ void mesh_one(SurfaceMesh& m, const Inclusion& inc, const Vec3& center, const Me
               double box_min) {
   const Shape& s = inc.shape;
   const Modifiers& mod = inc.mod;
-  auto radial = [&](const Vec3& n) {
-    return mod.deformed()
-               ? mod.deform_scale * (1.0 + mod.deform_amplitude * deformation_field(mod, n))
-               : 1.0;
-  };
+  auto radial = [&](const Vec3& n) { return mod.deformed() ? deformed_radius(mod, n) : 1.0; };
   switch (s.kind) {
     case ShapeKind::Sphere:
       mesh_ellipsoid(m, inc, center, Mat3::Identity() * s.radius,

@@ -394,7 +394,9 @@ SizeLaw parse_size(const Json& j, const std::string& p) {
   return law;
 }
 
-FamilyModifiers parse_modifiers(const Json& j, ShapeKind shape, const std::string& p) {
+// Reads the modifier keys; which shapes take them, ranges and combinations are checked by
+// validate_scene (which also sees the scenes built in code, such as the ParaView source's).
+FamilyModifiers parse_modifiers(const Json& j, const std::string& p) {
   using namespace json_util;
   FamilyModifiers m;
   if (j.contains("coating")) {
@@ -407,7 +409,6 @@ FamilyModifiers parse_modifiers(const Json& j, ShapeKind shape, const std::strin
   }
   if (j.contains("waviness")) {
     const std::string q = p + ".waviness";
-    if (shape != ShapeKind::Cylinder) fail(q, "waviness applies to cylinders only");
     const Json& w = j["waviness"];
     only_keys(w, {"amplitude", "wavelength"}, q);
     m.wave_amplitude = positive(require(w, "amplitude", q), q + ".amplitude");
@@ -415,27 +416,19 @@ FamilyModifiers parse_modifiers(const Json& j, ShapeKind shape, const std::strin
   }
   if (j.contains("deformation")) {
     const std::string q = p + ".deformation";
-    if (shape == ShapeKind::Cylinder) fail(q, "deformation applies to spheres and ellipsoids only");
     const Json& d = j["deformation"];
     only_keys(d, {"amplitude", "smoothness"}, q);
     m.deform_amplitude = positive(require(d, "amplitude", q), q + ".amplitude");
-    if (m.deform_amplitude > 0.5) fail(q + ".amplitude", "must be in (0, 0.5]");
-    if (d.contains("smoothness")) {
-      m.smoothness = positive(d["smoothness"], q + ".smoothness");
-      if (m.smoothness < 0.1 || m.smoothness > 10.0)
-        fail(q + ".smoothness", "must be in [0.1, 10]");
-    }
+    if (d.contains("smoothness")) m.smoothness = positive(d["smoothness"], q + ".smoothness");
   }
   if (j.contains("debonding")) {
     const std::string q = p + ".debonding";
-    if (shape != ShapeKind::Sphere) fail(q, "debonding applies to spheres only");
     const Json& d = j["debonding"];
     only_keys(d, {"fraction", "gap"}, q);
     m.debond_fraction = positive(require(d, "fraction", q), q + ".fraction");
-    if (m.debond_fraction > 1.0) fail(q + ".fraction", "must be in (0, 1]");
     m.debond_gap = positive(require(d, "gap", q), q + ".gap");
   }
-  return m;  // combinations: validate_scene
+  return m;
 }
 
 Family parse_family(const Json& j, const std::string& p, double box_volume) {
@@ -446,8 +439,7 @@ Family parse_family(const Json& j, const std::string& p, double box_volume) {
   if (!parse_shape_name(shape, &f.shape)) {
     fail(p + ".shape", "unknown shape \"" + shape + "\" (sphere, cylinder, ellipsoid)");
   }
-  // Modifiers first: a modifier on the wrong shape gets its own message, not "unknown key".
-  f.modifiers = parse_modifiers(j, f.shape, p);
+  f.modifiers = parse_modifiers(j, p);
   const bool has_vf = j.contains("volume_fraction"), has_n = j.contains("count");
   if (!has_vf && !has_n) fail(p, "give \"volume_fraction\", \"count\" or both");
   if (has_vf) {
@@ -467,8 +459,8 @@ Family parse_family(const Json& j, const std::string& p, double box_volume) {
   switch (f.shape) {
     case ShapeKind::Sphere:
       only_keys(j,
-                {"name", "shape", "radius", "volume_fraction", "count", "coating", "deformation",
-                 "debonding"},
+                {"name", "shape", "radius", "volume_fraction", "count", "coating", "waviness",
+                 "deformation", "debonding"},
                 p);
       if (derived) {
         if (j.contains("radius"))
@@ -482,7 +474,7 @@ Family parse_family(const Json& j, const std::string& p, double box_volume) {
     case ShapeKind::Cylinder:
       only_keys(j,
                 {"name", "shape", "radius", "aspect_ratio", "volume_fraction", "count",
-                 "orientation", "coating", "waviness"},
+                 "orientation", "coating", "waviness", "deformation", "debonding"},
                 p);
       f.aspect_ratio = parse_size(require(j, "aspect_ratio", p), p + ".aspect_ratio");
       if (derived) {
@@ -497,7 +489,7 @@ Family parse_family(const Json& j, const std::string& p, double box_volume) {
     case ShapeKind::Ellipsoid: {
       only_keys(j,
                 {"name", "shape", "semi_axes", "axis_ratios", "volume_fraction", "count",
-                 "orientation", "coating", "deformation"},
+                 "orientation", "coating", "waviness", "deformation", "debonding"},
                 p);
       if (derived) {
         if (j.contains("semi_axes"))
@@ -556,8 +548,7 @@ void validate_scene(const Scene& s) {
   for (size_t i = 0; i < s.families.size(); ++i) {
     const Family& f = s.families[i];
     const std::string p = "families[" + std::to_string(i) + "]";
-    // Modifiers (parse_modifiers checks the same for files; scenes built in code, such as the
-    // ParaView source's, come through here only).
+    // Modifiers: which shapes take them, ranges, combinations.
     const FamilyModifiers& m = f.modifiers;
     auto finite_at_least_0 = [](double v) { return std::isfinite(v) && v >= 0.0; };
     if (!finite_at_least_0(m.coating)) fail(p + ".coating.thickness", "must be >= 0");

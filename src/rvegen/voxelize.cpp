@@ -158,7 +158,7 @@ long long voxelize_into(const InclusionSet& set, const VoxelImage& img, const Vo
         id_out[idx] = inc.id;
       };
       // Shell and void labels of a row (voxels the core did not take).
-      auto label_outer_regions = [&](int, int jj, double y) {
+      auto label_outer_regions = [&](int jj, double y) {
         int ii;
         for (int i = f.lo[0]; i <= f.hi[0]; ++i) {
           if (!in_x(i, &ii)) continue;
@@ -186,7 +186,7 @@ long long voxelize_into(const InclusionSet& set, const VoxelImage& img, const Vo
               if (in_x(i, &ii)) label_core(img.index(ii, jj, kk));
             }
           }
-          if (!body.plain()) label_outer_regions(j, jj, y);
+          if (!body.plain()) label_outer_regions(jj, y);
           if (!frac_out) continue;
           // Coverage of the row's voxels, accumulated as a difference array (+1 where a line
           // enters whole voxels, -1 after) plus the partly covered end voxels.

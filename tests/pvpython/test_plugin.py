@@ -19,7 +19,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 from rve_view import save_rve_picture  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from image_compare import image_error  # noqa: E402
+from checks import differing_values, image_error  # noqa: E402
 
 plugin, cli_dir, baseline, out_png = sys.argv[1:5]
 failures = []
@@ -48,7 +48,7 @@ for name in ("phase", "inclusion_id"):
     b = cli.GetCellData().GetArray(name)
     check(a is not None and b is not None, "array %s missing" % name)
     if a is not None and b is not None:
-        diff = sum(1 for i in range(a.GetNumberOfTuples()) if a.GetValue(i) != b.GetValue(i))
+        diff = differing_values(a, b)
         check(diff == 0, "%s differs from voxels.vti in %d voxels" % (name, diff))
 phase = image.GetCellData().GetArray("phase")
 check(phase.GetRange() == (0.0, 3.0), "phase range %s" % (phase.GetRange(),))
@@ -64,7 +64,7 @@ if xdmf is not None:
         b = cli.GetCellData().GetArray(name)
         check(a is not None and b is not None, "rve.xdmf array %s missing" % name)
         if a is not None and b is not None:
-            diff = sum(1 for i in range(a.GetNumberOfTuples()) if a.GetValue(i) != b.GetValue(i))
+            diff = differing_values(a, b)
             check(diff == 0, "rve.xdmf %s differs from voxels.vti in %d voxels" % (name, diff))
     Delete(xdmf)
 
@@ -135,7 +135,7 @@ revox = servermanager.Fetch(RVEVoxelize(Input=OutputPort(gen, 0), Resolution=[64
 for name in ("phase", "fraction"):
     a = revox.GetCellData().GetArray(name)
     b = image.GetCellData().GetArray(name)
-    diff = sum(1 for i in range(a.GetNumberOfTuples()) if a.GetValue(i) != b.GetValue(i))
+    diff = differing_values(a, b)
     check(diff == 0, "RVE Voxelize %s differs from the generator's in %d voxels" % (name, diff))
 fine = servermanager.Fetch(RVEVoxelize(Input=XMLPolyDataReader(FileName=[cli_dir + "/inclusions.vtp"]),
                                        Resolution=[40, 48, 56]))

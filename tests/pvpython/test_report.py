@@ -14,7 +14,7 @@ import sys
 here = os.path.dirname(os.path.abspath(__file__))
 samples = os.path.join(here, "..", "..", "samples")
 sys.path.insert(0, here)
-from image_compare import image_error  # noqa: E402
+from checks import image_error  # noqa: E402
 
 rvegen, baselines, work = sys.argv[1:4]
 rve = os.path.join(work, "rve")

@@ -1,4 +1,4 @@
-"""Image regression helper shared by the pvpython tests."""
+"""Comparisons shared by the pvpython tests."""
 from vtkmodules.vtkImagingCore import vtkImageDifference
 from vtkmodules.vtkIOImage import vtkPNGReader
 
@@ -14,3 +14,8 @@ def image_error(png, baseline):
     cmp.SetImageConnection(b.GetOutputPort())
     cmp.Update()
     return cmp.GetThresholdedError()
+
+
+def differing_values(a, b):
+    """Number of tuples where two VTK arrays of the same length hold different values."""
+    return sum(1 for i in range(a.GetNumberOfTuples()) if a.GetValue(i) != b.GetValue(i))

@@ -302,6 +302,28 @@ TEST(Md, VeryLongFibresAtLowVolumeFraction) {
   expect_valid(r);
 }
 
+TEST(Md, NonPeriodicBoxesWithOneOrTwoCellsAlongAnAxis) {
+  // Inclusions of 1/6 of the box and up leave the broad phase 1 or 2 cells along an axis. Each
+  // of these was once declared valid (exit 0, or exit 3 with a "best valid" configuration) with
+  // overlapping pairs.
+  const char* cases[] = {
+      R"({"box":{"size":[1,1,1],"periodic":false},"seed":1,"families":[
+          {"shape":"sphere","radius":0.3,"volume_fraction":0.2}]})",
+      R"({"box":{"size":[4,1,1],"periodic":false},"seed":1,"families":[
+          {"shape":"sphere","radius":0.2,"volume_fraction":0.3}]})",
+      R"({"box":{"size":[1,1,1],"periodic":false},"seed":1,"min_gap":0.1,"families":[
+          {"shape":"sphere","radius":0.1,"volume_fraction":0.3}]})",
+      R"({"box":{"size":[1,1,1],"periodic":false},"seed":2,"families":[
+          {"shape":"sphere","radius":0.12,"volume_fraction":0.3,"coating":{"thickness":0.02}}]})",
+      R"({"box":{"size":[2,1,1],"periodic":false},"seed":3,"families":[
+          {"shape":"cylinder","radius":0.08,"aspect_ratio":2,"volume_fraction":0.25}]})"};
+  for (const char* text : cases) {
+    const PackingResult r = pack_md(parse_scene(text));
+    EXPECT_GE(r.set.inclusions.size(), 2u) << text;
+    expect_valid(r);
+  }
+}
+
 TEST(Md, SingleInclusionAndBarelyLargerBox) {
   for (const char* periodic : {"true", "false"}) {
     const Scene one = parse_scene(std::string(R"({"box":{"size":[1,1,1],"periodic":)") + periodic +

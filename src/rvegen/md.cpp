@@ -391,14 +391,17 @@ void MdPacker::build_pairs() {
       std::vector<int> fill(start.begin(), start.end() - 1);
       for (size_t t = 0; t < small.size(); ++t) order[fill[cell_id[t]]++] = small[t];
     }
-    const int span[3] = {std::min(nc[0], 3), std::min(nc[1], 3), std::min(nc[2], 3)};
+    // Every cell and its 26 neighbours. A periodic grid has at least 3 cells per axis here (so
+    // neighbours do not alias); a non-periodic one may have 1 or 2, and then the neighbours
+    // outside the grid are skipped below (once these were not visited at all: a grid of 1 or 2
+    // cells along an axis missed pairs, and overlapping configurations were declared valid).
     for (size_t t = 0; t < small.size(); ++t) {
       const Sub& sp = subs_[small[t]];
       const int cx = cell_index(sp.c[0], 0), cy = cell_index(sp.c[1], 1),
                 cz = cell_index(sp.c[2], 2);
-      for (int dz = -1; dz < span[2] - 1; ++dz) {
-        for (int dy = -1; dy < span[1] - 1; ++dy) {
-          for (int dx = -1; dx < span[0] - 1; ++dx) {
+      for (int dz = -1; dz <= 1; ++dz) {
+        for (int dy = -1; dy <= 1; ++dy) {
+          for (int dx = -1; dx <= 1; ++dx) {
             int x = cx + dx, y = cy + dy, z = cz + dz;
             if (box_.periodic) {
               x = (x + nc[0]) % nc[0];

@@ -1,18 +1,25 @@
 // rvegen: command-line generator and auditor of Representative Volume Elements.
+#include <sys/resource.h>
+
 #include <chrono>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
+#include <functional>
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
 #include "io/hdf5_writer.hpp"
+#include "rvegen/audit.hpp"
 #include "rvegen/inclusion_set.hpp"
 #include "rvegen/levelset.hpp"
 #include "rvegen/mesh.hpp"
 #include "rvegen/packing.hpp"
 #include "rvegen/report.hpp"
+#include "rvegen/resources.hpp"
 #include "rvegen/scene.hpp"
 #include "rvegen/voxelize.hpp"
 #include "rvegen/writers.hpp"
@@ -20,23 +27,34 @@
 namespace {
 
 constexpr int kExitOk = 0;
-constexpr int kExitOverlap = 1;
+constexpr int kExitOverlap = 1;  // check: overlaps found
+constexpr int kExitOutput = 1;   // generate: the outputs could not be written
 constexpr int kExitInvalid = 2;
 constexpr int kExitNotReached = 3;
+constexpr int kExitAudit = 4;
+
+constexpr size_t kMaxSceneBytes = size_t(16) << 20;
+constexpr size_t kMaxInclusionFileBytes = size_t(2) << 30;
 
 const char* kUsage =
     "usage:\n"
-    "  rvegen generate [SCENE.json] [-o DIR] [--quiet]\n"
+    "  rvegen generate [SCENE.json] [-o DIR] [--quiet] [--max-memory SIZE]\n"
     "      Packs the scene (the built-in default scene when none is given) and writes, in DIR\n"
     "      (default ./rve): inclusions.json (the inclusion list), inclusions.vtp (surfaces),\n"
     "      voxels.vti (phase, inclusion_id, fraction), rve.h5 + rve.xdmf (voxels, inclusion\n"
     "      table, metadata), material.vtk (AMITEX_FFTP material map), report.json and, when\n"
-    "      inclusions are wavy, deformed or coated, levelsets.vdb.\n"
-    "      Exit 0 on success, 2 on invalid input (nothing written), 3 when the target volume\n"
-    "      fraction cannot be reached (report.json says so).\n"
-    "  rvegen check FILE.json [--json]\n"
+    "      inclusions are wavy, deformed or coated, levelsets.vdb. DIR is replaced as a whole:\n"
+    "      it holds the complete new set or, on any failure, the previous one.\n"
+    "      --max-memory SIZE (bytes, or with K, M, G) refuses a scene whose estimated peak\n"
+    "      memory exceeds SIZE (default: the memory available on the machine).\n"
+    "      Exit 0 on success; 1 when the outputs cannot be written (checked before packing);\n"
+    "      2 on invalid input or a scene too large for the memory (nothing written); 3 when the\n"
+    "      target volume fraction cannot be reached (report.json says so; the best valid\n"
+    "      configuration is written); 4 when the packed RVE fails the exact audit (an internal\n"
+    "      error: nothing written).\n"
+    "  rvegen check FILE.json [--json] [--max-pairs N]\n"
     "      Audits an inclusion list with the exact pair tests. Exit 0 when no pair overlaps,\n"
-    "      1 when some do, 2 on invalid input.\n"
+    "      1 when some do (listing at most N pairs, default 10000), 2 on invalid input.\n"
     "  rvegen default-scene\n"
     "      Prints the built-in default scene.\n";
 
@@ -45,15 +63,55 @@ int usage_error(const std::string& msg) {
   return kExitInvalid;
 }
 
+// "2G", "512M", "1000000": bytes; negative when malformed.
+double parse_size(const std::string& text) {
+  char* end = nullptr;
+  const double v = std::strtod(text.c_str(), &end);
+  if (end == text.c_str() || !std::isfinite(v) || v <= 0.0) return -1.0;
+  const std::string unit = end;
+  if (unit.empty()) return v;
+  if (unit == "K" || unit == "k") return v * 1024.0;
+  if (unit == "M") return v * 1024.0 * 1024.0;
+  if (unit == "G") return v * 1024.0 * 1024.0 * 1024.0;
+  return -1.0;
+}
+
+double seconds_since(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+double peak_memory_mb() {
+  struct rusage ru {};
+  if (getrusage(RUSAGE_SELF, &ru) != 0) return 0.0;
+  return ru.ru_maxrss / 1024.0;  // kilobytes on Linux
+}
+
+// Test hook (fault injection), never for users: RVEGEN_TEST_FAULT=overlap moves the second
+// inclusion onto the first after packing, to prove that the audit stops such an RVE.
+std::function<void(rvegen::InclusionSet&)> fault_hook() {
+  const char* fault = std::getenv("RVEGEN_TEST_FAULT");
+  if (!fault || std::string(fault) != "overlap") return nullptr;
+  return [](rvegen::InclusionSet& set) {
+    if (set.inclusions.size() >= 2) {
+      set.inclusions[1].shape.center = set.inclusions[0].shape.center;
+    }
+  };
+}
+
 int cmd_generate(const std::vector<std::string>& args) {
   std::string scene_path, out_dir = "rve";
   bool quiet = false;
+  double max_memory = 0.0;
   for (size_t i = 0; i < args.size(); ++i) {
     if (args[i] == "-o" || args[i] == "--output") {
       if (i + 1 >= args.size()) return usage_error("-o needs a directory");
       out_dir = args[++i];
     } else if (args[i] == "--quiet" || args[i] == "-q") {
       quiet = true;
+    } else if (args[i] == "--max-memory") {
+      if (i + 1 >= args.size()) return usage_error("--max-memory needs a size");
+      max_memory = parse_size(args[++i]);
+      if (max_memory <= 0.0) return usage_error("--max-memory: not a size: " + args[i]);
     } else if (!args[i].empty() && args[i][0] == '-') {
       return usage_error("unknown option " + args[i]);
     } else if (scene_path.empty()) {
@@ -66,92 +124,134 @@ int cmd_generate(const std::vector<std::string>& args) {
   rvegen::Scene scene;
   try {
     scene = scene_path.empty() ? rvegen::default_scene()
-                               : rvegen::parse_scene(rvegen::read_file(scene_path));
-  } catch (const rvegen::InputError& e) {
+                               : rvegen::parse_scene(rvegen::read_file(scene_path, kMaxSceneBytes));
+  } catch (const std::exception& e) {
     std::cerr << "rvegen: invalid scene" << (scene_path.empty() ? "" : " " + scene_path) << ": "
               << e.what() << "\n";
     return kExitInvalid;
-  } catch (const std::exception& e) {
-    std::cerr << "rvegen: " << e.what() << "\n";
+  }
+  // Memory: the estimated peak against the limit, before any large allocation.
+  const rvegen::ResourceEstimate need = rvegen::estimate_resources(scene);
+  const double limit = max_memory > 0.0 ? max_memory : rvegen::available_memory_bytes();
+  if (limit > 0.0 && need.total_bytes() > limit) {
+    std::cerr << "rvegen: the scene needs about " << rvegen::describe(need) << ", above the "
+              << (max_memory > 0.0 ? "--max-memory limit of " : "memory available, ")
+              << rvegen::format_bytes(limit) << "\n";
     return kExitInvalid;
   }
   rvegen::ProgressFn progress;
   if (!quiet) progress = [](const std::string& line) { std::cerr << line << "\n"; };
-  const rvegen::PackingResult result = rvegen::generate(scene, progress);
-  rvegen::VoxelOptions vopt;
-  vopt.partial_volume = scene.partial_volume;
-  vopt.subsamples = scene.subsamples;
-  const auto tv = std::chrono::steady_clock::now();
-  const rvegen::VoxelImage image = rvegen::voxelize(result.set, scene.resolution, vopt);
-  if (progress) {
-    char buf[160];
-    std::snprintf(buf, sizeof buf, "voxels: %d x %d x %d in %.2f s", image.dims[0], image.dims[1],
-                  image.dims[2],
-                  std::chrono::duration<double>(std::chrono::steady_clock::now() - tv).count());
-    progress(buf);
-  }
-  rvegen::MeshOptions mopt;
-  mopt.clip_to_box = scene.clip_surfaces;
-  const rvegen::SurfaceMesh mesh = rvegen::tessellate(result.set, mopt);
-  rvegen::LevelSetOptions lopt;
-  lopt.voxel_size = scene.levelset_voxel_size;
-  lopt.half_width = scene.levelset_half_width;
-  const rvegen::LevelSets levelsets = rvegen::build_level_sets(result.set, lopt);
-  if (progress && !levelsets.empty()) {
-    char buf[160];
-    std::snprintf(buf, sizeof buf, "level sets: %zu grids, %.1f MB sparse (dense: %.1f MB)",
-                  levelsets.grids.size(), levelsets.memory_bytes / 1e6,
-                  levelsets.dense_bytes / 1e6);
-    progress(buf);
-  }
-  const double seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  const std::string report = rvegen::report_json(scene, result, &image, seconds, &levelsets);
-  rvegen::OutputTransaction out(out_dir);
-  const std::string inclusions = rvegen::write_inclusions_json(result.set);
-  out.add("inclusions.json", inclusions);
-  out.add("inclusions.vtp", rvegen::vtp_bytes(mesh, inclusions));
-  out.add("voxels.vti", rvegen::vti_bytes(image));
-  out.add("material.vtk", rvegen::material_vtk_bytes(image));
+  rvegen::RunTimings timings;
   try {
-    out.add("rve.h5", rvegen::hdf5_bytes(image, result.set, rvegen::scene_to_json(scene), report));
-  } catch (const std::exception& e) {
-    std::cerr << "rvegen: " << e.what() << "\n";
-    return 1;
-  }
-  out.add("rve.xdmf", rvegen::xdmf_text(image, "rve.h5"));
-  if (!levelsets.empty()) {
-    out.add("levelsets.vdb", rvegen::vdb_bytes(levelsets, result.set));
-  }
-  out.add("report.json", report);
-  try {
+    // The output place is checked (and a private staging directory made) before the work.
+    rvegen::OutputSet out(out_dir);
+    const rvegen::PackingResult result = rvegen::generate(scene, progress, fault_hook());
+    timings.phases.emplace_back("packing", result.seconds);
+    timings.phases.emplace_back("audit", result.audit_seconds);
+    auto timed = [&](const std::string& what, const std::function<void()>& f) {
+      const auto t = std::chrono::steady_clock::now();
+      f();
+      const double sec = seconds_since(t);
+      timings.phases.emplace_back(what, sec);
+      if (progress) {
+        char buf[160];
+        std::snprintf(buf, sizeof buf, "%s: %.2f s", what.c_str(), sec);
+        progress(buf);
+      }
+    };
+    std::string inclusions;
+    timed("write inclusions.json", [&] {
+      inclusions = rvegen::write_inclusions_json(result.set);
+      out.write("inclusions.json", inclusions);
+    });
+    timed("surfaces", [&] {
+      rvegen::MeshOptions mopt;
+      mopt.clip_to_box = scene.clip_surfaces;
+      const rvegen::SurfaceMesh mesh = rvegen::tessellate(result.set, mopt);
+      out.write("inclusions.vtp", rvegen::vtp_bytes(mesh, inclusions));
+    });
+    inclusions.clear();
+    inclusions.shrink_to_fit();
+    rvegen::LevelSets levelsets;
+    timed("level sets", [&] {
+      rvegen::LevelSetOptions lopt;
+      lopt.voxel_size = scene.levelset_voxel_size;
+      lopt.half_width = scene.levelset_half_width;
+      levelsets = rvegen::build_level_sets(result.set, lopt);
+      if (!levelsets.empty()) out.write("levelsets.vdb", rvegen::vdb_bytes(levelsets, result.set));
+      levelsets.data.reset();  // the report keeps the grid summaries only
+    });
+    rvegen::VoxelImage image;
+    timed("voxels", [&] {
+      rvegen::VoxelOptions vopt;
+      vopt.partial_volume = scene.partial_volume;
+      vopt.subsamples = scene.subsamples;
+      image = rvegen::voxelize(result.set, scene.resolution, vopt);
+    });
+    timed("write voxels.vti", [&] {
+      out.write_with("voxels.vti", [&](std::FILE* f) { rvegen::write_vti(image, f); });
+    });
+    timed("write material.vtk", [&] {
+      out.write_with("material.vtk", [&](std::FILE* f) { rvegen::write_material_vtk(image, f); });
+      out.write("rve.xdmf", rvegen::xdmf_text(image, "rve.h5"));
+    });
+    auto report_now = [&] {
+      timings.total_seconds = seconds_since(t0);
+      timings.peak_memory_mb = peak_memory_mb();
+      return rvegen::report_json(scene, result, &image, timings, &levelsets);
+    };
+    // rve.h5 carries the report as it stood before rve.h5 itself was written.
+    timed("write rve.h5", [&] {
+      rvegen::write_hdf5(out.staged_path("rve.h5"), image, result.set,
+                         rvegen::scene_to_json(scene), report_now());
+    });
+    out.write("report.json", report_now());
     out.commit();
+    const auto vf =
+        rvegen::family_volume_fractions(result.set, static_cast<int>(scene.families.size()));
+    double total = 0.0;
+    for (double v : vf) total += v;
+    if (!quiet) {
+      std::fprintf(stderr, "rvegen: %zu inclusions, volume fraction %.4f, %.2f s -> %s\n",
+                   result.set.inclusions.size(), total, seconds_since(t0), out_dir.c_str());
+    }
+    if (result.status != "ok") {
+      std::cerr << "rvegen: target volume fraction not reached (status " << result.status
+                << ", " << result.stop_reason
+                << "); the best valid configuration found was written\n";
+      return kExitNotReached;
+    }
+    return kExitOk;
+  } catch (const rvegen::AuditFailure& e) {
+    std::cerr << "rvegen: " << e.what() << "; nothing was written\n";
+    return kExitAudit;
+  } catch (const rvegen::OutputError& e) {
+    std::cerr << "rvegen: " << e.what() << "; " << out_dir << " is unchanged\n";
+    return kExitOutput;
+  } catch (const std::bad_alloc&) {
+    std::cerr << "rvegen: out of memory (the estimate was " << rvegen::describe(need)
+              << "); nothing was written\n";
+    return kExitInvalid;
   } catch (const std::exception& e) {
-    std::cerr << "rvegen: " << e.what() << "\n";
-    return 1;
+    std::cerr << "rvegen: " << e.what() << "; nothing was written\n";
+    return kExitOutput;
   }
-  const auto vf =
-      rvegen::family_volume_fractions(result.set, static_cast<int>(scene.families.size()));
-  double total = 0.0;
-  for (double v : vf) total += v;
-  if (!quiet) {
-    std::fprintf(stderr, "rvegen: %zu inclusions, volume fraction %.4f, %.2f s -> %s\n",
-                 result.set.inclusions.size(), total, seconds, out_dir.c_str());
-  }
-  if (result.status != "ok") {
-    std::cerr << "rvegen: target volume fraction not reached (status " << result.status
-              << "); the best configuration found was written\n";
-    return kExitNotReached;
-  }
-  return kExitOk;
 }
 
 int cmd_check(const std::vector<std::string>& args) {
   std::string path;
   bool as_json = false;
-  for (const auto& a : args) {
+  size_t max_pairs = 10000;
+  for (size_t i = 0; i < args.size(); ++i) {
+    const std::string& a = args[i];
     if (a == "--json") {
       as_json = true;
+    } else if (a == "--max-pairs") {
+      if (i + 1 >= args.size()) return usage_error("--max-pairs needs a number");
+      const double n = parse_size(args[++i]);
+      if (!(n >= 1.0 && n <= 1e9) || n != std::floor(n))
+        return usage_error("--max-pairs: not a count in [1, 1e9]: " + args[i]);
+      max_pairs = static_cast<size_t>(n);
     } else if (!a.empty() && a[0] == '-') {
       return usage_error("unknown option " + a);
     } else if (path.empty()) {
@@ -163,18 +263,20 @@ int cmd_check(const std::vector<std::string>& args) {
   if (path.empty()) return usage_error("check needs an inclusion file");
   rvegen::InclusionSet set;
   try {
-    set = rvegen::read_inclusions_json(rvegen::read_file(path));
+    set = rvegen::read_inclusions_json(rvegen::read_file(path, kMaxInclusionFileBytes));
   } catch (const std::exception& e) {
     std::cerr << "rvegen: invalid inclusion file " << path << ": " << e.what() << "\n";
     return kExitInvalid;
   }
-  const auto overlaps = rvegen::find_overlaps(set);
-  const auto outside = rvegen::find_outside(set);
+  const rvegen::AuditReport report = rvegen::audit(set, max_pairs);
+  const auto& overlaps = report.overlaps;
+  const auto& outside = report.outside;
   const auto& inc = set.inclusions;
   if (as_json) {
     nlohmann::ordered_json j;
     j["n"] = inc.size();
     j["count"] = overlaps.size();
+    j["truncated"] = report.truncated;
     nlohmann::ordered_json list = nlohmann::ordered_json::array();
     for (const auto& o : overlaps) {
       list.push_back({{"a", inc[o.a].id},
@@ -195,8 +297,8 @@ int cmd_check(const std::vector<std::string>& args) {
                   o.shift.isZero() ? "" : " (periodic image)");
     }
     for (int i : outside) std::printf("outside box: %d\n", inc[i].id);
-    std::printf("%zu inclusions, %zu overlapping pairs, %zu outside the box\n", inc.size(),
-                overlaps.size(), outside.size());
+    std::printf("%zu inclusions, %s%zu overlapping pairs, %zu outside the box\n", inc.size(),
+                report.truncated ? "at least " : "", overlaps.size(), outside.size());
   }
   return overlaps.empty() && outside.empty() ? kExitOk : kExitOverlap;
 }

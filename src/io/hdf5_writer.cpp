@@ -2,6 +2,8 @@
 
 #include <hdf5.h>
 
+#include <algorithm>
+#include <utility>
 #include <sstream>
 #include <stdexcept>
 #include <vector>
@@ -55,6 +57,22 @@ void text_attribute(hid_t obj, const char* name, const std::string& s) {
   H5Tclose(type);
 }
 
+// Root attributes must stay below HDF5's 64 KB object-header limit.
+constexpr size_t kMaxTextAttribute = 60000;
+
+// A scalar fixed-length string dataset (any length).
+void text_dataset(hid_t parent, const char* name, const std::string& s) {
+  const hid_t type = H5Tcopy(H5T_C_S1);
+  H5Tset_size(type, std::max<size_t>(1, s.size()));
+  const hid_t space = H5Screate(H5S_SCALAR);
+  const hid_t set = H5Dcreate2(parent, name, type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  if (set < 0) throw std::runtime_error(std::string("HDF5: cannot create ") + name);
+  check(H5Dwrite(set, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, s.empty() ? " " : s.data()), name);
+  H5Dclose(set);
+  H5Sclose(space);
+  H5Tclose(type);
+}
+
 // Fixed-length string dataset (one row per string).
 void strings(hid_t parent, const char* name, const std::vector<std::string>& v) {
   size_t len = 1;
@@ -70,22 +88,23 @@ void strings(hid_t parent, const char* name, const std::vector<std::string>& v) 
 
 }  // namespace
 
-std::string hdf5_bytes(const VoxelImage& im, const InclusionSet& set, const std::string& scene_json,
-                       const std::string& report_json) {
+void write_hdf5(const std::string& path, const VoxelImage& im, const InclusionSet& set,
+                const std::string& scene_json, const std::string& report_json) {
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
-  const hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
-  H5Pset_fapl_core(fapl, 1 << 20, 0);  // in memory, never written by HDF5 itself
-  const hid_t file = H5Fcreate("rve.h5", H5F_ACC_TRUNC, H5P_DEFAULT, fapl);
-  H5Pclose(fapl);
-  if (file < 0) throw std::runtime_error("HDF5: cannot create the file image");
-  std::string out;
+  const hid_t file = H5Fcreate(path.c_str(), H5F_ACC_EXCL, H5P_DEFAULT, H5P_DEFAULT);
+  if (file < 0) throw std::runtime_error("HDF5: cannot create " + path);
   try {
     text_attribute(file, "format", std::string("rvegen.h5/1"));
     attribute(file, "box_origin", {set.box.origin[0], set.box.origin[1], set.box.origin[2]});
     attribute(file, "box_size", {set.box.size[0], set.box.size[1], set.box.size[2]});
     attribute(file, "periodic", std::vector<double>{set.box.periodic ? 1.0 : 0.0});
-    text_attribute(file, "scene", scene_json);
-    text_attribute(file, "report", report_json);
+    // Scene and report: always as datasets (/scene, /report: any length), and also as root
+    // attributes when they fit HDF5's 64 KB attribute limit.
+    for (const auto& [name, text] : {std::pair<const char*, const std::string&>{"scene", scene_json},
+                                     {"report", report_json}}) {
+      text_dataset(file, name, text);
+      if (text.size() < kMaxTextAttribute) text_attribute(file, name, text);
+    }
 
     const hid_t vox = H5Gcreate2(file, "voxels", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
     const std::vector<hsize_t> dims = {static_cast<hsize_t>(im.size(2)),
@@ -147,18 +166,11 @@ std::string hdf5_bytes(const VoxelImage& im, const InclusionSet& set, const std:
     text_attribute(tab, "shape_codes", std::string("0 sphere, 1 cylinder, 2 ellipsoid"));
     H5Gclose(tab);
 
-    H5Fflush(file, H5F_SCOPE_GLOBAL);
-    const ssize_t size = H5Fget_file_image(file, nullptr, 0);
-    if (size < 0) throw std::runtime_error("HDF5: cannot read the file image");
-    out.resize(static_cast<size_t>(size));
-    if (H5Fget_file_image(file, out.data(), out.size()) < 0)
-      throw std::runtime_error("HDF5: cannot read the file image");
   } catch (...) {
     H5Fclose(file);
     throw;
   }
-  H5Fclose(file);
-  return out;
+  if (H5Fclose(file) < 0) throw std::runtime_error("HDF5: cannot close " + path);
 }
 
 std::string xdmf_text(const VoxelImage& im, const std::string& h5) {

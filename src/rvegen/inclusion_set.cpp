@@ -92,7 +92,7 @@ void NeighbourGrid::for_each_candidate(const Vec3& c, const std::function<void(i
   }
 }
 
-std::vector<OverlapRecord> find_overlaps(const InclusionSet& set) {
+std::vector<OverlapRecord> find_overlaps(const InclusionSet& set, size_t limit) {
   const auto& inc = set.inclusions;
   // Modified inclusions are tested by their envelopes, which hold everything they add.
   std::vector<Shape> env(inc.size());
@@ -102,7 +102,8 @@ std::vector<OverlapRecord> find_overlaps(const InclusionSet& set) {
   NeighbourGrid grid(set.box, 2.0 * rmax, inc.size());
   for (int i = 0; i < static_cast<int>(inc.size()); ++i) grid.insert(i, inc[i].shape.center);
   std::vector<OverlapRecord> out;
-  for (int i = 0; i < static_cast<int>(inc.size()); ++i) {
+  if (limit == 0) return out;
+  for (int i = 0; i < static_cast<int>(inc.size()) && out.size() < limit; ++i) {
     const Shape& a = env[i];
     const double ra = a.bounding_radius();
     std::vector<int> cand;
@@ -111,8 +112,10 @@ std::vector<OverlapRecord> find_overlaps(const InclusionSet& set) {
     });
     std::sort(cand.begin(), cand.end());
     for (int j : cand) {
+      if (out.size() >= limit) break;
       const Shape& b = env[j];
       for_each_image(set.box, a.center, ra, b.center, b.bounding_radius(), [&](const Vec3& s) {
+        if (out.size() >= limit) return;
         if (j == i && s.isZero()) return;
         // An inclusion against its own image: each image pair is met twice (+s and -s).
         if (j == i && (s[0] < 0 || (s[0] == 0 && (s[1] < 0 || (s[1] == 0 && s[2] < 0))))) {

@@ -117,8 +117,10 @@ struct OverlapRecord {
 };
 
 /// Every overlapping pair (each pair and image once; an inclusion against its own periodic
-/// image is reported with a == b). Sorted by (a, b).
-std::vector<OverlapRecord> find_overlaps(const InclusionSet& set);
+/// image is reported with a == b), sorted by (a, b); the search stops after `limit` records
+/// (so a result of `limit` records means "at least that many").
+std::vector<OverlapRecord> find_overlaps(const InclusionSet& set,
+                                         size_t limit = static_cast<size_t>(-1));
 
 /// Indices of inclusions not wholly inside a non-periodic box (empty for periodic boxes).
 std::vector<int> find_outside(const InclusionSet& set);

@@ -21,6 +21,8 @@ struct PackingResult {
   std::vector<int> placed_count;               // per family
   std::vector<double> target_volume_fraction;  // per family, of the drawn population
   double seconds = 0.0;
+  /// Seconds of the exact audit that generate() runs on the result.
+  double audit_seconds = 0.0;
   long long attempts = 0;  // rsa: placement attempts
   long long steps = 0;     // md: integration steps
   /// md: size scale of the returned inclusions relative to the drawn ones (1 when reached;
@@ -64,7 +66,11 @@ struct ContactResponse {
 ContactResponse contact_response(const Vec3& ca, const BodyMobility& ma, const Vec3& cb,
                                  const BodyMobility& mb, const Contact& c, double gain);
 
-/// Runs the scene's method.
-PackingResult generate(const Scene& scene, const ProgressFn& progress = nullptr);
+/// Runs the scene's method, then the exact audit (audit.hpp) of the result. Throws AuditFailure
+/// when the audit finds an overlap (or, in a non-periodic box, an inclusion leaving it): no
+/// overlapping RVE is ever returned, whatever the status. `before_audit` is a test hook that may
+/// alter the packed set before the audit (fault injection).
+PackingResult generate(const Scene& scene, const ProgressFn& progress = nullptr,
+                       const std::function<void(InclusionSet&)>& before_audit = nullptr);
 
 }  // namespace rvegen

@@ -38,7 +38,7 @@ std::vector<double> phase_volume_fractions(const InclusionSet& set,
 }
 
 std::string report_json(const Scene& scene, const PackingResult& r, const VoxelImage* image,
-                        double total_seconds, const LevelSets* levelsets) {
+                        const RunTimings& timings, const LevelSets* levelsets) {
   using OJson = nlohmann::ordered_json;
   const int nf = static_cast<int>(scene.families.size());
   const std::vector<double> vf = family_volume_fractions(r.set, nf);
@@ -153,7 +153,12 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
     root["attempts"] = r.attempts;
   }
   root["packing_seconds"] = r.seconds;
-  root["seconds"] = total_seconds;
+  root["audit_seconds"] = r.audit_seconds;
+  root["seconds"] = timings.total_seconds;
+  OJson by_phase = OJson::object();
+  for (const auto& [name, sec] : timings.phases) by_phase[name] = sec;
+  root["timings"] = by_phase;
+  if (timings.peak_memory_mb > 0.0) root["peak_memory_mb"] = timings.peak_memory_mb;
   if (image) {
     OJson vox;
     vox["resolution"] = {image->dims[0], image->dims[1], image->dims[2]};

@@ -2,6 +2,8 @@
 #pragma once
 
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "rvegen/levelset.hpp"
 #include "rvegen/packing.hpp"
@@ -17,9 +19,17 @@ std::vector<double> family_volume_fractions(const InclusionSet& set, int n_famil
 std::vector<double> phase_volume_fractions(const InclusionSet& set,
                                            const std::vector<Phase>& phases);
 
+/// Wall-clock seconds of a whole run: each phase in the order it ran (packing, audit, voxels,
+/// each writer, ...), the total, and the peak resident memory of the process.
+struct RunTimings {
+  std::vector<std::pair<std::string, double>> phases;
+  double total_seconds = 0.0;
+  double peak_memory_mb = 0.0;  // 0: not measured
+};
+
 /// report.json text. `image` may be null (then no voxel statistics), `levelsets` too (then no
 /// level-set section).
 std::string report_json(const Scene& scene, const PackingResult& result, const VoxelImage* image,
-                        double total_seconds, const LevelSets* levelsets = nullptr);
+                        const RunTimings& timings, const LevelSets* levelsets = nullptr);
 
 }  // namespace rvegen

@@ -173,7 +173,7 @@ int vtkRVEGenerator::RequestInformation(vtkInformation*, vtkInformationVector**,
   rvegen::Scene scene = SceneFromProperties(this);
   if (this->SceneFile && *this->SceneFile) {
     try {
-      scene = rvegen::parse_scene(rvegen::read_file(this->SceneFile));
+      scene = rvegen::parse_scene(rvegen::read_file(this->SceneFile, size_t(16) << 20));
     } catch (const std::exception&) {
     }
   }
@@ -218,7 +218,7 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
   rvegen::Scene scene;
   try {
     if (this->SceneFile && *this->SceneFile) {
-      scene = rvegen::parse_scene(rvegen::read_file(this->SceneFile));
+      scene = rvegen::parse_scene(rvegen::read_file(this->SceneFile, size_t(16) << 20));
     } else {
       scene = SceneFromProperties(this);
       rvegen::validate_scene(scene);
@@ -239,7 +239,15 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
   key_scene.levelset_half_width = defaults.levelset_half_width;
   const std::string key = rvegen::scene_to_json(key_scene);
   if (!this->Cached || this->Cached->key != key) {
-    this->Cached.reset(new Cache{key, rvegen::generate(scene)});
+    try {
+      // generate() audits the packed RVE exactly; an RVE that fails is never shown.
+      this->Cached.reset(new Cache{key, rvegen::generate(scene)});
+    } catch (const std::exception& e) {
+      this->Cached.reset();
+      this->Status = "error";
+      vtkErrorMacro(<< e.what());
+      return 0;
+    }
   }
   const rvegen::PackingResult& result = this->Cached->result;
   this->Status = result.status;

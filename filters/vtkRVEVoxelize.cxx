@@ -66,7 +66,12 @@ vtkTypeBool vtkRVEVoxelize::ProcessRequest(vtkInformation* request, vtkInformati
     opt.subsamples = this->Subsamples;
     const std::array<int, 3> dims = {this->Resolution[0], this->Resolution[1], this->Resolution[2]};
     tbb::task_arena arena;
-    RVEVoxelizeInto(set, rvegen::voxel_layout(set, dims, opt), opt, image, arena);
+    try {
+      RVEVoxelizeInto(set, rvegen::voxel_layout(set, dims, opt), opt, image, arena);
+    } catch (const std::exception& e) {
+      vtkErrorMacro(<< e.what());
+      return 0;
+    }
     return 1;
   }
   return this->Superclass::ProcessRequest(request, in, out);

@@ -9,6 +9,25 @@
 
 namespace rvegen {
 
+void check_box(const Box& b, const std::string& path) {
+  for (int k = 0; k < 3; ++k) {
+    const std::string sk = path + ".size[" + std::to_string(k) + "]";
+    if (!std::isfinite(b.size[k]) || !(b.size[k] > 0.0)) {
+      throw InputError(sk + ": must be positive and finite");
+    }
+    if (b.size[k] < 1e-12 || b.size[k] > 1e12) throw InputError(sk + ": must be in [1e-12, 1e12]");
+    const std::string ok = path + ".origin[" + std::to_string(k) + "]";
+    if (!std::isfinite(b.origin[k])) throw InputError(ok + ": must be finite");
+    if (std::abs(b.origin[k]) > 1000.0 * b.size[k]) {
+      throw InputError(ok + ": must be within 1000 box sizes of 0 (coordinates would lose the "
+                            "precision the overlap tests need)");
+    }
+  }
+  if (b.size.maxCoeff() > 1e6 * b.size.minCoeff()) {
+    throw InputError(path + ".size: the largest size may be at most 1e6 times the smallest");
+  }
+}
+
 void for_each_image(const Box& box, const Vec3& ca, double ra, const Vec3& cb, double rb,
                     const std::function<void(const Vec3&)>& f) {
   const Vec3 d = cb - ca;
@@ -180,9 +199,9 @@ Modifiers read_modifiers(const json_util::Json& j, const Shape& shape, const std
       const std::string q = p + ".deform_waves[" + std::to_string(k) + "]";
       DeformationWave w;
       w.direction = vec3(require(waves[k], "direction", q), q + ".direction");
-      if (!(w.direction.norm() > 0.0)) fail(q + ".direction", "must be non-zero");
       // Unit vectors written by rvegen read back bit for bit; others are normalised.
-      if (std::abs(w.direction.norm() - 1.0) > 1e-12) w.direction.normalize();
+      if (!(std::abs(w.direction.norm() - 1.0) <= 1e-12))
+        w.direction = unit_vector(require(waves[k], "direction", q), q + ".direction");
       w.weight = positive(require(waves[k], "weight", q), q + ".weight");
       w.wavenumber = positive(require(waves[k], "wavenumber", q), q + ".wavenumber");
       w.phase = number(require(waves[k], "phase", q), q + ".phase");
@@ -201,8 +220,9 @@ Modifiers read_modifiers(const json_util::Json& j, const Shape& shape, const std
     m.debond_fraction = positive(require(j, "debond_fraction", p), p + ".debond_fraction");
     if (m.debond_fraction > 1.0) fail(p + ".debond_fraction", "must be in (0, 1]");
     const Vec3 a = vec3(require(j, "debond_axis", p), p + ".debond_axis");
-    if (!(a.norm() > 0.0)) fail(p + ".debond_axis", "must be non-zero");
-    m.debond_axis = std::abs(a.norm() - 1.0) > 1e-12 ? Vec3(a.normalized()) : a;
+    m.debond_axis = std::abs(a.norm() - 1.0) <= 1e-12
+                        ? a
+                        : unit_vector(require(j, "debond_axis", p), p + ".debond_axis");
   }
   return m;
 }
@@ -230,11 +250,13 @@ InclusionSet read_inclusions_json(const std::string& text) {
               p);
     Inclusion inc;
     const double id = number(require(e, "id", p), p + ".id");
-    if (id != std::floor(id) || id < 0) fail(p + ".id", "must be a non-negative integer");
+    if (id != std::floor(id) || id < 0 || id > 2147483647.0)
+      fail(p + ".id", "must be an integer in [0, 2147483647]");
     inc.id = static_cast<int>(id);
     if (e.contains("family")) {
       const double fam = number(e["family"], p + ".family");
-      if (fam != std::floor(fam) || fam < 0) fail(p + ".family", "must be a non-negative integer");
+      if (fam != std::floor(fam) || fam < 0 || fam > 65535)
+        fail(p + ".family", "must be an integer in [0, 65535]");
       inc.family = static_cast<int>(fam);
     }
     const std::string shape = string(require(e, "shape", p), p + ".shape");
@@ -271,7 +293,28 @@ InclusionSet read_inclusions_json(const std::string& text) {
     }
     if (e.contains("modifiers"))
       inc.mod = read_modifiers(e["modifiers"], inc.shape, p + ".modifiers");
+    // Sizes and places the audit can serve: the number of periodic images it visits grows as
+    // (bounding diameter / box)^3, and coordinates must keep their precision.
+    const Box& b = set.box;
+    const double reach = envelope(inc).bounding_radius(), small = inc.shape.min_size();
+    if (b.periodic && reach > 2.0 * b.size.minCoeff()) {
+      fail(p, "larger than twice the periodic box (bounding radius " + std::to_string(reach) +
+                  "); such an inclusion overlaps its own images");
+    }
+    if (small < 1e-9 * b.size.maxCoeff()) fail(p, "smaller than 1e-9 of the box");
+    for (int k = 0; k < 3; ++k) {
+      if (std::abs(c[k] - b.origin[k]) > 1000.0 * b.size[k])
+        fail(p + ".center", "more than 1000 box sizes away from the box");
+    }
     set.inclusions.push_back(inc);
+  }
+  {
+    std::vector<int> ids;
+    ids.reserve(set.inclusions.size());
+    for (const auto& inc : set.inclusions) ids.push_back(inc.id);
+    std::sort(ids.begin(), ids.end());
+    const auto dup = std::adjacent_find(ids.begin(), ids.end());
+    if (dup != ids.end()) fail("inclusions", "id " + std::to_string(*dup) + " appears twice");
   }
   if (root.contains("family_names")) {
     const Json& names = root["family_names"];

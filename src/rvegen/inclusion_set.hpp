@@ -25,6 +25,11 @@ struct Box {
   double volume() const { return size.prod(); }
 };
 
+/// Refuses (InputError naming `path`) a box the arithmetic cannot serve: sizes outside
+/// [1e-12, 1e12], a largest size more than 1e6 times the smallest, or an origin further than
+/// 1000 box sizes from zero (coordinates would lose the precision the exact tests need).
+void check_box(const Box& box, const std::string& path);
+
 /// One random wave of a deformation: g(n) += weight cos(wavenumber (n . direction) + phase),
 /// n a unit direction in the inclusion's own frame.
 struct DeformationWave {

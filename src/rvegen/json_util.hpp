@@ -5,6 +5,7 @@
 #include <initializer_list>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "rvegen/inclusion_set.hpp"
 
@@ -56,6 +57,16 @@ inline Vec3 vec3(const Json& v, const std::string& path) {
   return Vec3(number(v[0], path + "[0]"), number(v[1], path + "[1]"), number(v[2], path + "[2]"));
 }
 
+/// A direction: any finite non-zero vector, normalised (scaled first, so huge or tiny
+/// components do not overflow or underflow).
+inline Vec3 unit_vector(const Json& v, const std::string& path) {
+  Vec3 u = vec3(v, path);
+  const double big = u.cwiseAbs().maxCoeff();
+  if (!(big > 0.0)) fail(path, "must be non-zero");
+  u /= big;
+  return u.normalized();
+}
+
 inline bool boolean(const Json& v, const std::string& path) {
   if (!v.is_boolean()) fail(path, "expected true or false");
   return v.get<bool>();
@@ -76,14 +87,71 @@ inline Box box(const Json& j, const std::string& path) {
     if (!(b.size[k] > 0.0)) fail(path + ".size[" + std::to_string(k) + "]", "must be positive");
   }
   if (j.contains("periodic")) b.periodic = boolean(j["periodic"], path + ".periodic");
+  check_box(b, path);
   return b;
 }
 
+/// Parses JSON text strictly: a key given twice in one object is an error (JSON parsers
+/// otherwise keep one of them silently), and every error names where in the document it is
+/// (for example "box.size[0]").
 inline Json parse(const std::string& text, const std::string& what) {
+  struct Frame {
+    bool array = false;
+    std::string key;
+    size_t index = 0;
+    std::vector<std::string> keys;  // of an object, to find duplicates
+  };
+  std::vector<Frame> frames;
+  auto where = [&frames] {
+    std::string at;
+    for (const Frame& f : frames) {
+      if (f.array) {
+        at += "[" + std::to_string(f.index) + "]";
+      } else if (!f.key.empty()) {
+        at += (at.empty() ? "" : ".") + f.key;
+      }
+    }
+    return at.empty() ? std::string("(root)") : at;
+  };
+  auto next_element = [&frames] {
+    if (!frames.empty() && frames.back().array) ++frames.back().index;
+  };
+  const Json::parser_callback_t cb = [&](int, Json::parse_event_t event, Json& parsed) {
+    switch (event) {
+      case Json::parse_event_t::object_start:
+        frames.push_back({false, "", 0, {}});
+        break;
+      case Json::parse_event_t::array_start:
+        frames.push_back({true, "", 0, {}});
+        break;
+      case Json::parse_event_t::object_end:
+      case Json::parse_event_t::array_end:
+        frames.pop_back();
+        next_element();
+        break;
+      case Json::parse_event_t::key: {
+        Frame& f = frames.back();
+        const std::string key = parsed.get<std::string>();
+        for (const std::string& k : f.keys) {
+          if (k == key) {
+            f.key = key;
+            throw InputError(where() + ": key given twice");
+          }
+        }
+        f.keys.push_back(key);
+        f.key = key;
+        break;
+      }
+      case Json::parse_event_t::value:
+        next_element();
+        break;
+    }
+    return true;
+  };
   try {
-    return Json::parse(text);
-  } catch (const Json::parse_error& e) {
-    throw InputError(what + ": not valid JSON (" + e.what() + ")");
+    return Json::parse(text, cb);
+  } catch (const Json::exception& e) {
+    throw InputError(what + ": not valid JSON at " + where() + " (" + e.what() + ")");
   }
 }
 

@@ -50,12 +50,28 @@ LevelSets build_level_sets(const InclusionSet& set, const LevelSetOptions& opt) 
   const std::vector<Phase> phases = phase_table(set);
   int nf = 0;
   for (const auto& p : phases) nf = std::max(nf, p.family + 1);
-  auto family_name = [&](int f) {
+  // Grid names: family names with spaces as underscores, made unique (families "a b" and
+  // "a_b", or two of the same name, get the family index appended).
+  std::vector<std::string> names(nf);
+  for (int f = 0; f < nf; ++f) {
     std::string n = f < static_cast<int>(set.family_names.size()) ? set.family_names[f]
                                                                   : "family" + std::to_string(f);
     std::replace(n.begin(), n.end(), ' ', '_');
-    return n;
-  };
+    names[f] = n;
+  }
+  for (bool clash = true; clash;) {
+    clash = false;
+    for (int f = 0; f < nf; ++f) {
+      if (std::count(names.begin(), names.end(), names[f]) > 1) {
+        const std::string dup = names[f];
+        for (int g = 0; g < nf; ++g) {
+          if (names[g] == dup) names[g] += "_" + std::to_string(g);
+        }
+        clash = true;
+      }
+    }
+  }
+  auto family_name = [&](int f) { return names[f]; };
   for (int kind = 0; kind < 2; ++kind) {  // 0: wavy / deformed cores, 1: interphase shells
     for (int f = 0; f < nf; ++f) {
       std::vector<const Inclusion*> members;

@@ -171,6 +171,13 @@ class MdPacker {
   std::vector<Shape> best_oriented_;
   std::vector<Inclusion> pop_;  // drawn cores and modifiers
   std::chrono::steady_clock::time_point t0_, last_progress_;
+  // The time budget holds inside a step too (a pair-list build of a crowded scene can take
+  // longer than the budget): long loops call check_time(), which throws OutOfTime.
+  struct OutOfTime {};
+  std::chrono::steady_clock::time_point deadline_;
+  void check_time() const {
+    if (std::chrono::steady_clock::now() > deadline_) throw OutOfTime{};
+  }
 };
 
 void MdPacker::init_bodies() {
@@ -363,6 +370,7 @@ void MdPacker::build_pairs() {
   if (!use_grid) {
     // Small periodic boxes: every pair of spheres with every image that can touch.
     for (size_t p = 0; p < subs_.size(); ++p) {
+      if ((p & 255) == 0) check_time();
       for (size_t q = p; q < subs_.size(); ++q) add_all_images(subs_[p], subs_[q]);
     }
   } else {
@@ -396,6 +404,7 @@ void MdPacker::build_pairs() {
     // outside the grid are skipped below (once these were not visited at all: a grid of 1 or 2
     // cells along an axis missed pairs, and overlapping configurations were declared valid).
     for (size_t t = 0; t < small.size(); ++t) {
+      if ((t & 1023) == 0) check_time();
       const Sub& sp = subs_[small[t]];
       const int cx = cell_index(sp.c[0], 0), cy = cell_index(sp.c[1], 1),
                 cz = cell_index(sp.c[2], 2);
@@ -450,17 +459,21 @@ void MdPacker::build_pairs() {
         }
       }
       for (size_t t = 0; t < small.size(); ++t) {
+        if ((t & 1023) == 0) check_time();
         const Sub& sp = subs_[small[t]];
         const long long c = cell_id[t];
         for (int q : reg[c]) add_all_images(sp, subs_[q]);
       }
       for (size_t u = 0; u < large.size(); ++u) {
+        check_time();
         for (size_t v = u; v < large.size(); ++v) add_all_images(subs_[large[u]], subs_[large[v]]);
       }
     }
   }
+  check_time();
   std::sort(keys_.begin(), keys_.end());
   keys_.erase(std::unique(keys_.begin(), keys_.end()), keys_.end());
+  check_time();
   pairs_.reserve(keys_.size());
   for (const Key& k : keys_) {
     const Vec3 shift(k.kx * box_.size[0], k.ky * box_.size[1], k.kz * box_.size[2]);
@@ -503,7 +516,9 @@ double MdPacker::contacts() {
   }
   double s_in = s_out_;
   max_overlap_ = 0.0;
+  size_t visited = 0;
   for (const PairEntry& e : pairs_) {
+    if ((++visited & 4095) == 0) check_time();
     const Body &ba = bodies_[e.a], &bb = bodies_[e.b];
     const double fa = force_scale(ba), fb = force_scale(bb);
     if (ba.shape.kind == ShapeKind::Sphere && bb.shape.kind == ShapeKind::Sphere) {
@@ -629,6 +644,8 @@ void MdPacker::report_progress(bool force) {
 
 PackingResult MdPacker::run() {
   t0_ = last_progress_ = std::chrono::steady_clock::now();
+  deadline_ = t0_ + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                        std::chrono::duration<double>(scene_.md.max_seconds));
   init_bodies();
   PackingResult res;
   res.method = "md";
@@ -644,7 +661,13 @@ PackingResult MdPacker::run() {
   if (bodies_.empty()) best_scale_ = 1.0;
   double mark = 0.0;  // best scale at the last pressure check
   while (!bodies_.empty()) {
-    const double s_in = contacts();
+    double s_in = 0.0;
+    try {
+      s_in = contacts();
+    } catch (const OutOfTime&) {
+      why = "time budget";
+      break;
+    }
     if (s_in > best_scale_) snapshot(s_in);
     if (best_scale_ >= 1.0) break;
     move();
@@ -679,11 +702,14 @@ PackingResult MdPacker::run() {
     }
   }
   res.status = best_scale_ >= 1.0 ? "ok" : "target_not_reached";
-  res.scale = std::min(1.0, best_scale_);
+  // Out of time before any valid configuration: nothing is placed (best_center_ is empty).
+  res.scale = std::clamp(best_scale_, 0.0, 1.0);
   res.steps = steps_;
   res.stop_reason = why;
   res.placed_count.assign(nf, 0);
-  for (size_t k = 0; k < oriented_.size(); ++k) bodies_[oriented_[k]].shape = best_oriented_[k];
+  if (best_oriented_.size() == oriented_.size()) {
+    for (size_t k = 0; k < oriented_.size(); ++k) bodies_[oriented_[k]].shape = best_oriented_[k];
+  }
   for (size_t i = 0; i < best_center_.size(); ++i) {
     Body b = bodies_[i];
     b.shape.center = best_center_[i];

@@ -38,12 +38,18 @@ PackingResult pack_rsa(const Scene& scene, const ProgressFn& progress) {
   auto& out = res.set.inclusions;
   out.reserve(total);
   long long done = 0;
+  bool out_of_time = false;
   for (const Inclusion& drawn : pop) {
     const int f = drawn.family;
     {
       bool placed = false;
       for (int attempt = 0; attempt < scene.rsa_max_attempts && !placed; ++attempt) {
-        ++res.attempts;
+        if ((++res.attempts & 63) == 0 &&
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() >
+                scene.rsa_max_seconds) {
+          out_of_time = true;
+          break;
+        }
         Shape s = envelope(drawn);  // modified inclusions are placed by their envelopes
         Vec3 lo, hi;
         s.aabb(&lo, &hi);  // around the origin: half extents are hi
@@ -89,6 +95,10 @@ PackingResult pack_rsa(const Scene& scene, const ProgressFn& progress) {
       }
       if (!placed) {
         res.status = "target_not_reached";
+        if (out_of_time) {
+          if (progress) progress("rsa: time budget (rsa.max_seconds) spent");
+          break;
+        }
         if (progress) {
           progress("rsa: family \"" + scene.families[f].name + "\": no room for inclusion " +
                    std::to_string(done + 1) + " of " + std::to_string(total) + " after " +
@@ -106,7 +116,9 @@ PackingResult pack_rsa(const Scene& scene, const ProgressFn& progress) {
       }
     }
   }
-  res.stop_reason = res.status == "ok" ? "target reached" : "no room after max_attempts";
+  res.stop_reason = res.status == "ok" ? "target reached"
+                    : out_of_time       ? "time budget"
+                                        : "no room after max_attempts";
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;
 }

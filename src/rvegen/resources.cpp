@@ -13,9 +13,38 @@ namespace {
 // triangle of the surfaces (in memory and in the .vtp), per voxel, per narrow-band voxel.
 constexpr double kBytesPerInclusion = 2500.0;
 constexpr double kBytesPerFibrePiece = 400.0;  // per bounding sub-sphere of a long inclusion
-constexpr double kBytesPerTriangle = 150.0;
-constexpr double kTrianglesPerInclusion = 1000.0;
-constexpr double kBytesPerBandVoxel = 16.0;
+constexpr double kBytesPerTriangle = 300.0;  // mesh, .vtp text and arrays
+constexpr double kBytesPerBandVoxel = 40.0;  // values, OpenVDB leaves, the build's buffers
+
+// Triangles of one mean-size inclusion as tessellate() meshes it (MeshOptions defaults:
+// segments for an edge of 1/96 of the smallest box size, clamped to [12, 64]), times 1.3 for
+// the periodic images that cross the faces.
+double triangles(const Family& f, double box_min) {
+  auto segments = [&](double length) { return std::clamp(length / (box_min / 96.0), 12.0, 64.0); };
+  double n = 0.0;
+  switch (f.shape) {
+    case ShapeKind::Sphere: {
+      const double s = segments(2.0 * M_PI * f.radius.mean());
+      n = s * s;
+      break;
+    }
+    case ShapeKind::Ellipsoid: {
+      const double a = std::max({f.semi_axes[0].mean(), f.semi_axes[1].mean(), f.semi_axes[2].mean()});
+      const double s = segments(2.0 * M_PI * a);
+      n = s * s;
+      break;
+    }
+    case ShapeKind::Cylinder: {
+      const double r = f.radius.mean(), s = segments(2.0 * M_PI * r);
+      const FamilyModifiers& m = f.modifiers;
+      const double rings =
+          m.wave_amplitude > 0.0 ? std::ceil(16.0 * 2.0 * r * f.aspect_ratio.mean() / m.wave_length) : 1.0;
+      n = 2.0 * s * rings + 2.0 * s;
+      break;
+    }
+  }
+  return 1.3 * n;
+}
 constexpr double kBaseBytes = 64.0 * 1024 * 1024;  // program, libraries, small buffers
 
 // Surface area of a family's mean-size inclusion (an estimate for the narrow band).
@@ -61,7 +90,7 @@ ResourceEstimate estimate_resources(const Scene& scene) {
       const double pieces = f.shape == ShapeKind::Cylinder ? 2.0 * f.aspect_ratio.mean() + 1.0 : 3.0;
       e.packing_bytes += n * pieces * kBytesPerFibrePiece;
     }
-    e.surface_bytes += n * kTrianglesPerInclusion * kBytesPerTriangle;
+    e.surface_bytes += n * triangles(f, scene.box.size.minCoeff()) * kBytesPerTriangle;
     const FamilyModifiers& m = f.modifiers;
     const double area = mean_area(f) * (m.wave_amplitude > 0.0 || m.deform_amplitude > 0.0 ? 1.5 : 1.0);
     double surfaces = 0.0;

@@ -301,6 +301,11 @@ std::vector<Inclusion> draw_population(const Scene& scene, Random& rng) {
       const double target = fam.volume_fraction * V;
       double sum = 0.0;
       for (;;) {
+        // validate_scene bounds the expected count; this bounds an unlucky draw too.
+        if (out.size() >= 100000000) {
+          throw InputError("families[" + std::to_string(f) +
+                           "]: more than 1e8 inclusions drawn for the volume fraction");
+        }
         const Shape s = fam.draw(Vec3::Zero(), rng);
         const double v = s.volume();
         if (sum + v > target && (sum + v - target) >= (target - sum)) break;
@@ -337,11 +342,7 @@ OrientationLaw parse_orientation(const Json& j, const std::string& p) {
   using namespace json_util;
   OrientationLaw law;
   const std::string name = string(require(j, "law", p), p + ".law");
-  auto unit = [&](const char* key) {
-    Vec3 v = vec3(require(j, key, p), join(p, key));
-    if (!(v.norm() > 0.0)) fail(join(p, key), "must be non-zero");
-    return Vec3(v.normalized());
-  };
+  auto unit = [&](const char* key) { return unit_vector(require(j, key, p), join(p, key)); };
   if (name == "isotropic") {
     only_keys(j, {"law"}, p);
     law.kind = OrientationLaw::Kind::kIsotropic;
@@ -522,27 +523,128 @@ Family parse_family(const Json& j, const std::string& p, double box_volume) {
 }
 }  // namespace
 
+namespace {
+
+void check_size_law(const SizeLaw& law, const std::string& p) {
+  using json_util::fail;
+  auto finite_positive = [](double v) { return std::isfinite(v) && v > 0.0; };
+  switch (law.kind) {
+    case SizeLaw::Kind::kFixed:
+      if (!finite_positive(law.p1)) fail(p, "must be positive and finite");
+      break;
+    case SizeLaw::Kind::kUniform:
+      if (!finite_positive(law.p1)) fail(p + ".min", "must be positive and finite");
+      if (!finite_positive(law.p2) || law.p2 < law.p1) fail(p + ".max", "must be >= min");
+      break;
+    case SizeLaw::Kind::kNormal:
+    case SizeLaw::Kind::kLognormal:
+      if (!finite_positive(law.p1)) fail(p + ".mean", "must be positive and finite");
+      if (!(law.p2 >= 0.0 && law.p2 <= 10.0 * law.p1)) fail(p + ".std", "must be in [0, 10 x mean]");
+      break;
+  }
+}
+
+void check_orientation(const OrientationLaw& law, const std::string& p) {
+  using json_util::fail;
+  const char* key = law.kind == OrientationLaw::Kind::kPlanar ? ".normal" : ".axis";
+  if (!law.axis.allFinite() || std::abs(law.axis.norm() - 1.0) > 1e-9) {
+    fail(p + key, "must be a unit vector");
+  }
+  if (!(law.kappa >= 0.0 && law.kappa <= 1e6)) fail(p + ".kappa", "must be in [0, 1e6]");
+}
+
+// Smallest size of a mean-size inclusion of the family (radius, half length, semi-axis).
+double mean_smallest_size(const Family& f) {
+  switch (f.shape) {
+    case ShapeKind::Sphere:
+      return f.radius.mean();
+    case ShapeKind::Cylinder:
+      return std::min(f.radius.mean(), f.radius.mean() * f.aspect_ratio.mean());
+    case ShapeKind::Ellipsoid:
+      return std::min({f.semi_axes[0].mean(), f.semi_axes[1].mean(), f.semi_axes[2].mean()});
+  }
+  return 0.0;
+}
+
+}  // namespace
+
 void validate_scene(const Scene& s) {
   using json_util::fail;
+  check_box(s.box, "box");
   if (s.families.empty()) fail("families", "at least one family is needed");
   if (!(s.min_gap >= 0.0) || !std::isfinite(s.min_gap)) fail("min_gap", "must be >= 0");
   if (s.method != "rsa" && s.method != "md") {
     fail("method", "unknown method \"" + s.method + "\" (md, rsa)");
   }
-  if (s.rsa_max_attempts < 1) fail("rsa.max_attempts", "must be >= 1");
-  if (s.md.max_steps < 1) fail("md.max_steps", "must be >= 1");
-  if (!(s.md.max_seconds > 0.0)) fail("md.max_seconds", "must be positive");
+  if (s.rsa_max_attempts < 1 || s.rsa_max_attempts > 1000000000)
+    fail("rsa.max_attempts", "must be an integer in [1, 1e9]");
+  if (!(s.rsa_max_seconds > 0.0 && s.rsa_max_seconds <= 1e7))
+    fail("rsa.max_seconds", "must be in (0, 1e7]");
+  if (s.md.max_steps < 1 || s.md.max_steps > 1000000000000LL)
+    fail("md.max_steps", "must be an integer in [1, 1e12]");
+  if (!(s.md.max_seconds > 0.0 && s.md.max_seconds <= 1e7))
+    fail("md.max_seconds", "must be in (0, 1e7]");
+  if (!(s.md.pressure > 0.0 && s.md.pressure <= 1.0)) fail("md.pressure", "must be in (0, 1]");
+  if (s.md.patience < 1 || s.md.patience > 10000000)
+    fail("md.patience", "must be an integer in [1, 1e7]");
+  if (s.subsamples < 1 || s.subsamples > 16)
+    fail("voxels.subsamples", "must be an integer in [1, 16]");
+  if (!(s.levelset_half_width >= 1.0 && s.levelset_half_width <= 20.0))
+    fail("levelsets.half_width", "must be in [1, 20] voxels");
   for (int k = 0; k < 3; ++k) {
     if (s.resolution[k] < 1 || s.resolution[k] > 4096) {
       fail("voxels.resolution[" + std::to_string(k) + "]", "must be an integer in [1, 4096]");
     }
-    if (!(s.box.size[k] > 0.0) || !std::isfinite(s.box.size[k])) {
-      fail("box.size[" + std::to_string(k) + "]", "must be positive");
-    }
   }
   const double box_min = s.box.size.minCoeff();
+  if (!(s.levelset_voxel_size >= 0.0) || !std::isfinite(s.levelset_voxel_size))
+    fail("levelsets.voxel_size", "must be positive");
+  if (s.levelset_voxel_size > box_min / 16.0)
+    fail("levelsets.voxel_size", "too large: at most 1/16 of the smallest box size");
   if (s.levelset_voxel_size > 0.0 && s.box.size.maxCoeff() / s.levelset_voxel_size > 8192) {
     fail("levelsets.voxel_size", "too small: more than 8192 voxels along the box");
+  }
+  if (s.min_gap >= box_min) fail("min_gap", "must be smaller than the box");
+  // Phase labels are 8-bit (0 matrix, a core per family, an interphase per coated family and
+  // a void per debonded family).
+  size_t phases = 1 + s.families.size();
+  for (const Family& f : s.families) {
+    phases += (f.modifiers.coating > 0.0 ? 1 : 0) + (f.modifiers.debond_gap > 0.0 ? 1 : 0);
+  }
+  if (phases > 256) {
+    fail("families", "too many phases (" + std::to_string(phases) +
+                         ": the matrix, one per family, one per coating and per debonding); at "
+                         "most 256");
+  }
+  for (size_t i = 0; i < s.families.size(); ++i) {
+    const Family& f = s.families[i];
+    const std::string p = "families[" + std::to_string(i) + "]";
+    switch (f.shape) {
+      case ShapeKind::Sphere:
+        check_size_law(f.radius, p + ".radius");
+        break;
+      case ShapeKind::Cylinder:
+        check_size_law(f.radius, p + ".radius");
+        check_size_law(f.aspect_ratio, p + ".aspect_ratio");
+        break;
+      case ShapeKind::Ellipsoid:
+        for (int k = 0; k < 3; ++k)
+          check_size_law(f.semi_axes[k], p + ".semi_axes[" + std::to_string(k) + "]");
+        break;
+    }
+    check_orientation(f.orientation, p + ".orientation");
+    if (f.count < 0 && !(f.volume_fraction > 0.0 && f.volume_fraction < 1.0))
+      fail(p + ".volume_fraction", "must be in (0, 1)");
+    if (f.count > 100000000) fail(p + ".count", "must be an integer in [0, 1e8]");
+    const double small = mean_smallest_size(f);
+    if (!(small >= 1e-6 * s.box.size.maxCoeff())) {
+      char buf[160];
+      std::snprintf(buf, sizeof buf,
+                    "inclusions smaller than 1e-6 of the box are not supported (mean smallest "
+                    "size %.3g)",
+                    small);
+      fail(p, buf);
+    }
   }
   double count = 0.0;
   for (size_t i = 0; i < s.families.size(); ++i) {
@@ -666,11 +768,14 @@ Scene parse_scene(const std::string& text) {
   }
   if (root.contains("rsa")) {
     const Json& r = root["rsa"];
-    only_keys(r, {"max_attempts"}, "rsa");
-    const double n = number(require(r, "max_attempts", "rsa"), "rsa.max_attempts");
-    if (n != std::floor(n) || n < 1 || n > 1e9)
-      fail("rsa.max_attempts", "must be an integer in [1, 1e9]");
-    s.rsa_max_attempts = static_cast<int>(n);
+    only_keys(r, {"max_attempts", "max_seconds"}, "rsa");
+    if (r.contains("max_attempts")) {
+      const double n = number(r["max_attempts"], "rsa.max_attempts");
+      if (n != std::floor(n) || n < 1 || n > 1e9)
+        fail("rsa.max_attempts", "must be an integer in [1, 1e9]");
+      s.rsa_max_attempts = static_cast<int>(n);
+    }
+    if (r.contains("max_seconds")) s.rsa_max_seconds = positive(r["max_seconds"], "rsa.max_seconds");
   }
   const Json& fams = require(root, "families", "");
   if (!fams.is_array()) fail("families", "expected an array");
@@ -780,7 +885,7 @@ std::string scene_to_json(const Scene& s) {
                 {"max_seconds", s.md.max_seconds},
                 {"pressure", s.md.pressure},
                 {"patience", s.md.patience}};
-  root["rsa"] = {{"max_attempts", s.rsa_max_attempts}};
+  root["rsa"] = {{"max_attempts", s.rsa_max_attempts}, {"max_seconds", s.rsa_max_seconds}};
   OJson fams = OJson::array();
   for (const auto& f : s.families) {
     OJson j;

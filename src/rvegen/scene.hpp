@@ -107,6 +107,8 @@ struct Scene {
   bool clip_surfaces = false;
   /// RSA: attempts per inclusion before the target is declared out of reach.
   int rsa_max_attempts = 20000;
+  /// RSA: time budget in seconds.
+  double rsa_max_seconds = 600.0;
   MdSettings md;
 
   /// Expected number of inclusions of family f (its count, or volume fraction / mean volume).

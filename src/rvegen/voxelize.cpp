@@ -63,6 +63,11 @@ VoxelImage voxel_layout(const InclusionSet& set, const std::array<int, 3>& dims,
         std::max(img.extent[2 * a + 1], img.extent[2 * a]);  // empty, not negative
   }
   img.phases = phase_table(set);
+  if (img.phases.size() > 256) {
+    throw InputError("too many phases for 8-bit labels (" + std::to_string(img.phases.size()) +
+                     ": the matrix, one per family, one per coating and per debonding); at "
+                     "most 256");
+  }
   return img;
 }
 

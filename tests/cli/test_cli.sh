@@ -152,6 +152,106 @@ bad thick_coating '{"box": {"size": [1,1,1]}, "families": [{"shape": "sphere", "
 bad nan_gap '{"box": {"size": [1,1,1]}, "families": [{"shape": "sphere", "radius": 0.05, "volume_fraction": 0.1, "debonding": {"fraction": 0.2, "gap": -1}}]}' \
   "families\[0\].debonding.gap"
 
+# --- Never a wrong success, never a crash ------------------------------------------------
+# Non-periodic boxes with large inclusions once exited 0 with overlapping pairs.
+echo '{"box":{"size":[1,1,1],"periodic":false},"seed":1,"families":[{"shape":"sphere","radius":0.3,"volume_fraction":0.2}],"voxels":{"resolution":16}}' >"$WORK/closed.json"
+expect_rc 0 "$RVEGEN" generate -q "$WORK/closed.json" -o "$WORK/closed"
+expect_rc 0 "$RVEGEN" check "$WORK/closed/inclusions.json"
+$py -c "import json,sys; r=json.load(open('$WORK/closed/report.json')); t=r['timings']; sys.exit(0 if 'audit' in t and r['audit_seconds']>=0 and r['seconds']>=sum(t.values())-1e-6 and r['peak_memory_mb']>0 else 1)" \
+  || fail "report: audit time, timings of every phase within the total, peak memory"
+
+# An RVE that fails the audit (fault injected after packing): exit 4, the previous set intact.
+cp -r "$WORK/closed" "$WORK/closed.before"
+RVEGEN_TEST_FAULT=overlap expect_rc 4 "$RVEGEN" generate -q "$WORK/closed.json" -o "$WORK/closed"
+grep -q "failed the exact audit" "$WORK/last.err" || fail "audit failure message: $(cat "$WORK/last.err")"
+diff -r "$WORK/closed" "$WORK/closed.before" >/dev/null || fail "audit failure changed the output directory"
+ls -A "$WORK" | grep -q '\.rvegen-' && fail "audit failure left a staging directory"
+RVEGEN_TEST_FAULT=overlap expect_rc 4 "$RVEGEN" generate -q "$WORK/closed.json" -o "$WORK/fresh_fault"
+[ -e "$WORK/fresh_fault" ] && fail "audit failure created the output directory"
+
+# Outputs that cannot be written are found before the packing (no progress line printed).
+echo x >"$WORK/a_file"
+expect_rc 1 "$RVEGEN" generate "$WORK/closed.json" -o "$WORK/a_file/sub"
+grep -q "^md:" "$WORK/last.err" && fail "packed before finding the output unwritable"
+mkdir -p "$WORK/mine" && echo notes >"$WORK/mine/notes.txt"
+expect_rc 1 "$RVEGEN" generate -q "$WORK/closed.json" -o "$WORK/mine"
+grep -q "notes.txt" "$WORK/last.err" || fail "foreign file not named: $(cat "$WORK/last.err")"
+[ "$(cat "$WORK/mine/notes.txt")" = notes ] || fail "foreign file touched"
+
+# A set without level sets replaces one with them: no stale levelsets.vdb.
+expect_rc 0 "$RVEGEN" generate -q "$WORK/modified.json" -o "$WORK/swap"
+[ -e "$WORK/swap/levelsets.vdb" ] || fail "modified scene wrote no levelsets.vdb"
+expect_rc 0 "$RVEGEN" generate -q "$WORK/closed.json" -o "$WORK/swap"
+[ -e "$WORK/swap/levelsets.vdb" ] && fail "stale levelsets.vdb survived a new set"
+
+# Killed at any moment: the directory holds the old set or the new one, whole.
+echo '{"box":{"size":[1,1,1]},"seed":5,"families":[{"shape":"sphere","radius":0.05,"volume_fraction":0.3}],"voxels":{"resolution":160}}' >"$WORK/kill_new.json"
+expect_rc 0 "$RVEGEN" generate -q "$WORK/kill_new.json" -o "$WORK/kill_ref"
+expect_rc 0 "$RVEGEN" generate -q "$WORK/closed.json" -o "$WORK/kill"
+for delay in 0.2 0.5 0.9 1.4 2.0 3.0; do
+  { timeout -s KILL "$delay" "$RVEGEN" generate -q "$WORK/kill_new.json" -o "$WORK/kill"; } >/dev/null 2>&1 || true
+  # (report.json and rve.h5 hold the run's timings: they are checked for presence only.)
+  same_set() {
+    [ "$(ls -A "$1")" = "$(ls -A "$2")" ] || return 1
+    for f in inclusions.json inclusions.vtp voxels.vti rve.xdmf material.vtk; do
+      cmp -s "$1/$f" "$2/$f" || return 1
+    done
+    [ -s "$1/report.json" ] && [ -s "$1/rve.h5" ]
+  }
+  if cmp -s "$WORK/kill/inclusions.json" "$WORK/closed/inclusions.json"; then
+    same_set "$WORK/kill" "$WORK/closed" || fail "kill after ${delay}s: old set damaged"
+  elif cmp -s "$WORK/kill/inclusions.json" "$WORK/kill_ref/inclusions.json"; then
+    same_set "$WORK/kill" "$WORK/kill_ref" || fail "kill after ${delay}s: new set incomplete"
+    expect_rc 0 "$RVEGEN" generate -q "$WORK/closed.json" -o "$WORK/kill"  # back to the old set
+  else
+    fail "kill after ${delay}s: the directory holds neither set"
+  fi
+done
+expect_rc 0 "$RVEGEN" generate -q "$WORK/closed.json" -o "$WORK/kill"
+ls -A "$WORK" | grep -q '\.rvegen-' && fail "killed runs' staging directories were not cleaned"
+
+# Many families: the report no longer fits an HDF5 attribute; it is a dataset.
+fams=$($py -c "import json; print(json.dumps([{'shape':'sphere','radius':0.03,'count':3,'name':'family number %d with a long name' % k} for k in range(40)]))")
+echo "{\"box\":{\"size\":[1,1,1]},\"families\":$fams,\"voxels\":{\"resolution\":16}}" >"$WORK/many.json"
+expect_rc 0 "$RVEGEN" generate -q "$WORK/many.json" -o "$WORK/many"
+$py - "$WORK/many" <<'PY' || fail "rve.h5 report dataset"
+import json, sys
+import h5py
+with h5py.File(sys.argv[1] + "/rve.h5", "r") as f:
+    text = f["report"][()]
+    report = json.loads(text.decode() if isinstance(text, bytes) else text)
+    assert len(report["families"]) == 40
+    assert "report" not in f.attrs  # too long for an attribute
+PY
+
+# Input the arithmetic cannot serve, and resources: exit 2 naming the problem, nothing written.
+bad far_origin '{"box":{"size":[1,1,1],"origin":[1e200,0,0]},"families":[{"shape":"sphere","radius":0.05,"volume_fraction":0.1}]}' "box.origin\[0\]"
+bad huge_box '{"box":{"size":[1e300,1e300,1e300]},"families":[{"shape":"sphere","radius":1e299,"volume_fraction":0.1}]}' "box.size\[0\]"
+bad duplicate_key '{"box":{"size":[1,1,1]},"seed":1,"seed":2,"families":[{"shape":"sphere","radius":0.05,"volume_fraction":0.1}]}' "seed: key given twice"
+bad overflow '{"box":{"size":[1,1e999,1]},"families":[{"shape":"sphere","radius":0.05,"volume_fraction":0.1}]}' "box.size\[1\]"
+fams=$($py -c "import json; print(json.dumps([{'shape':'sphere','radius':0.01,'count':1,'coating':{'thickness':0.001}} for k in range(130)]))")
+bad many_phases "{\"box\":{\"size\":[1,1,1]},\"families\":$fams}" "too many phases"
+bad big_levelset_voxel '{"box":{"size":[1,1,1]},"families":[{"shape":"sphere","radius":0.05,"volume_fraction":0.1,"coating":{"thickness":0.01}}],"levelsets":{"voxel_size":10}}' "levelsets.voxel_size"
+expect_rc 2 "$RVEGEN" generate -q /dev/zero -o "$WORK/out_zero"
+grep -q "not a regular file" "$WORK/last.err" || fail "/dev/zero: $(cat "$WORK/last.err")"
+expect_rc 2 "$RVEGEN" generate -q --max-memory 10M -o "$WORK/out_mem"
+grep -q "needs about" "$WORK/last.err" || fail "memory estimate not shown: $(cat "$WORK/last.err")"
+[ -e "$WORK/out_mem" ] && fail "output written past the memory limit"
+echo '{"box":{"size":[1,1,1]},"families":[{"shape":"sphere","radius":0.05,"volume_fraction":0.1}],"voxels":{"resolution":4096}}' >"$WORK/res4096.json"
+expect_rc 2 "$RVEGEN" generate -q "$WORK/res4096.json" -o "$WORK/out_res4096"
+grep -q "needs about" "$WORK/last.err" || fail "4096^3 voxels: $(cat "$WORK/last.err")"
+
+# check: a pile of 10,000 spheres stops at --max-pairs; a sphere far larger than the box is refused.
+$py - "$WORK/pile.json" <<'PY'
+import json, sys
+incs = [{"id": k, "shape": "sphere", "center": [0.5, 0.5, 0.5], "radius": 0.01} for k in range(10000)]
+json.dump({"format": "rvegen.inclusions/1", "box": {"size": [1, 1, 1]}, "inclusions": incs}, open(sys.argv[1], "w"))
+PY
+expect_rc 1 "$RVEGEN" check "$WORK/pile.json" --max-pairs 1000
+grep -q "at least 1000 overlapping pairs" "$WORK/last.out" || fail "check pile: $(tail -1 "$WORK/last.out")"
+echo '{"format":"rvegen.inclusions/1","box":{"size":[1,1,1]},"inclusions":[{"id":0,"shape":"sphere","center":[0.5,0.5,0.5],"radius":50}]}' >"$WORK/giant.json"
+expect_rc 2 "$RVEGEN" check "$WORK/giant.json"
+
 if [ "$fails" -ne 0 ]; then
   echo "$fails failure(s)"
   exit 1

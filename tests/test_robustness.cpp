@@ -1,0 +1,410 @@
+// Hostile and careless input, and the guarantees that hold anyway: every scene field is
+// validated however the scene was built, the audit stops an overlapping RVE, budgets hold,
+// output sets are replaced whole.
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <limits>
+#include <string>
+
+#include "rvegen/audit.hpp"
+#include "rvegen/inclusion_set.hpp"
+#include "rvegen/levelset.hpp"
+#include "rvegen/packing.hpp"
+#include "rvegen/resources.hpp"
+#include "rvegen/scene.hpp"
+#include "rvegen/voxelize.hpp"
+#include "rvegen/writers.hpp"
+#include "test_util.hpp"
+
+namespace rvegen {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+std::string validation_error(const Scene& s) {
+  try {
+    validate_scene(s);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+Scene small_scene() {
+  return parse_scene(R"({"box":{"size":[1,1,1]},"seed":1,"families":[
+      {"shape":"sphere","radius":0.05,"volume_fraction":0.1},
+      {"name":"fibres","shape":"cylinder","radius":0.02,"aspect_ratio":4,"volume_fraction":0.05,
+       "orientation":{"law":"von_mises_fisher","axis":[0,0,1],"kappa":2}}],
+      "voxels":{"resolution":16}})");
+}
+
+// --- Scenes built in code (as the VTK source builds them) -------------------------------
+
+TEST(Validation, EveryBadFieldOfASceneBuiltInCodeIsNamed) {
+  struct Case {
+    const char* key;
+    std::function<void(Scene&)> spoil;
+  };
+  const Case cases[] = {
+      {"md.patience", [](Scene& s) { s.md.patience = 0; }},
+      {"md.pressure", [](Scene& s) { s.md.pressure = 0.0; }},
+      {"md.pressure", [](Scene& s) { s.md.pressure = kNaN; }},
+      {"md.max_seconds", [](Scene& s) { s.md.max_seconds = -1.0; }},
+      {"md.max_steps", [](Scene& s) { s.md.max_steps = 0; }},
+      {"rsa.max_attempts", [](Scene& s) { s.rsa_max_attempts = 0; }},
+      {"rsa.max_seconds", [](Scene& s) { s.rsa_max_seconds = kNaN; }},
+      {"voxels.subsamples", [](Scene& s) { s.subsamples = 0; }},
+      {"voxels.resolution[1]", [](Scene& s) { s.resolution[1] = 0; }},
+      {"levelsets.half_width", [](Scene& s) { s.levelset_half_width = 0.0; }},
+      {"levelsets.voxel_size", [](Scene& s) { s.levelset_voxel_size = 10.0; }},
+      {"levelsets.voxel_size", [](Scene& s) { s.levelset_voxel_size = -1.0; }},
+      {"min_gap", [](Scene& s) { s.min_gap = kNaN; }},
+      {"box.origin[0]", [](Scene& s) { s.box.origin[0] = 1e200; }},
+      {"box.origin[2]", [](Scene& s) { s.box.origin[2] = kNaN; }},
+      {"box.size[0]", [](Scene& s) { s.box.size[0] = 1e300; }},
+      {"box.size", [](Scene& s) { s.box.size = Vec3(1e-7, 1, 1); }},
+      {"method", [](Scene& s) { s.method = "simulated annealing"; }},
+      {"families[0].radius", [](Scene& s) { s.families[0].radius = SizeLaw(-0.05); }},
+      {"families[0].radius", [](Scene& s) { s.families[0].radius = SizeLaw(kNaN); }},
+      {"families[1].aspect_ratio.std",
+       [](Scene& s) {
+         s.families[1].aspect_ratio.kind = SizeLaw::Kind::kNormal;
+         s.families[1].aspect_ratio.p1 = 4.0;
+         s.families[1].aspect_ratio.p2 = -1.0;
+       }},
+      {"families[1].orientation.axis",
+       [](Scene& s) { s.families[1].orientation.axis = Vec3(kNaN, 0, 1); }},
+      {"families[1].orientation.axis",
+       [](Scene& s) { s.families[1].orientation.axis = Vec3(0, 0, 2); }},
+      {"families[1].orientation.kappa", [](Scene& s) { s.families[1].orientation.kappa = -1.0; }},
+      {"families[0].volume_fraction", [](Scene& s) { s.families[0].volume_fraction = 1.5; }},
+      {"families[0].count", [](Scene& s) { s.families[0].count = 200000000; }},
+      {"families[0]", [](Scene& s) { s.families[0].radius = SizeLaw(1e-8); }},
+  };
+  for (const Case& c : cases) {
+    Scene s = small_scene();
+    ASSERT_EQ(validation_error(s), "no error");
+    c.spoil(s);
+    const std::string msg = validation_error(s);
+    EXPECT_EQ(msg.rfind(std::string(c.key) + ":", 0), 0u) << c.key << " -> " << msg;
+  }
+}
+
+TEST(Validation, AtMost256PhasesFor8BitLabels) {
+  Scene s = small_scene();
+  Family f = s.families[0];
+  f.volume_fraction = -1.0;
+  f.count = 1;
+  f.radius = SizeLaw(0.01);
+  s.families.assign(200, f);
+  EXPECT_EQ(validation_error(s), "no error");
+  for (auto& fam : s.families) fam.modifiers.coating = 0.001;  // 1 + 200 + 200 phases
+  EXPECT_NE(validation_error(s).find("too many phases"), std::string::npos);
+
+  // An inclusion list (RVE Voxelize reads one) cannot get past the voxelizer either.
+  InclusionSet set;
+  for (int k = 0; k < 300; ++k) {
+    Inclusion inc;
+    inc.id = k;
+    inc.family = k;
+    inc.shape = Shape::sphere(Vec3(0.5, 0.5, 0.5), 0.01);
+    set.inclusions.push_back(inc);
+  }
+  EXPECT_THROW(voxelize(set, {4, 4, 4}), InputError);
+}
+
+// --- Parsing --------------------------------------------------------------------------
+
+TEST(Parsing, DuplicateKeysAreRefusedWithTheirPlace) {
+  EXPECT_EQ(scene_error(R"({"box":{"size":[1,1,1]},"seed":1,"seed":2,"families":[
+      {"shape":"sphere","radius":0.05,"volume_fraction":0.1}]})")
+                .rfind("seed: key given twice", 0),
+            0u);
+  const std::string nested = scene_error(R"({"box":{"size":[1,1,1]},"families":[
+      {"shape":"sphere","radius":0.05,"volume_fraction":0.1},
+      {"shape":"sphere","radius":0.05,"radius":0.06,"volume_fraction":0.1}]})");
+  EXPECT_EQ(nested.rfind("families[1].radius: key given twice", 0), 0u) << nested;
+  // The same key in two different objects is fine.
+  EXPECT_EQ(scene_error(R"({"box":{"size":[1,1,1]},"families":[
+      {"shape":"sphere","radius":0.05,"volume_fraction":0.1},
+      {"shape":"sphere","radius":0.06,"volume_fraction":0.1}]})"),
+            "no error");
+}
+
+TEST(Parsing, NumberOverflowNamesItsKey) {
+  const std::string msg = scene_error(R"({"box":{"size":[1,1e999,1]},"families":[
+      {"shape":"sphere","radius":0.05,"volume_fraction":0.1}]})");
+  EXPECT_NE(msg.find("box.size[1]"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("not valid JSON"), std::string::npos) << msg;
+}
+
+TEST(Parsing, HugeDirectionComponentsAreNormalisedWithoutOverflow) {
+  const Scene s = parse_scene(R"({"box":{"size":[1,1,1]},"families":[
+      {"shape":"cylinder","radius":0.02,"aspect_ratio":5,"volume_fraction":0.1,
+       "orientation":{"law":"aligned","axis":[1e308,1e308,0]}}]})");
+  const Vec3 a = s.families[0].orientation.axis;
+  EXPECT_NEAR(a.x(), std::sqrt(0.5), 1e-15);
+  EXPECT_NEAR(a.y(), std::sqrt(0.5), 1e-15);
+  EXPECT_EQ(a.z(), 0.0);
+}
+
+TEST(Parsing, InclusionIdsInRangeAndUnique) {
+  auto list = [](const std::string& body) {
+    return R"({"format":"rvegen.inclusions/1","box":{"size":[1,1,1]},"inclusions":[)" + body +
+           "]}";
+  };
+  const std::string a = R"({"id":0,"shape":"sphere","center":[0.2,0.2,0.2],"radius":0.05})";
+  EXPECT_NO_THROW(read_inclusions_json(list(a)));
+  try {
+    read_inclusions_json(
+        list(R"({"id":3000000000,"shape":"sphere","center":[0.2,0.2,0.2],"radius":0.05})"));
+    FAIL() << "id above 2^31 accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("inclusions[0].id"), std::string::npos);
+  }
+  try {
+    read_inclusions_json(list(a + "," + a));
+    FAIL() << "duplicate id accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("id 0 appears twice"), std::string::npos);
+  }
+  // A sphere much larger than the periodic box (the audit would visit ~1e6 images a pair).
+  EXPECT_THROW(read_inclusions_json(list(
+                   R"({"id":0,"shape":"sphere","center":[0.5,0.5,0.5],"radius":50})")),
+               InputError);
+  EXPECT_THROW(read_inclusions_json(list(
+                   R"({"id":0,"shape":"sphere","center":[1e200,0.5,0.5],"radius":0.1})")),
+               InputError);
+}
+
+TEST(Files, ReadFileRefusesDevicesAndOversizedFiles) {
+  EXPECT_THROW(read_file("/dev/zero"), InputError);
+  const std::string path = testing::TempDir() + "rvegen_big.json";
+  {
+    std::ofstream out(path);
+    out << std::string(2000, ' ');
+  }
+  EXPECT_THROW(read_file(path, 1000), InputError);
+  EXPECT_EQ(read_file(path, 2000).size(), 2000u);
+  std::remove(path.c_str());
+}
+
+// --- The audit ------------------------------------------------------------------------
+
+TEST(Audit, StopsAtTheLimitOnAPileOfSpheres) {
+  // 10,000 spheres at one point: 5e7 overlapping pairs, never all stored.
+  InclusionSet set;
+  for (int k = 0; k < 10000; ++k) {
+    Inclusion inc;
+    inc.id = k;
+    inc.shape = Shape::sphere(Vec3(0.5, 0.5, 0.5), 0.01);
+    set.inclusions.push_back(inc);
+  }
+  const AuditReport r = audit(set, 500);
+  EXPECT_EQ(r.overlaps.size(), 500u);
+  EXPECT_TRUE(r.truncated);
+  EXPECT_FALSE(r.clean());
+  EXPECT_NE(describe_failure(r, set).find("or more"), std::string::npos);
+}
+
+TEST(Audit, GenerateNeverReturnsAnOverlappingRve) {
+  const Scene s = small_scene();
+  EXPECT_NO_THROW(generate(s));
+  try {
+    generate(s, nullptr, [](InclusionSet& set) {
+      set.inclusions[1].shape.center = set.inclusions[0].shape.center;
+    });
+    FAIL() << "an overlapping RVE was returned";
+  } catch (const AuditFailure& e) {
+    EXPECT_NE(std::string(e.what()).find("inclusions 0 and 1 overlap"), std::string::npos)
+        << e.what();
+  }
+  // In a non-periodic box, an inclusion pushed out of the box is caught too.
+  Scene closed = s;
+  closed.box.periodic = false;
+  EXPECT_THROW(generate(closed, nullptr,
+                        [](InclusionSet& set) { set.inclusions.back().shape.center.x() = 1.0; }),
+               AuditFailure);
+}
+
+// --- Budgets --------------------------------------------------------------------------
+
+TEST(Budgets, MdTimeBudgetHoldsInsideACrowdedPairListBuild) {
+  // 30,000 thin disks of radius 0.05 (aspect ratio 1e-3): each meets hundreds of others, so
+  // one pair-list build takes longer than the budget; the run stops there, validly.
+  Scene s = parse_scene(R"({"box":{"size":[1,1,1]},"seed":1,"md":{"max_seconds":0.01},
+      "families":[{"shape":"cylinder","radius":0.05,"aspect_ratio":0.001,"count":30000}],
+      "voxels":{"resolution":8}})");
+  const PackingResult r = generate(s);
+  EXPECT_EQ(r.status, "target_not_reached");
+  EXPECT_EQ(r.stop_reason, "time budget");
+  // The clock was once read every 16 steps only: the budget now stops a step half-way.
+  EXPECT_LT(r.steps, 16);
+  EXPECT_GE(r.scale, 0.0);
+  EXPECT_TRUE(audit(r.set).clean());
+}
+
+TEST(Budgets, RsaTimeBudget) {
+  Scene s = parse_scene(R"({"box":{"size":[1,1,1]},"seed":1,"method":"rsa",
+      "rsa":{"max_attempts":1000000000,"max_seconds":0.2},
+      "families":[{"shape":"sphere","radius":0.07,"volume_fraction":0.5}]})");
+  const PackingResult r = generate(s);
+  EXPECT_EQ(r.status, "target_not_reached");
+  EXPECT_EQ(r.stop_reason, "time budget");
+  EXPECT_TRUE(audit(r.set).clean());
+}
+
+TEST(Budgets, MemoryEstimateGrowsWithWhatTheSceneAsks) {
+  Scene s = small_scene();
+  const ResourceEstimate base = estimate_resources(s);
+  EXPECT_GT(base.total_bytes(), 0.0);
+  s.resolution = {1024, 1024, 1024};
+  const ResourceEstimate big = estimate_resources(s);
+  EXPECT_GE(big.voxel_bytes, 9.0 * 1024 * 1024 * 1024);
+  for (auto& f : s.families) f.modifiers.coating = 0.005;
+  s.levelset_voxel_size = 1.0 / 8000;
+  EXPECT_GT(estimate_resources(s).levelset_bytes, 1e10);
+  EXPECT_GT(available_memory_bytes(), 0.0);
+}
+
+// --- Level sets -----------------------------------------------------------------------
+
+TEST(LevelSetNames, FamiliesWhoseNamesCollideGetDistinctGrids) {
+  InclusionSet set;
+  set.family_names = {"a b", "a_b", "a b"};
+  for (int f = 0; f < 3; ++f) {
+    Inclusion inc;
+    inc.id = f;
+    inc.family = f;
+    inc.shape = Shape::sphere(Vec3(0.2 + 0.3 * f, 0.5, 0.5), 0.08);
+    inc.mod.coating = 0.02;
+    set.inclusions.push_back(inc);
+  }
+  LevelSetOptions opt;
+  opt.voxel_size = 1.0 / 64;
+  const LevelSets ls = build_level_sets(set, opt);
+  ASSERT_EQ(ls.grids.size(), 3u);
+  for (size_t i = 0; i < 3; ++i) {
+    for (size_t j = i + 1; j < 3; ++j) EXPECT_NE(ls.grids[i].name, ls.grids[j].name);
+  }
+}
+
+// --- Output sets ----------------------------------------------------------------------
+
+class OutputSetTest : public testing::Test {
+ protected:
+  void SetUp() override {
+    root_ = fs::path(testing::TempDir()) /
+            ("rvegen_outset_" + std::to_string(::getpid()) + "_" +
+             testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(root_);
+    fs::create_directories(root_);
+    dir_ = (root_ / "rve").string();
+  }
+  void TearDown() override { fs::remove_all(root_); }
+  std::string read(const std::string& name) const {
+    std::ifstream in(fs::path(dir_) / name);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  }
+  // Entries of the parent directory other than the output directory.
+  std::vector<std::string> leftovers() const {
+    std::vector<std::string> out;
+    for (const auto& e : fs::directory_iterator(root_)) {
+      if (e.path().filename() != "rve" && e.path().filename() != "outside.txt")
+        out.push_back(e.path().filename().string());
+    }
+    return out;
+  }
+  fs::path root_;
+  std::string dir_;
+};
+
+TEST_F(OutputSetTest, ASetReplacesThePreviousOneWholeStaleFilesIncluded) {
+  {
+    OutputSet out(dir_);
+    out.write("inclusions.json", "first");
+    out.write("levelsets.vdb", "grids");
+    out.commit();
+  }
+  EXPECT_EQ(read("inclusions.json"), "first");
+  {
+    OutputSet out(dir_);
+    out.write("inclusions.json", "second");
+    out.commit();
+  }
+  EXPECT_EQ(read("inclusions.json"), "second");
+  EXPECT_FALSE(fs::exists(fs::path(dir_) / "levelsets.vdb"));  // stale: gone
+  EXPECT_TRUE(leftovers().empty());
+}
+
+TEST_F(OutputSetTest, WithoutCommitNothingChanges) {
+  {
+    OutputSet out(dir_);
+    out.write("inclusions.json", "first");
+    out.commit();
+  }
+  {
+    OutputSet out(dir_);
+    out.write("inclusions.json", "second");
+    out.write("report.json", "{}");
+    // No commit: an error happened.
+  }
+  EXPECT_EQ(read("inclusions.json"), "first");
+  EXPECT_FALSE(fs::exists(fs::path(dir_) / "report.json"));
+  EXPECT_TRUE(leftovers().empty());
+}
+
+TEST_F(OutputSetTest, RefusesADirectoryWithOtherFilesBeforeAnyWork) {
+  fs::create_directories(dir_);
+  std::ofstream(fs::path(dir_) / "notes.txt") << "mine";
+  try {
+    OutputSet out(dir_);
+    FAIL() << "a directory with a foreign file was accepted";
+  } catch (const OutputError& e) {
+    EXPECT_NE(std::string(e.what()).find("notes.txt"), std::string::npos);
+  }
+  EXPECT_TRUE(fs::exists(fs::path(dir_) / "notes.txt"));
+  EXPECT_THROW(OutputSet(dir_ + "/notes.txt/sub"), OutputError);  // under a file
+}
+
+TEST_F(OutputSetTest, OrphanedStagingOfAKilledRunIsRemoved) {
+  // A staging directory whose process is gone (pid 2^22 + 1 is above the kernel's pid range).
+  const fs::path orphan = root_ / ".rve.rvegen-4194305-abcdef";
+  fs::create_directories(orphan);
+  std::ofstream(orphan / "voxels.vti") << std::string(1000, 'x');
+  OutputSet out(dir_);
+  EXPECT_FALSE(fs::exists(orphan));
+  out.write("inclusions.json", "x");
+  out.commit();
+}
+
+TEST_F(OutputSetTest, PlantedLinksAreNeverFollowed) {
+  // Links where earlier versions put predictable temporary names, and inside the staging
+  // directory's parent: the target outside must not change.
+  const fs::path target = root_ / "outside.txt";
+  std::ofstream(target) << "precious";
+  fs::create_directories(dir_);
+  fs::create_symlink(target, fs::path(dir_) / (".inclusions.json.tmp." + std::to_string(::getpid())));
+  {
+    OutputSet out(dir_);
+    struct stat st {};
+    ASSERT_EQ(::stat(out.staging_dir().c_str(), &st), 0);
+    EXPECT_EQ(st.st_mode & 0777, 0700u);  // private while it is written
+    out.write("inclusions.json", "new");
+    out.commit();
+  }
+  std::ifstream in(target);
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), "precious");
+  EXPECT_EQ(read("inclusions.json"), "new");
+}
+
+}  // namespace
+}  // namespace rvegen

@@ -158,8 +158,7 @@ TEST(Parsing, HugeDirectionComponentsAreNormalisedWithoutOverflow) {
 
 TEST(Parsing, InclusionIdsInRangeAndUnique) {
   auto list = [](const std::string& body) {
-    return R"({"format":"rvegen.inclusions/1","box":{"size":[1,1,1]},"inclusions":[)" + body +
-           "]}";
+    return R"({"format":"rvegen.inclusions/1","box":{"size":[1,1,1]},"inclusions":[)" + body + "]}";
   };
   const std::string a = R"({"id":0,"shape":"sphere","center":[0.2,0.2,0.2],"radius":0.05})";
   EXPECT_NO_THROW(read_inclusions_json(list(a)));
@@ -177,11 +176,11 @@ TEST(Parsing, InclusionIdsInRangeAndUnique) {
     EXPECT_NE(std::string(e.what()).find("id 0 appears twice"), std::string::npos);
   }
   // A sphere much larger than the periodic box (the audit would visit ~1e6 images a pair).
-  EXPECT_THROW(read_inclusions_json(list(
-                   R"({"id":0,"shape":"sphere","center":[0.5,0.5,0.5],"radius":50})")),
-               InputError);
-  EXPECT_THROW(read_inclusions_json(list(
-                   R"({"id":0,"shape":"sphere","center":[1e200,0.5,0.5],"radius":0.1})")),
+  EXPECT_THROW(
+      read_inclusions_json(list(R"({"id":0,"shape":"sphere","center":[0.5,0.5,0.5],"radius":50})")),
+      InputError);
+  EXPECT_THROW(read_inclusions_json(
+                   list(R"({"id":0,"shape":"sphere","center":[1e200,0.5,0.5],"radius":0.1})")),
                InputError);
 }
 
@@ -392,7 +391,8 @@ TEST_F(OutputSetTest, PlantedLinksAreNeverFollowed) {
   const fs::path target = root_ / "outside.txt";
   std::ofstream(target) << "precious";
   fs::create_directories(dir_);
-  fs::create_symlink(target, fs::path(dir_) / (".inclusions.json.tmp." + std::to_string(::getpid())));
+  fs::create_symlink(target,
+                     fs::path(dir_) / (".inclusions.json.tmp." + std::to_string(::getpid())));
   {
     OutputSet out(dir_);
     struct stat st {};

@@ -202,8 +202,8 @@ int cmd_generate(const std::vector<std::string>& args) {
     };
     // rve.h5 carries the report as it stood before rve.h5 itself was written.
     timed("write rve.h5", [&] {
-      rvegen::write_hdf5(out.staged_path("rve.h5"), image, result.set,
-                         rvegen::scene_to_json(scene), report_now());
+      rvegen::write_hdf5(out.staged_path("rve.h5"), image, result.set, rvegen::scene_to_json(scene),
+                         report_now());
     });
     out.write("report.json", report_now());
     out.commit();
@@ -216,9 +216,8 @@ int cmd_generate(const std::vector<std::string>& args) {
                    result.set.inclusions.size(), total, seconds_since(t0), out_dir.c_str());
     }
     if (result.status != "ok") {
-      std::cerr << "rvegen: target volume fraction not reached (status " << result.status
-                << ", " << result.stop_reason
-                << "); the best valid configuration found was written\n";
+      std::cerr << "rvegen: target volume fraction not reached (status " << result.status << ", "
+                << result.stop_reason << "); the best valid configuration found was written\n";
       return kExitNotReached;
     }
     return kExitOk;

@@ -3,9 +3,9 @@
 #include <hdf5.h>
 
 #include <algorithm>
-#include <utility>
 #include <sstream>
 #include <stdexcept>
+#include <utility>
 #include <vector>
 
 namespace rvegen {
@@ -100,8 +100,9 @@ void write_hdf5(const std::string& path, const VoxelImage& im, const InclusionSe
     attribute(file, "periodic", std::vector<double>{set.box.periodic ? 1.0 : 0.0});
     // Scene and report: always as datasets (/scene, /report: any length), and also as root
     // attributes when they fit HDF5's 64 KB attribute limit.
-    for (const auto& [name, text] : {std::pair<const char*, const std::string&>{"scene", scene_json},
-                                     {"report", report_json}}) {
+    for (const auto& [name, text] :
+         {std::pair<const char*, const std::string&>{"scene", scene_json},
+          {"report", report_json}}) {
       text_dataset(file, name, text);
       if (text.size() < kMaxTextAttribute) text_attribute(file, name, text);
     }

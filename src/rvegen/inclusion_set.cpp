@@ -19,8 +19,9 @@ void check_box(const Box& b, const std::string& path) {
     const std::string ok = path + ".origin[" + std::to_string(k) + "]";
     if (!std::isfinite(b.origin[k])) throw InputError(ok + ": must be finite");
     if (std::abs(b.origin[k]) > 1000.0 * b.size[k]) {
-      throw InputError(ok + ": must be within 1000 box sizes of 0 (coordinates would lose the "
-                            "precision the overlap tests need)");
+      throw InputError(ok +
+                       ": must be within 1000 box sizes of 0 (coordinates would lose the "
+                       "precision the overlap tests need)");
     }
   }
   if (b.size.maxCoeff() > 1e6 * b.size.minCoeff()) {

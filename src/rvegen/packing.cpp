@@ -1,12 +1,11 @@
 #include "rvegen/packing.hpp"
 
-#include "rvegen/audit.hpp"
-
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <numeric>
 
+#include "rvegen/audit.hpp"
 #include "rvegen/body.hpp"
 
 namespace rvegen {
@@ -117,8 +116,8 @@ PackingResult pack_rsa(const Scene& scene, const ProgressFn& progress) {
     }
   }
   res.stop_reason = res.status == "ok" ? "target reached"
-                    : out_of_time       ? "time budget"
-                                        : "no room after max_attempts";
+                    : out_of_time      ? "time budget"
+                                       : "no room after max_attempts";
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;
 }

@@ -13,8 +13,8 @@ namespace {
 // triangle of the surfaces (in memory and in the .vtp), per voxel, per narrow-band voxel.
 constexpr double kBytesPerInclusion = 2500.0;
 constexpr double kBytesPerFibrePiece = 400.0;  // per bounding sub-sphere of a long inclusion
-constexpr double kBytesPerTriangle = 300.0;  // mesh, .vtp text and arrays
-constexpr double kBytesPerBandVoxel = 40.0;  // values, OpenVDB leaves, the build's buffers
+constexpr double kBytesPerTriangle = 300.0;    // mesh, .vtp text and arrays
+constexpr double kBytesPerBandVoxel = 40.0;    // values, OpenVDB leaves, the build's buffers
 
 // Triangles of one mean-size inclusion as tessellate() meshes it (MeshOptions defaults:
 // segments for an edge of 1/96 of the smallest box size, clamped to [12, 64]), times 1.3 for
@@ -29,7 +29,8 @@ double triangles(const Family& f, double box_min) {
       break;
     }
     case ShapeKind::Ellipsoid: {
-      const double a = std::max({f.semi_axes[0].mean(), f.semi_axes[1].mean(), f.semi_axes[2].mean()});
+      const double a =
+          std::max({f.semi_axes[0].mean(), f.semi_axes[1].mean(), f.semi_axes[2].mean()});
       const double s = segments(2.0 * M_PI * a);
       n = s * s;
       break;
@@ -37,8 +38,9 @@ double triangles(const Family& f, double box_min) {
     case ShapeKind::Cylinder: {
       const double r = f.radius.mean(), s = segments(2.0 * M_PI * r);
       const FamilyModifiers& m = f.modifiers;
-      const double rings =
-          m.wave_amplitude > 0.0 ? std::ceil(16.0 * 2.0 * r * f.aspect_ratio.mean() / m.wave_length) : 1.0;
+      const double rings = m.wave_amplitude > 0.0
+                               ? std::ceil(16.0 * 2.0 * r * f.aspect_ratio.mean() / m.wave_length)
+                               : 1.0;
       n = 2.0 * s * rings + 2.0 * s;
       break;
     }
@@ -60,8 +62,8 @@ double mean_area(const Family& f) {
     }
     case ShapeKind::Ellipsoid: {
       // Knud Thomsen's approximation.
-      const double a = f.semi_axes[0].mean(), b = f.semi_axes[1].mean(),
-                   c = f.semi_axes[2].mean(), p = 1.6075;
+      const double a = f.semi_axes[0].mean(), b = f.semi_axes[1].mean(), c = f.semi_axes[2].mean(),
+                   p = 1.6075;
       return 4.0 * M_PI *
              std::pow((std::pow(a * b, p) + std::pow(a * c, p) + std::pow(b * c, p)) / 3.0,
                       1.0 / p);
@@ -87,12 +89,14 @@ ResourceEstimate estimate_resources(const Scene& scene) {
     e.packing_bytes += n * kBytesPerInclusion;
     if (f.shape != ShapeKind::Sphere) {
       // Long inclusions are strings of bounding spheres in the packer's broad phase.
-      const double pieces = f.shape == ShapeKind::Cylinder ? 2.0 * f.aspect_ratio.mean() + 1.0 : 3.0;
+      const double pieces =
+          f.shape == ShapeKind::Cylinder ? 2.0 * f.aspect_ratio.mean() + 1.0 : 3.0;
       e.packing_bytes += n * pieces * kBytesPerFibrePiece;
     }
     e.surface_bytes += n * triangles(f, scene.box.size.minCoeff()) * kBytesPerTriangle;
     const FamilyModifiers& m = f.modifiers;
-    const double area = mean_area(f) * (m.wave_amplitude > 0.0 || m.deform_amplitude > 0.0 ? 1.5 : 1.0);
+    const double area =
+        mean_area(f) * (m.wave_amplitude > 0.0 || m.deform_amplitude > 0.0 ? 1.5 : 1.0);
     double surfaces = 0.0;
     if (m.wave_amplitude > 0.0 || m.deform_amplitude > 0.0) surfaces += 1.0;
     if (m.coating > 0.0) surfaces += 2.0;
@@ -138,7 +142,8 @@ std::string format_bytes(double bytes) {
 }
 
 std::string describe(const ResourceEstimate& e) {
-  return format_bytes(e.total_bytes()) + " (" + std::to_string(static_cast<long long>(e.inclusions)) +
+  return format_bytes(e.total_bytes()) + " (" +
+         std::to_string(static_cast<long long>(e.inclusions)) +
          " inclusions: " + format_bytes(e.packing_bytes) + "; surfaces " +
          format_bytes(e.surface_bytes) + "; voxels " + format_bytes(e.voxel_bytes) +
          "; level sets " + format_bytes(e.levelset_bytes) + ")";

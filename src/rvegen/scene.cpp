@@ -539,7 +539,8 @@ void check_size_law(const SizeLaw& law, const std::string& p) {
     case SizeLaw::Kind::kNormal:
     case SizeLaw::Kind::kLognormal:
       if (!finite_positive(law.p1)) fail(p + ".mean", "must be positive and finite");
-      if (!(law.p2 >= 0.0 && law.p2 <= 10.0 * law.p1)) fail(p + ".std", "must be in [0, 10 x mean]");
+      if (!(law.p2 >= 0.0 && law.p2 <= 10.0 * law.p1))
+        fail(p + ".std", "must be in [0, 10 x mean]");
       break;
   }
 }
@@ -775,7 +776,8 @@ Scene parse_scene(const std::string& text) {
         fail("rsa.max_attempts", "must be an integer in [1, 1e9]");
       s.rsa_max_attempts = static_cast<int>(n);
     }
-    if (r.contains("max_seconds")) s.rsa_max_seconds = positive(r["max_seconds"], "rsa.max_seconds");
+    if (r.contains("max_seconds"))
+      s.rsa_max_seconds = positive(r["max_seconds"], "rsa.max_seconds");
   }
   const Json& fams = require(root, "families", "");
   if (!fams.is_array()) fail("families", "expected an array");

@@ -68,7 +68,9 @@ void put(std::FILE* out, const void* data, size_t bytes) {
   }
 }
 
-void put(std::FILE* out, const std::string& s) { put(out, s.data(), s.size()); }
+void put(std::FILE* out, const std::string& s) {
+  put(out, s.data(), s.size());
+}
 
 void put_appended(std::FILE* out, const std::vector<RawArray>& arrays) {
   put(out, std::string("  <AppendedData encoding=\"raw\">\n   _"));
@@ -226,7 +228,9 @@ std::string staging_prefix(const fs::path& target) {
   return "." + target.filename().string() + ".rvegen-";
 }
 
-bool process_alive(long pid) { return pid > 0 && (::kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM); }
+bool process_alive(long pid) {
+  return pid > 0 && (::kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM);
+}
 
 // Leftovers of killed runs: staging directories whose process is gone.
 void remove_orphans(const fs::path& target) {
@@ -256,9 +260,9 @@ bool own_file(const std::string& name) {
 }  // namespace
 
 const std::vector<std::string>& OutputSet::file_names() {
-  static const std::vector<std::string> names = {
-      "inclusions.json", "inclusions.vtp", "voxels.vti",    "material.vtk",
-      "rve.h5",          "rve.xdmf",       "levelsets.vdb", "report.json"};
+  static const std::vector<std::string> names = {"inclusions.json", "inclusions.vtp", "voxels.vti",
+                                                 "material.vtk",    "rve.h5",         "rve.xdmf",
+                                                 "levelsets.vdb",   "report.json"};
   return names;
 }
 
@@ -311,9 +315,9 @@ OutputSet::OutputSet(const std::string& dir) : dir_(dir) {
   }
   target_ = target.string();
   remove_orphans(target);
-  std::string tmpl = (target.parent_path() / (staging_prefix(target) +
-                                               std::to_string(::getpid()) + "-XXXXXX"))
-                         .string();
+  std::string tmpl =
+      (target.parent_path() / (staging_prefix(target) + std::to_string(::getpid()) + "-XXXXXX"))
+          .string();
   if (!::mkdtemp(tmpl.data())) {
     throw OutputError("cannot write in " + target.parent_path().string() + ": " +
                       std::strerror(errno));

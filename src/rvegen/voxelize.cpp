@@ -126,6 +126,9 @@ long long voxelize_into(const InclusionSet& set, const VoxelImage& img, const Vo
         f.hi[a] = std::min(f.hi[a], dims[a] - 1);
       }
     }
+    // An inclusion wholly outside a non-periodic box (an inclusion list can hold one) reaches
+    // no voxel: an empty footprint, which must not be walked.
+    if (f.lo[0] > f.hi[0] || f.lo[1] > f.hi[1] || f.lo[2] > f.hi[2]) continue;
     for (int k = f.lo[2]; k <= f.hi[2]; ++k) {
       const int kk = periodic ? wrap(k, dims[2]) : k;
       if (kk >= img.extent[4] && kk < img.extent[5]) {

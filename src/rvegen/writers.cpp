@@ -228,8 +228,22 @@ std::string staging_prefix(const fs::path& target) {
   return "." + target.filename().string() + ".rvegen-";
 }
 
+// A process that may still write: it exists and is not a zombie (a killed run whose parent
+// has not reaped it still answers kill(pid, 0)).
 bool process_alive(long pid) {
-  return pid > 0 && (::kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM);
+  if (pid <= 0) return false;
+  if (::kill(static_cast<pid_t>(pid), 0) != 0 && errno != EPERM) return false;
+  std::FILE* f = std::fopen(("/proc/" + std::to_string(pid) + "/stat").c_str(), "r");
+  if (!f) return true;  // no /proc: trust kill()
+  char state = '?';
+  // "pid (comm) state ...": comm may hold spaces and parentheses; the state follows the last ')'.
+  char buf[512];
+  const size_t n = std::fread(buf, 1, sizeof buf - 1, f);
+  std::fclose(f);
+  buf[n] = '\0';
+  const char* close = std::strrchr(buf, ')');
+  if (close && close[1] == ' ') state = close[2];
+  return state != 'Z' && state != 'X';
 }
 
 // Leftovers of killed runs: staging directories whose process is gone.

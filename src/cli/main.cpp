@@ -173,6 +173,12 @@ int cmd_generate(const std::vector<std::string>& args) {
     inclusions.clear();
     inclusions.shrink_to_fit();
     rvegen::LevelSets levelsets;
+    if (progress && need.band_voxels > 0.0) {
+      char buf[160];
+      std::snprintf(buf, sizeof buf, "level sets: about %.3g narrow-band voxels to compute",
+                    need.band_voxels);
+      progress(buf);
+    }
     timed("level sets", [&] {
       rvegen::LevelSetOptions lopt;
       lopt.voxel_size = scene.levelset_voxel_size;

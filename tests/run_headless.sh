@@ -9,7 +9,8 @@
 set -u
 run_once() {
 numfile=$(mktemp)
-Xvfb -displayfd 3 -screen 0 1280x1024x24 -nolisten tcp 3>"$numfile" >/dev/null 2>&1 &
+xlog=$(mktemp)
+Xvfb -displayfd 3 -screen 0 1280x1024x24 -nolisten tcp 3>"$numfile" >"$xlog" 2>&1 &
 pid=$!
 for _ in $(seq 300); do
   if [ -s "$numfile" ] || ! kill -0 "$pid" 2>/dev/null; then break; fi
@@ -24,6 +25,14 @@ if [ -z "$display" ] || ! kill -0 "$pid" 2>/dev/null; then
 fi
 DISPLAY=":$display" "$@"
 rc=$?
+if [ "$rc" -ne 0 ]; then
+  # What the X server said, and whether it was still there.
+  kill -0 "$pid" 2>/dev/null && echo "run_headless: Xvfb :$display still running" >&2 \
+    || echo "run_headless: Xvfb :$display had exited" >&2
+  ls -la /tmp/.X11-unix >&2 2>/dev/null
+  sed 's/^/Xvfb: /' "$xlog" | tail -20 >&2
+fi
+rm -f "$xlog"
 kill "$pid" 2>/dev/null
 wait "$pid" 2>/dev/null
 return "$rc"

@@ -6,9 +6,10 @@
 #include <algorithm>
 #include <string>
 
-#include "rvegen/inclusion_set.hpp"
-#include "rvegen/mesh.hpp"
-#include "rvegen/voxelize.hpp"
+#include "rvegen/io/inclusions_json.hpp"
+#include "rvegen/model/inclusion_set.hpp"
+#include "rvegen/raster/mesh.hpp"
+#include "rvegen/raster/voxelize.hpp"
 #include "vtkCellArray.h"
 #include "vtkCellData.h"
 #include "vtkDataObject.h"

@@ -4,12 +4,14 @@
 
 #include <exception>
 
-#include "rvegen/levelset.hpp"
-#include "rvegen/mesh.hpp"
-#include "rvegen/packing.hpp"
-#include "rvegen/scene.hpp"
-#include "rvegen/voxelize.hpp"
-#include "rvegen/writers.hpp"
+#include "rvegen/io/inclusions_json.hpp"
+#include "rvegen/io/scene_json.hpp"
+#include "rvegen/io/writers.hpp"
+#include "rvegen/model/scene.hpp"
+#include "rvegen/packing/packing.hpp"
+#include "rvegen/raster/levelset.hpp"
+#include "rvegen/raster/mesh.hpp"
+#include "rvegen/raster/voxelize.hpp"
 #include "vtkCellArray.h"
 #include "vtkCellData.h"
 #include "vtkDemandDrivenPipeline.h"

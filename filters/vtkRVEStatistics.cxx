@@ -1,7 +1,7 @@
 #include "vtkRVEStatistics.h"
 
-#include "rvegen/report.hpp"
-#include "rvegen/stats.hpp"
+#include "rvegen/io/report.hpp"
+#include "rvegen/model/stats.hpp"
 #include "vtkDoubleArray.h"
 #include "vtkInformation.h"
 #include "vtkInformationVector.h"

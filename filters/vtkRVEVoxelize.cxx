@@ -4,7 +4,7 @@
 
 #include <algorithm>
 
-#include "rvegen/voxelize.hpp"
+#include "rvegen/raster/voxelize.hpp"
 #include "vtkCellData.h"
 #include "vtkDemandDrivenPipeline.h"
 #include "vtkFloatArray.h"

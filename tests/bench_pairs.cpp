@@ -5,8 +5,8 @@
 #include <vector>
 
 #include "reference_overlap.hpp"
-#include "rvegen/pair.hpp"
-#include "rvegen/random.hpp"
+#include "rvegen/geometry/pair.hpp"
+#include "rvegen/geometry/random.hpp"
 
 using namespace rvegen;
 

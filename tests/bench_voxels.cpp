@@ -17,12 +17,13 @@
 #include <string>
 #include <vector>
 
-#include "rvegen/body.hpp"
-#include "rvegen/levelset.hpp"
-#include "rvegen/packing.hpp"
-#include "rvegen/scene.hpp"
-#include "rvegen/voxelize.hpp"
-#include "rvegen/writers.hpp"
+#include "rvegen/io/scene_json.hpp"
+#include "rvegen/io/writers.hpp"
+#include "rvegen/model/body.hpp"
+#include "rvegen/model/scene.hpp"
+#include "rvegen/packing/packing.hpp"
+#include "rvegen/raster/levelset.hpp"
+#include "rvegen/raster/voxelize.hpp"
 
 int main(int argc, char** argv) {
   if (argc < 3) {

@@ -7,7 +7,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "rvegen/shapes.hpp"
+#include "rvegen/geometry/shapes.hpp"
 
 namespace rvegen::reference {
 

@@ -3,9 +3,13 @@
 
 #include <cmath>
 
-#include "rvegen/packing.hpp"
-#include "rvegen/report.hpp"
-#include "rvegen/stats.hpp"
+#include "rvegen/io/inclusions_json.hpp"
+#include "rvegen/io/report.hpp"
+#include "rvegen/io/scene_json.hpp"
+#include "rvegen/model/stats.hpp"
+#include "rvegen/packing/audit.hpp"
+#include "rvegen/packing/contacts.hpp"
+#include "rvegen/packing/packing.hpp"
 #include "test_util.hpp"
 
 namespace rvegen {

@@ -4,8 +4,8 @@
 
 #include <cmath>
 
-#include "rvegen/convex.hpp"
-#include "rvegen/pair.hpp"
+#include "rvegen/geometry/convex.hpp"
+#include "rvegen/geometry/pair.hpp"
 
 using namespace rvegen;
 

@@ -9,14 +9,17 @@
 #include <fstream>
 #include <set>
 
-#include "rvegen/body.hpp"
-#include "rvegen/levelset.hpp"
-#include "rvegen/mesh.hpp"
-#include "rvegen/packing.hpp"
-#include "rvegen/random.hpp"
-#include "rvegen/scene.hpp"
-#include "rvegen/voxelize.hpp"
-#include "rvegen/writers.hpp"
+#include "rvegen/geometry/random.hpp"
+#include "rvegen/io/inclusions_json.hpp"
+#include "rvegen/io/scene_json.hpp"
+#include "rvegen/io/writers.hpp"
+#include "rvegen/model/body.hpp"
+#include "rvegen/model/scene.hpp"
+#include "rvegen/packing/audit.hpp"
+#include "rvegen/packing/packing.hpp"
+#include "rvegen/raster/levelset.hpp"
+#include "rvegen/raster/mesh.hpp"
+#include "rvegen/raster/voxelize.hpp"
 #include "test_util.hpp"
 
 using namespace rvegen;

@@ -3,12 +3,16 @@
 
 #include <cmath>
 
-#include "rvegen/inclusion_set.hpp"
-#include "rvegen/packing.hpp"
-#include "rvegen/random.hpp"
-#include "rvegen/report.hpp"
-#include "rvegen/scene.hpp"
-#include "rvegen/voxelize.hpp"
+#include "rvegen/geometry/random.hpp"
+#include "rvegen/io/inclusions_json.hpp"
+#include "rvegen/io/report.hpp"
+#include "rvegen/io/scene_json.hpp"
+#include "rvegen/model/inclusion_set.hpp"
+#include "rvegen/model/neighbours.hpp"
+#include "rvegen/model/scene.hpp"
+#include "rvegen/packing/audit.hpp"
+#include "rvegen/packing/packing.hpp"
+#include "rvegen/raster/voxelize.hpp"
 #include "test_util.hpp"
 
 using namespace rvegen;

@@ -3,7 +3,8 @@
 
 #include <string>
 
-#include "rvegen/scene.hpp"
+#include "rvegen/io/scene_json.hpp"
+#include "rvegen/model/scene.hpp"
 
 namespace rvegen {
 

@@ -12,17 +12,19 @@
 #include <string>
 #include <vector>
 
-#include "io/hdf5_writer.hpp"
-#include "rvegen/audit.hpp"
-#include "rvegen/inclusion_set.hpp"
-#include "rvegen/levelset.hpp"
-#include "rvegen/mesh.hpp"
-#include "rvegen/packing.hpp"
-#include "rvegen/report.hpp"
-#include "rvegen/resources.hpp"
-#include "rvegen/scene.hpp"
-#include "rvegen/voxelize.hpp"
-#include "rvegen/writers.hpp"
+#include "rvegen/io/hdf5_writer.hpp"
+#include "rvegen/io/inclusions_json.hpp"
+#include "rvegen/io/report.hpp"
+#include "rvegen/io/scene_json.hpp"
+#include "rvegen/io/writers.hpp"
+#include "rvegen/model/inclusion_set.hpp"
+#include "rvegen/model/resources.hpp"
+#include "rvegen/model/scene.hpp"
+#include "rvegen/packing/audit.hpp"
+#include "rvegen/packing/packing.hpp"
+#include "rvegen/raster/levelset.hpp"
+#include "rvegen/raster/mesh.hpp"
+#include "rvegen/raster/voxelize.hpp"
 
 namespace {
 

@@ -12,12 +12,14 @@
 #include <cstdint>
 #include <string>
 
-#include "rvegen/audit.hpp"
-#include "rvegen/inclusion_set.hpp"
-#include "rvegen/packing.hpp"
-#include "rvegen/resources.hpp"
-#include "rvegen/scene.hpp"
-#include "rvegen/voxelize.hpp"
+#include "rvegen/io/inclusions_json.hpp"
+#include "rvegen/io/scene_json.hpp"
+#include "rvegen/model/inclusion_set.hpp"
+#include "rvegen/model/resources.hpp"
+#include "rvegen/model/scene.hpp"
+#include "rvegen/packing/audit.hpp"
+#include "rvegen/packing/packing.hpp"
+#include "rvegen/raster/voxelize.hpp"
 
 namespace {
 

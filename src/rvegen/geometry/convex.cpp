@@ -1,0 +1,357 @@
+#include "rvegen/geometry/convex.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+namespace rvegen {
+namespace {
+
+// A vertex of the Minkowski difference D = a - b with the support points that made it.
+struct Vertex {
+  Vec3 w, pa, pb;
+};
+
+Vertex support(const Shape& a, const Shape& b, const Vec3& d) {
+  Vertex v;
+  v.pa = a.support(d);
+  v.pb = b.support(-d);
+  v.w = v.pa - v.pb;
+  return v;
+}
+
+struct Simplex {
+  std::array<Vertex, 4> v;
+  std::array<double, 4> lambda{};
+  int n = 0;
+  bool contains_origin = false;
+
+  void keep(std::initializer_list<std::pair<int, double>> kept) {
+    const std::array<Vertex, 4> old = v;
+    int k = 0;
+    for (const auto& [i, l] : kept) {
+      v[k] = old[i];
+      lambda[k] = l;
+      ++k;
+    }
+    n = k;
+  }
+  Vec3 point() const {
+    Vec3 p = Vec3::Zero();
+    for (int i = 0; i < n; ++i) p += lambda[i] * v[i].w;
+    return p;
+  }
+};
+
+// Closest point of segment (i, j) of s to the origin (Ericson, "Real-Time Collision
+// Detection" 5.1.2).
+void solve_segment(Simplex& s, int i, int j) {
+  const Vec3& A = s.v[i].w;
+  const Vec3 ab = s.v[j].w - A;
+  const double den = ab.squaredNorm();
+  const double t = den > 0.0 ? -A.dot(ab) / den : 0.0;
+  if (t <= 0.0) {
+    s.keep({{i, 1.0}});
+  } else if (t >= 1.0) {
+    s.keep({{j, 1.0}});
+  } else {
+    s.keep({{i, 1.0 - t}, {j, t}});
+  }
+}
+
+// Closest point of triangle (i, j, k) to the origin (Ericson 5.1.5), reducing to the feature.
+void solve_triangle(Simplex& s, int i, int j, int k) {
+  const Vec3 &A = s.v[i].w, &B = s.v[j].w, &C = s.v[k].w;
+  const Vec3 ab = B - A, ac = C - A;
+  const double d1 = -ab.dot(A), d2 = -ac.dot(A);
+  if (d1 <= 0.0 && d2 <= 0.0) return s.keep({{i, 1.0}});
+  const double d3 = -ab.dot(B), d4 = -ac.dot(B);
+  if (d3 >= 0.0 && d4 <= d3) return s.keep({{j, 1.0}});
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
+    const double t = d1 / (d1 - d3);
+    return s.keep({{i, 1.0 - t}, {j, t}});
+  }
+  const double d5 = -ab.dot(C), d6 = -ac.dot(C);
+  if (d6 >= 0.0 && d5 <= d6) return s.keep({{k, 1.0}});
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
+    const double t = d2 / (d2 - d6);
+    return s.keep({{i, 1.0 - t}, {k, t}});
+  }
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
+    const double t = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    return s.keep({{j, 1.0 - t}, {k, t}});
+  }
+  const double den = va + vb + vc;
+  if (!(den > 0.0)) {
+    // Degenerate (zero-area) triangle: fall back to its longest edge.
+    return solve_segment(s, i, j);
+  }
+  const double v = vb / den, w = vc / den;
+  s.keep({{i, 1.0 - v - w}, {j, v}, {k, w}});
+}
+
+// Tetrahedron: if the origin is inside, flags it; otherwise the closest face feature.
+void solve_tetrahedron(Simplex& s) {
+  static const int faces[4][4] = {{0, 1, 2, 3}, {0, 2, 3, 1}, {0, 3, 1, 2}, {1, 3, 2, 0}};
+  bool any_outside = false;
+  double best = std::numeric_limits<double>::infinity();
+  Simplex best_s = s;
+  for (const auto& f : faces) {
+    const Vec3 &A = s.v[f[0]].w, &B = s.v[f[1]].w, &C = s.v[f[2]].w, &D = s.v[f[3]].w;
+    const Vec3 n = (B - A).cross(C - A);
+    const double sd = n.dot(D - A);
+    const double so = -n.dot(A);
+    // The origin is outside this face when it is strictly on the other side from D; a
+    // degenerate (flat) tetrahedron makes every face a candidate.
+    const double scale = n.norm() * ((D - A).norm() + A.norm());
+    const bool flat = std::abs(sd) <= 1e-14 * scale;
+    if (!flat && so * sd >= 0.0) continue;
+    any_outside = true;
+    Simplex t = s;
+    solve_triangle(t, f[0], f[1], f[2]);
+    const double d2 = t.point().squaredNorm();
+    if (d2 < best) {
+      best = d2;
+      best_s = t;
+    }
+  }
+  if (!any_outside) {
+    s.contains_origin = true;
+    return;
+  }
+  s = best_s;
+}
+
+void solve(Simplex& s) {
+  switch (s.n) {
+    case 1:
+      s.lambda[0] = 1.0;
+      break;
+    case 2:
+      solve_segment(s, 0, 1);
+      break;
+    case 3:
+      solve_triangle(s, 0, 1, 2);
+      break;
+    case 4:
+      solve_tetrahedron(s);
+      break;
+    default:
+      break;
+  }
+}
+
+// Grows a simplex that touches the origin to a non-degenerate tetrahedron of support points.
+bool grow_to_tetrahedron(const Shape& a, const Shape& b, Simplex& s, double eps) {
+  static const Vec3 axes[6] = {Vec3::UnitX(),  Vec3::UnitY(),  Vec3::UnitZ(),
+                               -Vec3::UnitX(), -Vec3::UnitY(), -Vec3::UnitZ()};
+  if (s.n == 1) {
+    for (const auto& d : axes) {
+      Vertex v = support(a, b, d);
+      if ((v.w - s.v[0].w).norm() > eps) {
+        s.v[s.n++] = v;
+        break;
+      }
+    }
+  }
+  if (s.n == 2) {
+    const Vec3 line = (s.v[1].w - s.v[0].w).normalized();
+    const Vec3 e1 = any_orthogonal(line);
+    const Vec3 e2 = line.cross(e1);
+    for (int k = 0; k < 6 && s.n == 2; ++k) {
+      const double th = k * M_PI / 3.0;
+      const Vec3 d = std::cos(th) * e1 + std::sin(th) * e2;
+      Vertex v = support(a, b, d);
+      const Vec3 r = v.w - s.v[0].w;
+      if ((r - r.dot(line) * line).norm() > eps) s.v[s.n++] = v;
+    }
+  }
+  if (s.n == 3) {
+    const Vec3 nrm = (s.v[1].w - s.v[0].w).cross(s.v[2].w - s.v[0].w).normalized();
+    Vertex v = support(a, b, nrm);
+    if (std::abs((v.w - s.v[0].w).dot(nrm)) <= eps) v = support(a, b, -nrm);
+    if (std::abs((v.w - s.v[0].w).dot(nrm)) > eps) s.v[s.n++] = v;
+  }
+  return s.n == 4;
+}
+
+struct Face {
+  int i[3];
+  Vec3 n;
+  double d;
+  bool alive;
+};
+
+// Expanding polytope algorithm from a tetrahedron that contains the origin (possibly on its
+// boundary). Fills depth, normal and witness points of q.
+void epa(const Shape& a, const Shape& b, const Simplex& s, double tol, ConvexQuery* q) {
+  std::vector<Vertex> verts(s.v.begin(), s.v.begin() + 4);
+  const Vec3 centre = 0.25 * (verts[0].w + verts[1].w + verts[2].w + verts[3].w);
+  std::vector<Face> faces;
+  faces.reserve(256);
+  auto make_face = [&](int i0, int i1, int i2) {
+    Face f{{i0, i1, i2}, Vec3::Zero(), std::numeric_limits<double>::infinity(), true};
+    Vec3 n = (verts[i1].w - verts[i0].w).cross(verts[i2].w - verts[i0].w);
+    const double len = n.norm();
+    if (len > 0.0) {
+      n /= len;
+      f.n = n;
+      f.d = n.dot(verts[i0].w);
+    }
+    return f;
+  };
+  // Outward winding for the initial tetrahedron.
+  static const int tet[4][4] = {{0, 1, 2, 3}, {0, 3, 1, 2}, {0, 2, 3, 1}, {1, 3, 2, 0}};
+  for (const auto& t : tet) {
+    const Vec3 n = (verts[t[1]].w - verts[t[0]].w).cross(verts[t[2]].w - verts[t[0]].w);
+    if (n.dot(verts[t[3]].w - verts[t[0]].w) > 0.0) {
+      faces.push_back(make_face(t[0], t[2], t[1]));
+    } else {
+      faces.push_back(make_face(t[0], t[1], t[2]));
+    }
+  }
+  double upper = std::numeric_limits<double>::infinity();
+  Vec3 best_n = Vec3::UnitX();
+  int best_face = -1;
+  std::vector<std::pair<int, int>> edges;
+  for (int iter = 0; iter < 256; ++iter) {
+    int fi = -1;
+    double dmin = std::numeric_limits<double>::infinity();
+    for (int k = 0; k < static_cast<int>(faces.size()); ++k) {
+      if (faces[k].alive && faces[k].d < dmin) {
+        dmin = faces[k].d;
+        fi = k;
+      }
+    }
+    if (fi < 0) break;
+    const Vec3 n = faces[fi].n;
+    const Vertex w = support(a, b, n);
+    const double hw = w.w.dot(n);  // directional depth along n: an upper bound on the depth
+    if (hw < upper) {
+      upper = hw;
+      best_n = n;
+      best_face = fi;
+    }
+    if (upper - dmin <= std::max(tol, 1e-6 * std::abs(upper))) break;
+    // Expand: remove the faces that see w, stitch the horizon to w.
+    const int wi = static_cast<int>(verts.size());
+    verts.push_back(w);
+    edges.clear();
+    for (auto& f : faces) {
+      if (!f.alive) continue;
+      if (f.n.dot(w.w - verts[f.i[0]].w) > 1e-14 * (1.0 + std::abs(f.d))) {
+        f.alive = false;
+        for (int e = 0; e < 3; ++e) {
+          const int e0 = f.i[e], e1 = f.i[(e + 1) % 3];
+          auto it = std::find(edges.begin(), edges.end(), std::make_pair(e1, e0));
+          if (it != edges.end()) {
+            edges.erase(it);
+          } else {
+            edges.emplace_back(e0, e1);
+          }
+        }
+      }
+    }
+    if (edges.empty()) break;  // w sees no face: numerically converged
+    for (const auto& [e0, e1] : edges) {
+      Face f = make_face(e0, e1, wi);
+      // Keep the outward orientation even for slivers.
+      if (f.d < std::numeric_limits<double>::infinity() && f.n.dot(verts[e0].w - centre) < 0.0) {
+        f.n = -f.n;
+        f.d = -f.d;
+      }
+      faces.push_back(f);
+    }
+    if (faces.size() > 4096) {  // garbage-collect dead faces
+      faces.erase(
+          std::remove_if(faces.begin(), faces.end(), [](const Face& f) { return !f.alive; }),
+          faces.end());
+      best_face = -1;
+    }
+  }
+  q->depth = std::max(0.0, upper);
+  q->normal = best_n;
+  // Witness points: barycentric coordinates of the origin's projection on the best face.
+  if (best_face >= 0 && best_face < static_cast<int>(faces.size())) {
+    const Face& f = faces[best_face];
+    const Vec3 p = f.d * f.n;
+    const Vec3 &A = verts[f.i[0]].w, &B = verts[f.i[1]].w, &C = verts[f.i[2]].w;
+    const Vec3 v0 = B - A, v1 = C - A, v2 = p - A;
+    const double d00 = v0.dot(v0), d01 = v0.dot(v1), d11 = v1.dot(v1);
+    const double d20 = v2.dot(v0), d21 = v2.dot(v1);
+    const double den = d00 * d11 - d01 * d01;
+    if (den > 0.0) {
+      const double v = (d11 * d20 - d01 * d21) / den, w = (d00 * d21 - d01 * d20) / den;
+      const double u = 1.0 - v - w;
+      q->point_a = u * verts[f.i[0]].pa + v * verts[f.i[1]].pa + w * verts[f.i[2]].pa;
+      q->point_b = u * verts[f.i[0]].pb + v * verts[f.i[1]].pb + w * verts[f.i[2]].pb;
+      return;
+    }
+  }
+  q->point_a = a.support(best_n);
+  q->point_b = b.support(-best_n);
+}
+
+}  // namespace
+
+ConvexQuery convex_query(const Shape& a, const Shape& b, double tolerance, bool need_distance) {
+  ConvexQuery q;
+  const double scale = a.bounding_radius() + b.bounding_radius();
+  const double tiny = 1e-13 * scale;
+  Simplex s;
+  Vec3 v = a.center - b.center;  // a point of D = a - b
+  if (v.norm() <= tiny) v = Vec3::UnitX() * tiny;
+  s.v[0] = support(a, b, -v);
+  s.n = 1;
+  s.lambda[0] = 1.0;
+  v = s.v[0].w;
+  double lower = 0.0;
+  bool enclosed = false;
+  for (int iter = 0; iter < 200; ++iter) {
+    const double vn = v.norm();
+    if (vn <= tiny) break;  // the origin lies on the simplex
+    const Vertex w = support(a, b, -v);
+    const double vw = v.dot(w.w);
+    if (vw > 0.0) {
+      lower = std::max(lower, vw / vn);
+      q.separated = true;
+      if (!need_distance) break;
+    }
+    // Converged: the support point does not improve on the current closest point.
+    if (vn * vn - vw <= 1e-12 * vn * vn || vn - lower <= 0.25 * tolerance) break;
+    bool duplicate = false;
+    for (int i = 0; i < s.n; ++i) duplicate |= (s.v[i].w - w.w).squaredNorm() <= tiny * tiny;
+    if (duplicate) break;
+    s.v[s.n++] = w;
+    solve(s);
+    if (s.contains_origin) {
+      enclosed = true;
+      break;
+    }
+    v = s.point();
+  }
+  if (q.separated) {
+    q.distance = need_distance ? std::max(lower, 0.0) : lower;
+    q.normal = (-v).normalized();  // from a towards b
+    q.point_a = Vec3::Zero();
+    q.point_b = Vec3::Zero();
+    for (int i = 0; i < s.n; ++i) {
+      q.point_a += s.lambda[i] * s.v[i].pa;
+      q.point_b += s.lambda[i] * s.v[i].pb;
+    }
+    return q;
+  }
+  if (!enclosed && !grow_to_tetrahedron(a, b, s, tiny)) {
+    q.depth = 0.0;  // cannot build a polytope: touching within round-off
+    return q;
+  }
+  epa(a, b, s, tolerance, &q);
+  return q;
+}
+
+}  // namespace rvegen

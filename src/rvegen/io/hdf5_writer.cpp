@@ -1,0 +1,206 @@
+#include "rvegen/io/hdf5_writer.hpp"
+
+#include <hdf5.h>
+
+#include <algorithm>
+#include <sstream>
+#include <stdexcept>
+#include <utility>
+#include <vector>
+
+namespace rvegen {
+namespace {
+
+void check(herr_t status, const char* what) {
+  if (status < 0) throw std::runtime_error(std::string("HDF5: cannot write ") + what);
+}
+
+template <class T>
+void dataset(hid_t parent, const char* name, hid_t type, const std::vector<hsize_t>& dims,
+             const T* data) {
+  const hid_t space = H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr);
+  hid_t plist = H5P_DEFAULT;
+  size_t total = 1;
+  for (hsize_t d : dims) total *= d;
+  if (dims.size() == 3 && total > 0) {
+    // Chunked and deflated: label images compress well.
+    plist = H5Pcreate(H5P_DATASET_CREATE);
+    const hsize_t chunk[3] = {1, dims[1], dims[2]};
+    H5Pset_chunk(plist, 3, chunk);
+    H5Pset_deflate(plist, 4);
+  }
+  const hid_t set = H5Dcreate2(parent, name, type, space, H5P_DEFAULT, plist, H5P_DEFAULT);
+  if (set < 0) throw std::runtime_error(std::string("HDF5: cannot create ") + name);
+  if (total > 0) check(H5Dwrite(set, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), name);
+  H5Dclose(set);
+  H5Sclose(space);
+  if (plist != H5P_DEFAULT) H5Pclose(plist);
+}
+
+void attribute(hid_t obj, const char* name, const std::vector<double>& v) {
+  const hsize_t n = v.size();
+  const hid_t space = H5Screate_simple(1, &n, nullptr);
+  const hid_t a = H5Acreate2(obj, name, H5T_NATIVE_DOUBLE, space, H5P_DEFAULT, H5P_DEFAULT);
+  check(H5Awrite(a, H5T_NATIVE_DOUBLE, v.data()), name);
+  H5Aclose(a);
+  H5Sclose(space);
+}
+
+void text_attribute(hid_t obj, const char* name, const std::string& s) {
+  const hid_t type = H5Tcopy(H5T_C_S1);
+  H5Tset_size(type, std::max<size_t>(1, s.size()));
+  const hid_t space = H5Screate(H5S_SCALAR);
+  const hid_t a = H5Acreate2(obj, name, type, space, H5P_DEFAULT, H5P_DEFAULT);
+  check(H5Awrite(a, type, s.empty() ? " " : s.data()), name);
+  H5Aclose(a);
+  H5Sclose(space);
+  H5Tclose(type);
+}
+
+// Root attributes must stay below HDF5's 64 KB object-header limit.
+constexpr size_t kMaxTextAttribute = 60000;
+
+// A scalar fixed-length string dataset (any length).
+void text_dataset(hid_t parent, const char* name, const std::string& s) {
+  const hid_t type = H5Tcopy(H5T_C_S1);
+  H5Tset_size(type, std::max<size_t>(1, s.size()));
+  const hid_t space = H5Screate(H5S_SCALAR);
+  const hid_t set = H5Dcreate2(parent, name, type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  if (set < 0) throw std::runtime_error(std::string("HDF5: cannot create ") + name);
+  check(H5Dwrite(set, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, s.empty() ? " " : s.data()), name);
+  H5Dclose(set);
+  H5Sclose(space);
+  H5Tclose(type);
+}
+
+// Fixed-length string dataset (one row per string).
+void strings(hid_t parent, const char* name, const std::vector<std::string>& v) {
+  size_t len = 1;
+  for (const auto& s : v) len = std::max(len, s.size());
+  std::vector<char> buf(v.size() * len, '\0');
+  for (size_t i = 0; i < v.size(); ++i) std::copy(v[i].begin(), v[i].end(), buf.begin() + i * len);
+  const hid_t type = H5Tcopy(H5T_C_S1);
+  H5Tset_size(type, len);
+  H5Tset_strpad(type, H5T_STR_NULLPAD);
+  dataset(parent, name, type, {v.size()}, buf.data());
+  H5Tclose(type);
+}
+
+}  // namespace
+
+void write_hdf5(const std::string& path, const VoxelImage& im, const InclusionSet& set,
+                const std::string& scene_json, const std::string& report_json) {
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  const hid_t file = H5Fcreate(path.c_str(), H5F_ACC_EXCL, H5P_DEFAULT, H5P_DEFAULT);
+  if (file < 0) throw std::runtime_error("HDF5: cannot create " + path);
+  try {
+    text_attribute(file, "format", std::string("rvegen.h5/1"));
+    attribute(file, "box_origin", {set.box.origin[0], set.box.origin[1], set.box.origin[2]});
+    attribute(file, "box_size", {set.box.size[0], set.box.size[1], set.box.size[2]});
+    attribute(file, "periodic", std::vector<double>{set.box.periodic ? 1.0 : 0.0});
+    // Scene and report: always as datasets (/scene, /report: any length), and also as root
+    // attributes when they fit HDF5's 64 KB attribute limit.
+    for (const auto& [name, text] :
+         {std::pair<const char*, const std::string&>{"scene", scene_json},
+          {"report", report_json}}) {
+      text_dataset(file, name, text);
+      if (text.size() < kMaxTextAttribute) text_attribute(file, name, text);
+    }
+
+    const hid_t vox = H5Gcreate2(file, "voxels", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    const std::vector<hsize_t> dims = {static_cast<hsize_t>(im.size(2)),
+                                       static_cast<hsize_t>(im.size(1)),
+                                       static_cast<hsize_t>(im.size(0))};
+    dataset(vox, "phase", H5T_NATIVE_UINT8, dims, im.phase.data());
+    dataset(vox, "inclusion_id", H5T_NATIVE_INT32, dims, im.inclusion_id.data());
+    if (!im.fraction.empty()) dataset(vox, "fraction", H5T_NATIVE_FLOAT, dims, im.fraction.data());
+    attribute(
+        vox, "origin",
+        {im.origin[0] + im.extent[0] * im.spacing[0], im.origin[1] + im.extent[2] * im.spacing[1],
+         im.origin[2] + im.extent[4] * im.spacing[2]});
+    attribute(vox, "spacing", {im.spacing[0], im.spacing[1], im.spacing[2]});
+    attribute(vox, "resolution",
+              {static_cast<double>(im.dims[0]), static_cast<double>(im.dims[1]),
+               static_cast<double>(im.dims[2])});
+    H5Gclose(vox);
+
+    const hid_t ph = H5Gcreate2(file, "phases", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    std::vector<int32_t> label, family;
+    std::vector<std::string> name, kind;
+    for (const auto& p : im.phases) {
+      label.push_back(p.label);
+      family.push_back(p.family);
+      name.push_back(p.name);
+      kind.push_back(p.kind);
+    }
+    dataset(ph, "label", H5T_NATIVE_INT32, {label.size()}, label.data());
+    dataset(ph, "family", H5T_NATIVE_INT32, {family.size()}, family.data());
+    strings(ph, "name", name);
+    strings(ph, "kind", kind);
+    H5Gclose(ph);
+
+    const hid_t tab = H5Gcreate2(file, "inclusions", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    const size_t n = set.inclusions.size();
+    std::vector<int32_t> id(n), fam(n), shape(n);
+    std::vector<double> center(3 * n), radius(n), half(3 * n), semi(3 * n), rot(9 * n);
+    for (size_t i = 0; i < n; ++i) {
+      const Inclusion& inc = set.inclusions[i];
+      id[i] = inc.id;
+      fam[i] = inc.family;
+      shape[i] = static_cast<int32_t>(inc.shape.kind);
+      radius[i] = inc.shape.radius;
+      for (int a = 0; a < 3; ++a) {
+        center[3 * i + a] = inc.shape.center[a];
+        half[3 * i + a] = inc.shape.half_axis[a];
+        semi[3 * i + a] = inc.shape.semi_axes[a];
+        for (int b = 0; b < 3; ++b) rot[9 * i + 3 * a + b] = inc.shape.rotation(a, b);
+      }
+    }
+    dataset(tab, "id", H5T_NATIVE_INT32, {n}, id.data());
+    dataset(tab, "family", H5T_NATIVE_INT32, {n}, fam.data());
+    dataset(tab, "shape", H5T_NATIVE_INT32, {n}, shape.data());
+    dataset(tab, "center", H5T_NATIVE_DOUBLE, {n, 3}, center.data());
+    dataset(tab, "radius", H5T_NATIVE_DOUBLE, {n}, radius.data());
+    dataset(tab, "half_axis", H5T_NATIVE_DOUBLE, {n, 3}, half.data());
+    dataset(tab, "semi_axes", H5T_NATIVE_DOUBLE, {n, 3}, semi.data());
+    dataset(tab, "rotation", H5T_NATIVE_DOUBLE, {n, 3, 3}, rot.data());
+    text_attribute(tab, "shape_codes", std::string("0 sphere, 1 cylinder, 2 ellipsoid"));
+    H5Gclose(tab);
+
+  } catch (...) {
+    H5Fclose(file);
+    throw;
+  }
+  if (H5Fclose(file) < 0) throw std::runtime_error("HDF5: cannot close " + path);
+}
+
+std::string xdmf_text(const VoxelImage& im, const std::string& h5) {
+  std::ostringstream s;
+  s.precision(17);
+  const int nx = im.size(0), ny = im.size(1), nz = im.size(2);
+  s << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n <Domain>\n"
+    << "  <Grid Name=\"rve\" GridType=\"Uniform\">\n"
+    << "   <Topology TopologyType=\"3DCoRectMesh\" Dimensions=\"" << nz + 1 << " " << ny + 1 << " "
+    << nx + 1 << "\"/>\n"
+    << "   <Geometry GeometryType=\"ORIGIN_DXDYDZ\">\n"
+    << "    <DataItem Dimensions=\"3\" NumberType=\"Float\" Precision=\"8\" Format=\"XML\">"
+    << im.origin[2] + im.extent[4] * im.spacing[2] << " "
+    << im.origin[1] + im.extent[2] * im.spacing[1] << " "
+    << im.origin[0] + im.extent[0] * im.spacing[0] << "</DataItem>\n"
+    << "    <DataItem Dimensions=\"3\" NumberType=\"Float\" Precision=\"8\" Format=\"XML\">"
+    << im.spacing[2] << " " << im.spacing[1] << " " << im.spacing[0] << "</DataItem>\n"
+    << "   </Geometry>\n";
+  auto attr = [&](const char* name, const char* type, int precision) {
+    s << "   <Attribute Name=\"" << name << "\" Center=\"Cell\" AttributeType=\"Scalar\">\n"
+      << "    <DataItem Dimensions=\"" << nz << " " << ny << " " << nx << "\" NumberType=\"" << type
+      << "\" Precision=\"" << precision << "\" Format=\"HDF\">" << h5 << ":/voxels/" << name
+      << "</DataItem>\n   </Attribute>\n";
+  };
+  attr("phase", "UChar", 1);
+  attr("inclusion_id", "Int", 4);
+  if (!im.fraction.empty()) attr("fraction", "Float", 4);
+  s << "  </Grid>\n </Domain>\n</Xdmf>\n";
+  return s.str();
+}
+
+}  // namespace rvegen

@@ -1,0 +1,158 @@
+// Strict reading helpers over nlohmann::json: every error names the key path.
+#pragma once
+
+#include <cmath>
+#include <initializer_list>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "rvegen/model/inclusion_set.hpp"
+
+namespace rvegen::json_util {
+
+using Json = nlohmann::json;
+
+inline std::string join(const std::string& path, const std::string& key) {
+  return path.empty() ? key : path + "." + key;
+}
+
+[[noreturn]] inline void fail(const std::string& path, const std::string& what) {
+  throw InputError(path + ": " + what);
+}
+
+inline const Json& require(const Json& obj, const char* key, const std::string& path) {
+  if (!obj.is_object()) fail(path, "expected an object");
+  auto it = obj.find(key);
+  if (it == obj.end()) fail(join(path, key), "missing key");
+  return *it;
+}
+
+/// Rejects keys not in `allowed`.
+inline void only_keys(const Json& obj, std::initializer_list<const char*> allowed,
+                      const std::string& path) {
+  if (!obj.is_object()) fail(path, "expected an object");
+  for (auto it = obj.begin(); it != obj.end(); ++it) {
+    bool ok = false;
+    for (const char* a : allowed) ok |= it.key() == a;
+    if (!ok) fail(join(path, it.key()), "unknown key");
+  }
+}
+
+inline double number(const Json& v, const std::string& path) {
+  if (!v.is_number()) fail(path, "expected a number");
+  const double x = v.get<double>();
+  if (!std::isfinite(x)) fail(path, "must be finite");
+  return x;
+}
+
+inline double positive(const Json& v, const std::string& path) {
+  const double x = number(v, path);
+  if (!(x > 0.0)) fail(path, "must be positive (got " + v.dump() + ")");
+  return x;
+}
+
+inline Vec3 vec3(const Json& v, const std::string& path) {
+  if (!v.is_array() || v.size() != 3) fail(path, "expected an array of 3 numbers");
+  return Vec3(number(v[0], path + "[0]"), number(v[1], path + "[1]"), number(v[2], path + "[2]"));
+}
+
+/// A direction: any finite non-zero vector, normalised (scaled first, so huge or tiny
+/// components do not overflow or underflow).
+inline Vec3 unit_vector(const Json& v, const std::string& path) {
+  Vec3 u = vec3(v, path);
+  const double big = u.cwiseAbs().maxCoeff();
+  if (!(big > 0.0)) fail(path, "must be non-zero");
+  u /= big;
+  return u.normalized();
+}
+
+inline bool boolean(const Json& v, const std::string& path) {
+  if (!v.is_boolean()) fail(path, "expected true or false");
+  return v.get<bool>();
+}
+
+inline std::string string(const Json& v, const std::string& path) {
+  if (!v.is_string()) fail(path, "expected a string");
+  return v.get<std::string>();
+}
+
+/// A box object: "size" (positive), optional "origin" (default 0) and "periodic" (default true).
+inline Box box(const Json& j, const std::string& path) {
+  only_keys(j, {"origin", "size", "periodic"}, path);
+  Box b;
+  if (j.contains("origin")) b.origin = vec3(j["origin"], path + ".origin");
+  b.size = vec3(require(j, "size", path), path + ".size");
+  for (int k = 0; k < 3; ++k) {
+    if (!(b.size[k] > 0.0)) fail(path + ".size[" + std::to_string(k) + "]", "must be positive");
+  }
+  if (j.contains("periodic")) b.periodic = boolean(j["periodic"], path + ".periodic");
+  check_box(b, path);
+  return b;
+}
+
+/// Parses JSON text strictly: a key given twice in one object is an error (JSON parsers
+/// otherwise keep one of them silently), and every error names where in the document it is
+/// (for example "box.size[0]").
+inline Json parse(const std::string& text, const std::string& what) {
+  struct Frame {
+    bool array = false;
+    std::string key;
+    size_t index = 0;
+    std::vector<std::string> keys;  // of an object, to find duplicates
+  };
+  std::vector<Frame> frames;
+  auto where = [&frames] {
+    std::string at;
+    for (const Frame& f : frames) {
+      if (f.array) {
+        at += "[" + std::to_string(f.index) + "]";
+      } else if (!f.key.empty()) {
+        at += (at.empty() ? "" : ".") + f.key;
+      }
+    }
+    return at.empty() ? std::string("(root)") : at;
+  };
+  auto next_element = [&frames] {
+    if (!frames.empty() && frames.back().array) ++frames.back().index;
+  };
+  const Json::parser_callback_t cb = [&](int, Json::parse_event_t event, Json& parsed) {
+    switch (event) {
+      case Json::parse_event_t::object_start:
+        frames.push_back({false, "", 0, {}});
+        break;
+      case Json::parse_event_t::array_start:
+        frames.push_back({true, "", 0, {}});
+        break;
+      case Json::parse_event_t::object_end:
+      case Json::parse_event_t::array_end:
+        frames.pop_back();
+        next_element();
+        break;
+      case Json::parse_event_t::key: {
+        Frame& f = frames.back();
+        const std::string key = parsed.get<std::string>();
+        for (const std::string& k : f.keys) {
+          if (k == key) {
+            f.key = key;
+            throw InputError(where() + ": key given twice");
+          }
+        }
+        f.keys.push_back(key);
+        f.key = key;
+        break;
+      }
+      case Json::parse_event_t::value:
+        next_element();
+        break;
+    }
+    return true;
+  };
+  try {
+    return Json::parse(text, cb);
+  } catch (const Json::exception& e) {
+    throw InputError(what + ": not valid JSON at " + where() + " (" + e.what() + ")");
+  }
+}
+
+}  // namespace rvegen::json_util

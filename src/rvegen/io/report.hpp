@@ -1,0 +1,35 @@
+// report.json: what a run produced, per family and in total.
+#pragma once
+
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "rvegen/packing/packing.hpp"
+#include "rvegen/raster/levelset.hpp"
+#include "rvegen/raster/voxelize.hpp"
+
+namespace rvegen {
+
+/// Exact (analytic) volume fraction of each family, from the inclusion volumes.
+std::vector<double> family_volume_fractions(const InclusionSet& set, int n_families);
+
+/// Exact volume fraction of each phase (phase_table order; the matrix gets the rest). Shells
+/// that merge (shells_may_touch) are counted each, so their phase is an upper bound.
+std::vector<double> phase_volume_fractions(const InclusionSet& set,
+                                           const std::vector<Phase>& phases);
+
+/// Wall-clock seconds of a whole run: each phase in the order it ran (packing, audit, voxels,
+/// each writer, ...), the total, and the peak resident memory of the process.
+struct RunTimings {
+  std::vector<std::pair<std::string, double>> phases;
+  double total_seconds = 0.0;
+  double peak_memory_mb = 0.0;  // 0: not measured
+};
+
+/// report.json text. `image` may be null (then no voxel statistics), `levelsets` too (then no
+/// level-set section).
+std::string report_json(const Scene& scene, const PackingResult& result, const VoxelImage* image,
+                        const RunTimings& timings, const LevelSets* levelsets = nullptr);
+
+}  // namespace rvegen

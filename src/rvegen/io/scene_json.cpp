@@ -1,0 +1,391 @@
+#include "rvegen/io/scene_json.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <nlohmann/json.hpp>
+
+#include "rvegen/io/json_util.hpp"
+
+namespace rvegen {
+
+namespace {
+using json_util::Json;
+
+OrientationLaw parse_orientation(const Json& j, const std::string& p) {
+  using namespace json_util;
+  OrientationLaw law;
+  const std::string name = string(require(j, "law", p), p + ".law");
+  auto unit = [&](const char* key) { return unit_vector(require(j, key, p), join(p, key)); };
+  if (name == "isotropic") {
+    only_keys(j, {"law"}, p);
+    law.kind = OrientationLaw::Kind::kIsotropic;
+  } else if (name == "aligned") {
+    only_keys(j, {"law", "axis"}, p);
+    law.kind = OrientationLaw::Kind::kAligned;
+    law.axis = unit("axis");
+  } else if (name == "von_mises_fisher") {
+    only_keys(j, {"law", "axis", "kappa"}, p);
+    law.kind = OrientationLaw::Kind::kVonMisesFisher;
+    law.axis = unit("axis");
+    law.kappa = number(require(j, "kappa", p), p + ".kappa");
+    if (law.kappa < 0.0 || law.kappa > 1e6) fail(p + ".kappa", "must be in [0, 1e6]");
+  } else if (name == "planar") {
+    only_keys(j, {"law", "normal"}, p);
+    law.kind = OrientationLaw::Kind::kPlanar;
+    law.axis = unit("normal");
+  } else {
+    fail(p + ".law",
+         "unknown orientation law \"" + name + "\" (isotropic, aligned, von_mises_fisher, planar)");
+  }
+  return law;
+}
+
+SizeLaw parse_size(const Json& j, const std::string& p) {
+  using namespace json_util;
+  SizeLaw law;
+  if (j.is_number()) {
+    law.p1 = positive(j, p);
+    return law;
+  }
+  if (!j.is_object()) fail(p, "expected a positive number or a size law object");
+  const std::string name = string(require(j, "law", p), p + ".law");
+  if (name == "uniform") {
+    only_keys(j, {"law", "min", "max"}, p);
+    law.kind = SizeLaw::Kind::kUniform;
+    law.p1 = positive(require(j, "min", p), p + ".min");
+    law.p2 = positive(require(j, "max", p), p + ".max");
+    if (!(law.p2 >= law.p1)) fail(p + ".max", "must be >= min");
+  } else if (name == "normal" || name == "lognormal") {
+    only_keys(j, {"law", "mean", "std"}, p);
+    law.kind = name == "normal" ? SizeLaw::Kind::kNormal : SizeLaw::Kind::kLognormal;
+    law.p1 = positive(require(j, "mean", p), p + ".mean");
+    law.p2 = number(require(j, "std", p), p + ".std");
+    if (!(law.p2 >= 0.0)) fail(p + ".std", "must be >= 0");
+    if (law.p2 > 10.0 * law.p1) fail(p + ".std", "must be at most 10 x mean");
+  } else {
+    fail(p + ".law", "unknown size law \"" + name + "\" (uniform, normal, lognormal)");
+  }
+  return law;
+}
+
+// Reads the modifier keys; which shapes take them, ranges and combinations are checked by
+// validate_scene (which also sees the scenes built in code, such as the ParaView source's).
+FamilyModifiers parse_modifiers(const Json& j, const std::string& p) {
+  using namespace json_util;
+  FamilyModifiers m;
+  if (j.contains("coating")) {
+    const std::string q = p + ".coating";
+    const Json& c = j["coating"];
+    only_keys(c, {"thickness", "shells_may_touch"}, q);
+    m.coating = positive(require(c, "thickness", q), q + ".thickness");
+    if (c.contains("shells_may_touch"))
+      m.shells_may_touch = boolean(c["shells_may_touch"], q + ".shells_may_touch");
+  }
+  if (j.contains("waviness")) {
+    const std::string q = p + ".waviness";
+    const Json& w = j["waviness"];
+    only_keys(w, {"amplitude", "wavelength"}, q);
+    m.wave_amplitude = positive(require(w, "amplitude", q), q + ".amplitude");
+    m.wave_length = positive(require(w, "wavelength", q), q + ".wavelength");
+  }
+  if (j.contains("deformation")) {
+    const std::string q = p + ".deformation";
+    const Json& d = j["deformation"];
+    only_keys(d, {"amplitude", "smoothness"}, q);
+    m.deform_amplitude = positive(require(d, "amplitude", q), q + ".amplitude");
+    if (d.contains("smoothness")) m.smoothness = positive(d["smoothness"], q + ".smoothness");
+  }
+  if (j.contains("debonding")) {
+    const std::string q = p + ".debonding";
+    const Json& d = j["debonding"];
+    only_keys(d, {"fraction", "gap"}, q);
+    m.debond_fraction = positive(require(d, "fraction", q), q + ".fraction");
+    m.debond_gap = positive(require(d, "gap", q), q + ".gap");
+  }
+  return m;
+}
+
+Family parse_family(const Json& j, const std::string& p, double box_volume) {
+  using namespace json_util;
+  Family f;
+  if (!j.is_object()) fail(p, "expected an object");
+  const std::string shape = string(require(j, "shape", p), p + ".shape");
+  if (!parse_shape_name(shape, &f.shape)) {
+    fail(p + ".shape", "unknown shape \"" + shape + "\" (sphere, cylinder, ellipsoid)");
+  }
+  f.modifiers = parse_modifiers(j, p);
+  const bool has_vf = j.contains("volume_fraction"), has_n = j.contains("count");
+  if (!has_vf && !has_n) fail(p, "give \"volume_fraction\", \"count\" or both");
+  if (has_vf) {
+    f.volume_fraction = positive(j["volume_fraction"], p + ".volume_fraction");
+    if (f.volume_fraction >= 1.0) fail(p + ".volume_fraction", "must be below 1");
+  }
+  if (has_n) {
+    const double n = number(j["count"], p + ".count");
+    if (n != std::floor(n) || n < 0 || n > 1e8)
+      fail(p + ".count", "must be an integer in [0, 1e8]");
+    f.count = static_cast<int>(n);
+  }
+  // Both given: the size follows (the paper's set-up), so no size key may be given.
+  const bool derived = has_vf && has_n;
+  if (derived && f.count < 1) fail(p + ".count", "must be >= 1 with a volume fraction");
+  const double per = derived ? f.volume_fraction * box_volume / f.count : 0.0;
+  switch (f.shape) {
+    case ShapeKind::Sphere:
+      only_keys(j,
+                {"name", "shape", "radius", "volume_fraction", "count", "coating", "waviness",
+                 "deformation", "debonding"},
+                p);
+      if (derived) {
+        if (j.contains("radius"))
+          fail(p + ".radius",
+               "not allowed with both volume_fraction and count (the radius follows from them)");
+        f.radius = std::cbrt(3.0 * per / (4.0 * M_PI));
+      } else {
+        f.radius = parse_size(require(j, "radius", p), p + ".radius");
+      }
+      break;
+    case ShapeKind::Cylinder:
+      only_keys(j,
+                {"name", "shape", "radius", "aspect_ratio", "volume_fraction", "count",
+                 "orientation", "coating", "waviness", "deformation", "debonding"},
+                p);
+      f.aspect_ratio = parse_size(require(j, "aspect_ratio", p), p + ".aspect_ratio");
+      if (derived) {
+        if (j.contains("radius"))
+          fail(p + ".radius",
+               "not allowed with both volume_fraction and count (the radius follows from them)");
+        f.radius = std::cbrt(per / (2.0 * M_PI * f.aspect_ratio.mean()));
+      } else {
+        f.radius = parse_size(require(j, "radius", p), p + ".radius");
+      }
+      break;
+    case ShapeKind::Ellipsoid: {
+      only_keys(j,
+                {"name", "shape", "semi_axes", "axis_ratios", "volume_fraction", "count",
+                 "orientation", "coating", "waviness", "deformation", "debonding"},
+                p);
+      if (derived) {
+        if (j.contains("semi_axes"))
+          fail(p + ".semi_axes",
+               "not allowed with both volume_fraction and count (give axis_ratios)");
+        const Vec3 r = vec3(require(j, "axis_ratios", p), p + ".axis_ratios");
+        for (int k = 0; k < 3; ++k) {
+          if (!(r[k] > 0.0))
+            fail(p + ".axis_ratios[" + std::to_string(k) + "]", "must be positive");
+        }
+        const double scale = std::cbrt(3.0 * per / (4.0 * M_PI * r.prod()));
+        for (int k = 0; k < 3; ++k) f.semi_axes[k] = scale * r[k];
+      } else {
+        if (j.contains("axis_ratios"))
+          fail(p + ".axis_ratios", "only with both volume_fraction and count");
+        const Json& s = require(j, "semi_axes", p);
+        if (!s.is_array() || s.size() != 3) fail(p + ".semi_axes", "expected an array of 3 sizes");
+        for (int k = 0; k < 3; ++k) {
+          f.semi_axes[k] = parse_size(s[k], p + ".semi_axes[" + std::to_string(k) + "]");
+        }
+      }
+      break;
+    }
+  }
+  f.name = j.contains("name") ? string(j["name"], p + ".name") : std::string(shape_name(f.shape));
+  if (j.contains("orientation"))
+    f.orientation = parse_orientation(j["orientation"], p + ".orientation");
+  if (derived) f.volume_fraction = -1.0;  // the count now says it all
+  return f;
+}
+}  // namespace
+
+Scene parse_scene(const std::string& text) {
+  using namespace json_util;
+  const Json root = parse(text, "scene file");
+  if (!root.is_object()) fail("(root)", "expected an object");
+  only_keys(root,
+            {"box", "seed", "method", "min_gap", "families", "voxels", "levelsets", "surfaces",
+             "md", "rsa"},
+            "");
+  Scene s;
+  s.box = box(require(root, "box", ""), "box");
+  if (root.contains("seed")) {
+    const double seed = number(root["seed"], "seed");
+    if (seed < 0 || seed != std::floor(seed) || seed > 9007199254740992.0) {
+      fail("seed", "must be a non-negative integer");
+    }
+    s.seed = static_cast<uint64_t>(seed);
+  }
+  if (root.contains("method")) s.method = string(root["method"], "method");
+  if (root.contains("min_gap")) {
+    s.min_gap = number(root["min_gap"], "min_gap");
+    if (s.min_gap < 0.0) fail("min_gap", "must be >= 0");
+  }
+  if (root.contains("md")) {
+    const Json& m = root["md"];
+    only_keys(m, {"max_steps", "max_seconds", "pressure", "patience"}, "md");
+    if (m.contains("pressure")) {
+      s.md.pressure = positive(m["pressure"], "md.pressure");
+      if (s.md.pressure > 1.0) fail("md.pressure", "must be in (0, 1]");
+    }
+    if (m.contains("patience")) {
+      const double n = number(m["patience"], "md.patience");
+      if (n != std::floor(n) || n < 1 || n > 1e7)
+        fail("md.patience", "must be an integer in [1, 1e7]");
+      s.md.patience = static_cast<int>(n);
+    }
+    if (m.contains("max_steps")) {
+      const double n = number(m["max_steps"], "md.max_steps");
+      if (n != std::floor(n) || n < 1 || n > 1e12) fail("md.max_steps", "must be an integer >= 1");
+      s.md.max_steps = static_cast<long long>(n);
+    }
+    if (m.contains("max_seconds")) s.md.max_seconds = positive(m["max_seconds"], "md.max_seconds");
+  }
+  if (root.contains("rsa")) {
+    const Json& r = root["rsa"];
+    only_keys(r, {"max_attempts", "max_seconds"}, "rsa");
+    if (r.contains("max_attempts")) {
+      const double n = number(r["max_attempts"], "rsa.max_attempts");
+      if (n != std::floor(n) || n < 1 || n > 1e9)
+        fail("rsa.max_attempts", "must be an integer in [1, 1e9]");
+      s.rsa_max_attempts = static_cast<int>(n);
+    }
+    if (r.contains("max_seconds"))
+      s.rsa_max_seconds = positive(r["max_seconds"], "rsa.max_seconds");
+  }
+  const Json& fams = require(root, "families", "");
+  if (!fams.is_array()) fail("families", "expected an array");
+  for (size_t i = 0; i < fams.size(); ++i) {
+    s.families.push_back(
+        parse_family(fams[i], "families[" + std::to_string(i) + "]", s.box.volume()));
+  }
+  if (root.contains("voxels")) {
+    const Json& v = root["voxels"];
+    only_keys(v, {"resolution", "partial_volume", "subsamples"}, "voxels");
+    if (v.contains("partial_volume"))
+      s.partial_volume = boolean(v["partial_volume"], "voxels.partial_volume");
+    if (v.contains("subsamples")) {
+      const double n = number(v["subsamples"], "voxels.subsamples");
+      if (n != std::floor(n) || n < 1 || n > 16)
+        fail("voxels.subsamples", "must be an integer in [1, 16]");
+      s.subsamples = static_cast<int>(n);
+    }
+    const Json& r = require(v, "resolution", "voxels");
+    if (r.is_number()) {
+      const double n = number(r, "voxels.resolution");
+      if (n != std::floor(n)) fail("voxels.resolution", "must be an integer");
+      s.resolution = {static_cast<int>(n), static_cast<int>(n), static_cast<int>(n)};
+    } else {
+      const Vec3 n = vec3(r, "voxels.resolution");
+      for (int k = 0; k < 3; ++k) {
+        if (n[k] != std::floor(n[k]) || n[k] < 1 || n[k] > 4096) {
+          fail("voxels.resolution[" + std::to_string(k) + "]", "must be an integer in [1, 4096]");
+        }
+        s.resolution[k] = static_cast<int>(n[k]);
+      }
+    }
+  }
+  if (root.contains("levelsets")) {
+    const Json& l = root["levelsets"];
+    only_keys(l, {"voxel_size", "half_width"}, "levelsets");
+    if (l.contains("voxel_size"))
+      s.levelset_voxel_size = positive(l["voxel_size"], "levelsets.voxel_size");
+    if (l.contains("half_width")) {
+      s.levelset_half_width = positive(l["half_width"], "levelsets.half_width");
+      if (s.levelset_half_width < 1.0 || s.levelset_half_width > 20.0)
+        fail("levelsets.half_width", "must be in [1, 20] voxels");
+    }
+  }
+  if (root.contains("surfaces")) {
+    const Json& m = root["surfaces"];
+    only_keys(m, {"clip"}, "surfaces");
+    if (m.contains("clip")) s.clip_surfaces = boolean(m["clip"], "surfaces.clip");
+  }
+  validate_scene(s);
+  return s;
+}
+
+namespace {
+nlohmann::ordered_json size_json(const SizeLaw& l) {
+  switch (l.kind) {
+    case SizeLaw::Kind::kFixed:
+      return l.p1;
+    case SizeLaw::Kind::kUniform:
+      return {{"law", "uniform"}, {"min", l.p1}, {"max", l.p2}};
+    case SizeLaw::Kind::kNormal:
+      return {{"law", "normal"}, {"mean", l.p1}, {"std", l.p2}};
+    case SizeLaw::Kind::kLognormal:
+      return {{"law", "lognormal"}, {"mean", l.p1}, {"std", l.p2}};
+  }
+  return l.p1;
+}
+}  // namespace
+
+std::string scene_to_json(const Scene& s) {
+  using OJson = nlohmann::ordered_json;
+  auto v3 = [](const Vec3& v) { return OJson::array({v[0], v[1], v[2]}); };
+  OJson root;
+  root["box"] = {
+      {"origin", v3(s.box.origin)}, {"size", v3(s.box.size)}, {"periodic", s.box.periodic}};
+  root["seed"] = s.seed;
+  root["method"] = s.method;
+  root["min_gap"] = s.min_gap;
+  root["md"] = {{"max_steps", s.md.max_steps},
+                {"max_seconds", s.md.max_seconds},
+                {"pressure", s.md.pressure},
+                {"patience", s.md.patience}};
+  root["rsa"] = {{"max_attempts", s.rsa_max_attempts}, {"max_seconds", s.rsa_max_seconds}};
+  OJson fams = OJson::array();
+  for (const auto& f : s.families) {
+    OJson j;
+    j["name"] = f.name;
+    j["shape"] = shape_name(f.shape);
+    if (f.shape == ShapeKind::Ellipsoid) {
+      j["semi_axes"] = OJson::array(
+          {size_json(f.semi_axes[0]), size_json(f.semi_axes[1]), size_json(f.semi_axes[2])});
+    } else {
+      j["radius"] = size_json(f.radius);
+    }
+    if (f.shape == ShapeKind::Cylinder) j["aspect_ratio"] = size_json(f.aspect_ratio);
+    if (f.count >= 0) {
+      j["count"] = f.count;
+    } else {
+      j["volume_fraction"] = f.volume_fraction;
+    }
+    if (f.shape != ShapeKind::Sphere) {
+      const auto& o = f.orientation;
+      switch (o.kind) {
+        case OrientationLaw::Kind::kIsotropic:
+          j["orientation"] = {{"law", "isotropic"}};
+          break;
+        case OrientationLaw::Kind::kAligned:
+          j["orientation"] = {{"law", "aligned"}, {"axis", v3(o.axis)}};
+          break;
+        case OrientationLaw::Kind::kVonMisesFisher:
+          j["orientation"] = {
+              {"law", "von_mises_fisher"}, {"axis", v3(o.axis)}, {"kappa", o.kappa}};
+          break;
+        case OrientationLaw::Kind::kPlanar:
+          j["orientation"] = {{"law", "planar"}, {"normal", v3(o.axis)}};
+          break;
+      }
+    }
+    const FamilyModifiers& m = f.modifiers;
+    if (m.coating > 0.0)
+      j["coating"] = {{"thickness", m.coating}, {"shells_may_touch", m.shells_may_touch}};
+    if (m.wave_amplitude > 0.0)
+      j["waviness"] = {{"amplitude", m.wave_amplitude}, {"wavelength", m.wave_length}};
+    if (m.deform_amplitude > 0.0)
+      j["deformation"] = {{"amplitude", m.deform_amplitude}, {"smoothness", m.smoothness}};
+    if (m.debond_gap > 0.0)
+      j["debonding"] = {{"fraction", m.debond_fraction}, {"gap", m.debond_gap}};
+    fams.push_back(j);
+  }
+  root["families"] = fams;
+  root["voxels"] = {{"resolution", {s.resolution[0], s.resolution[1], s.resolution[2]}},
+                    {"partial_volume", s.partial_volume},
+                    {"subsamples", s.subsamples}};
+  root["levelsets"] = {{"half_width", s.levelset_half_width}};
+  if (s.levelset_voxel_size > 0.0) root["levelsets"]["voxel_size"] = s.levelset_voxel_size;
+  root["surfaces"] = {{"clip", s.clip_surfaces}};
+  return root.dump(2) + "\n";
+}
+
+}  // namespace rvegen

@@ -1,0 +1,15 @@
+// Scene files: JSON text to Scene (strict: unknown and repeated keys are errors) and back.
+#pragma once
+
+#include <string>
+
+#include "rvegen/model/scene.hpp"
+
+namespace rvegen {
+
+/// Parses and validates a scene (see README for the schema). Throws InputError naming the key.
+Scene parse_scene(const std::string& json_text);
+/// JSON text of a scene (what parse_scene reads).
+std::string scene_to_json(const Scene& scene);
+
+}  // namespace rvegen

@@ -1,0 +1,449 @@
+#include "rvegen/io/writers.hpp"
+
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <sstream>
+#include <stdexcept>
+
+namespace rvegen {
+namespace {
+
+// Appended raw data: each array is a UInt64 byte count followed by the bytes.
+class Appended {
+ public:
+  template <class T>
+  size_t add(const T* data, size_t n) {
+    const size_t offset = buf_.size();
+    const uint64_t bytes = n * sizeof(T);
+    buf_.append(reinterpret_cast<const char*>(&bytes), sizeof bytes);
+    buf_.append(reinterpret_cast<const char*>(data), bytes);
+    return offset;
+  }
+  const std::string& bytes() const { return buf_; }
+
+ private:
+  std::string buf_;
+};
+
+std::string header(const char* type) {
+  return std::string("<?xml version=\"1.0\"?>\n<VTKFile type=\"") + type +
+         "\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n";
+}
+
+std::string array_tag(const char* vtk_type, const char* name, int components, size_t offset) {
+  std::ostringstream s;
+  s << "      <DataArray type=\"" << vtk_type << "\" Name=\"" << name << "\"";
+  if (components > 1) s << " NumberOfComponents=\"" << components << "\"";
+  s << " format=\"appended\" offset=\"" << offset << "\"/>\n";
+  return s.str();
+}
+
+std::string footer(const Appended& app) {
+  return "  <AppendedData encoding=\"raw\">\n   _" + app.bytes() +
+         "\n  </AppendedData>\n</VTKFile>\n";
+}
+
+}  // namespace
+
+namespace {
+
+// Appended raw arrays streamed from their vectors: the offsets are known from the sizes alone.
+struct RawArray {
+  const char* data;
+  uint64_t bytes;
+};
+
+void put(std::FILE* out, const void* data, size_t bytes) {
+  if (bytes > 0 && std::fwrite(data, 1, bytes, out) != bytes) {
+    throw OutputError(std::string("write failed: ") + std::strerror(errno));
+  }
+}
+
+void put(std::FILE* out, const std::string& s) {
+  put(out, s.data(), s.size());
+}
+
+void put_appended(std::FILE* out, const std::vector<RawArray>& arrays) {
+  put(out, std::string("  <AppendedData encoding=\"raw\">\n   _"));
+  for (const RawArray& a : arrays) {
+    put(out, &a.bytes, sizeof a.bytes);
+    put(out, a.data, a.bytes);
+  }
+  put(out, std::string("\n  </AppendedData>\n</VTKFile>\n"));
+}
+
+std::string with_file(const std::function<void(std::FILE*)>& fill) {
+  char* buf = nullptr;
+  size_t size = 0;
+  std::FILE* f = open_memstream(&buf, &size);
+  if (!f) throw std::bad_alloc();
+  try {
+    fill(f);
+  } catch (...) {
+    std::fclose(f);
+    std::free(buf);
+    throw;
+  }
+  std::fclose(f);
+  std::string out(buf, size);
+  std::free(buf);
+  return out;
+}
+
+}  // namespace
+
+void write_vti(const VoxelImage& im, std::FILE* out) {
+  const std::vector<RawArray> arrays = {
+      {reinterpret_cast<const char*>(im.phase.data()), im.phase.size() * sizeof(im.phase[0])},
+      {reinterpret_cast<const char*>(im.inclusion_id.data()),
+       im.inclusion_id.size() * sizeof(im.inclusion_id[0])},
+      {reinterpret_cast<const char*>(im.fraction.data()),
+       im.fraction.size() * sizeof(im.fraction[0])}};
+  uint64_t offset[3], at = 0;
+  for (int k = 0; k < 3; ++k) {
+    offset[k] = at;
+    at += sizeof(uint64_t) + arrays[k].bytes;
+  }
+  std::ostringstream s;
+  s.precision(17);
+  s << header("ImageData");
+  s << "  <ImageData WholeExtent=\"0 " << im.dims[0] << " 0 " << im.dims[1] << " 0 " << im.dims[2]
+    << "\" Origin=\"" << im.origin[0] << " " << im.origin[1] << " " << im.origin[2]
+    << "\" Spacing=\"" << im.spacing[0] << " " << im.spacing[1] << " " << im.spacing[2] << "\">\n";
+  // Cell extents [lo, hi) are point extents lo..hi.
+  s << "    <Piece Extent=\"" << im.extent[0] << " " << im.extent[1] << " " << im.extent[2] << " "
+    << im.extent[3] << " " << im.extent[4] << " " << im.extent[5] << "\">\n";
+  s << "    <CellData Scalars=\"phase\">\n";
+  s << array_tag("UInt8", "phase", 1, offset[0]);
+  s << array_tag("Int32", "inclusion_id", 1, offset[1]);
+  if (!im.fraction.empty()) s << array_tag("Float32", "fraction", 1, offset[2]);
+  s << "    </CellData>\n    </Piece>\n  </ImageData>\n";
+  put(out, s.str());
+  put_appended(out, arrays);
+}
+
+std::string vti_bytes(const VoxelImage& im) {
+  return with_file([&](std::FILE* f) { write_vti(im, f); });
+}
+
+void write_material_vtk(const VoxelImage& im, std::FILE* out) {
+  // AMITEX_FFTP's header, exactly 10 lines; materials numbered 1..N (phase label + 1) as
+  // big-endian unsigned shorts. Phases absent from the image would leave holes in 1..N, which
+  // AMITEX rejects: labels are renumbered densely in label order.
+  std::vector<int> present(256, 0);
+  for (uint8_t p : im.phase) present[p] = 1;
+  std::vector<uint16_t> id(256, 0);
+  uint16_t next = 1;
+  for (int l = 0; l < 256; ++l) {
+    if (present[l]) id[l] = next++;
+  }
+  std::ostringstream s;
+  s.precision(17);
+  s << "# vtk DataFile Version 4.5\nMateriau\nBINARY\nDATASET STRUCTURED_POINTS\n";
+  s << "DIMENSIONS " << im.size(0) + 1 << " " << im.size(1) + 1 << " " << im.size(2) + 1 << "\n";
+  s << "ORIGIN " << im.origin[0] + im.extent[0] * im.spacing[0] << " "
+    << im.origin[1] + im.extent[2] * im.spacing[1] << " "
+    << im.origin[2] + im.extent[4] * im.spacing[2] << "\n";
+  s << "SPACING " << im.spacing[0] << " " << im.spacing[1] << " " << im.spacing[2] << "\n";
+  s << "CELL_DATA " << im.count() << "\n";
+  s << "SCALARS MaterialId unsigned_short\nLOOKUP_TABLE default\n";
+  put(out, s.str());
+  std::vector<unsigned char> block;
+  constexpr size_t kBlock = size_t(1) << 20;
+  for (size_t at = 0; at < im.phase.size(); at += kBlock) {
+    const size_t n = std::min(kBlock, im.phase.size() - at);
+    block.resize(2 * n);
+    for (size_t i = 0; i < n; ++i) {
+      const uint16_t v = id[im.phase[at + i]];
+      block[2 * i] = static_cast<unsigned char>(v >> 8);
+      block[2 * i + 1] = static_cast<unsigned char>(v & 0xff);
+    }
+    put(out, block.data(), block.size());
+  }
+}
+
+std::string material_vtk_bytes(const VoxelImage& im) {
+  return with_file([&](std::FILE* f) { write_material_vtk(im, f); });
+}
+
+std::string vtp_bytes(const SurfaceMesh& m, const std::string& inclusions_json) {
+  Appended app;
+  std::vector<double> pts(3 * m.points.size());
+  for (size_t i = 0; i < m.points.size(); ++i) {
+    for (int a = 0; a < 3; ++a) pts[3 * i + a] = m.points[i][a];
+  }
+  std::vector<int64_t> conn(3 * m.triangles.size()), offs(m.triangles.size());
+  for (size_t i = 0; i < m.triangles.size(); ++i) {
+    for (int a = 0; a < 3; ++a) conn[3 * i + a] = m.triangles[i][a];
+    offs[i] = static_cast<int64_t>(3 * (i + 1));
+  }
+  const size_t o_pts = app.add(pts.data(), pts.size());
+  const size_t o_conn = app.add(conn.data(), conn.size());
+  const size_t o_offs = app.add(offs.data(), offs.size());
+  const size_t o_id = app.add(m.inclusion_id.data(), m.inclusion_id.size());
+  const size_t o_fam = app.add(m.family.data(), m.family.size());
+  const size_t o_shape = app.add(m.shape.data(), m.shape.size());
+  const size_t o_phase = app.add(m.phase.data(), m.phase.size());
+  const size_t o_axis = app.add(reinterpret_cast<const float*>(m.axis.data()), 3 * m.axis.size());
+  std::ostringstream s;
+  s << header("PolyData") << "  <PolyData>\n";
+  if (!inclusions_json.empty()) {
+    // The inclusion list as a string in field data (VTK's ascii form: byte values, then 0), so
+    // the RVE filters work on surfaces read back from the file.
+    s << "    <FieldData>\n      <Array type=\"String\" Name=\"rvegen_inclusions\" "
+         "NumberOfTuples=\"1\" format=\"ascii\">\n";
+    for (unsigned char c : inclusions_json) s << static_cast<int>(c) << ' ';
+    s << "0\n      </Array>\n    </FieldData>\n";
+  }
+  s << "    <Piece NumberOfPoints=\"" << m.points.size()
+    << "\" NumberOfVerts=\"0\" NumberOfLines=\"0\""
+    << " NumberOfStrips=\"0\" NumberOfPolys=\"" << m.triangles.size() << "\">\n";
+  s << "    <Points>\n" << array_tag("Float64", "Points", 3, o_pts) << "    </Points>\n";
+  s << "    <Polys>\n"
+    << array_tag("Int64", "connectivity", 1, o_conn) << array_tag("Int64", "offsets", 1, o_offs)
+    << "    </Polys>\n";
+  s << "    <CellData Scalars=\"family\">\n"
+    << array_tag("Int32", "inclusion_id", 1, o_id) << array_tag("Int32", "family", 1, o_fam)
+    << array_tag("Int32", "shape", 1, o_shape) << array_tag("Int32", "phase", 1, o_phase)
+    << array_tag("Float32", "axis", 3, o_axis) << "    </CellData>\n";
+  s << "    </Piece>\n  </PolyData>\n";
+  return s.str() + footer(app);
+}
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// Staging directories are named .<dir name>.rvegen-<pid>-XXXXXX next to the output directory.
+std::string staging_prefix(const fs::path& target) {
+  return "." + target.filename().string() + ".rvegen-";
+}
+
+// A process that may still write: it exists and is not a zombie (a killed run whose parent
+// has not reaped it still answers kill(pid, 0)).
+bool process_alive(long pid) {
+  if (pid <= 0) return false;
+  if (::kill(static_cast<pid_t>(pid), 0) != 0 && errno != EPERM) return false;
+  std::FILE* f = std::fopen(("/proc/" + std::to_string(pid) + "/stat").c_str(), "r");
+  if (!f) return true;  // no /proc: trust kill()
+  char state = '?';
+  // "pid (comm) state ...": comm may hold spaces and parentheses; the state follows the last ')'.
+  char buf[512];
+  const size_t n = std::fread(buf, 1, sizeof buf - 1, f);
+  std::fclose(f);
+  buf[n] = '\0';
+  const char* close = std::strrchr(buf, ')');
+  if (close && close[1] == ' ') state = close[2];
+  return state != 'Z' && state != 'X';
+}
+
+// Leftovers of killed runs: staging directories whose process is gone.
+void remove_orphans(const fs::path& target) {
+  const std::string prefix = staging_prefix(target);
+  std::error_code ec;
+  for (fs::directory_iterator it(target.parent_path(), ec), end; !ec && it != end;
+       it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.compare(0, prefix.size(), prefix) != 0) continue;
+    const long pid = std::strtol(name.c_str() + prefix.size(), nullptr, 10);
+    if (process_alive(pid)) continue;
+    std::error_code rm;
+    fs::remove_all(it->path(), rm);
+  }
+}
+
+// Old runs of this program wrote hidden temporaries (.<name>.tmp.<pid>) into the directory.
+bool own_file(const std::string& name) {
+  for (const std::string& known : OutputSet::file_names()) {
+    if (name == known) return true;
+    const std::string tmp = "." + known + ".tmp.";
+    if (name.compare(0, tmp.size(), tmp) == 0) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+const std::vector<std::string>& OutputSet::file_names() {
+  static const std::vector<std::string> names = {"inclusions.json", "inclusions.vtp", "voxels.vti",
+                                                 "material.vtk",    "rve.h5",         "rve.xdmf",
+                                                 "levelsets.vdb",   "report.json"};
+  return names;
+}
+
+OutputSet::OutputSet(const std::string& dir) : dir_(dir) {
+  std::error_code ec;
+  if (dir.empty()) throw OutputError("output directory: empty path");
+  fs::path target = fs::absolute(fs::path(dir), ec).lexically_normal();
+  if (ec) throw OutputError("output directory " + dir + ": " + ec.message());
+  if (fs::is_symlink(fs::symlink_status(target, ec))) {
+    // A link to the output directory: the set replaces the directory it points to.
+    target = fs::canonical(target, ec);
+    if (ec) throw OutputError("output directory " + dir + ": " + ec.message());
+  }
+  if (target.filename().empty()) target = target.parent_path();
+  if (!target.has_parent_path() || target == target.root_path()) {
+    throw OutputError("output directory " + dir + ": cannot replace the root directory");
+  }
+  const fs::path cwd = fs::current_path(ec);
+  if (!ec) {
+    const auto rel = cwd.lexically_relative(target);
+    if (!rel.empty() && *rel.begin() != "..") {
+      throw OutputError("output directory " + dir +
+                        ": is the current directory or holds it; rvegen replaces the output "
+                        "directory as a whole, so name a directory of its own");
+    }
+  }
+  const fs::file_status st = fs::status(target, ec);
+  if (fs::exists(st)) {
+    if (!fs::is_directory(st)) {
+      throw OutputError("output directory " + dir + ": exists and is not a directory");
+    }
+    std::vector<std::string> foreign;
+    for (fs::directory_iterator it(target, ec), end; !ec && it != end; it.increment(ec)) {
+      const std::string name = it->path().filename().string();
+      if (!own_file(name)) foreign.push_back(name);
+    }
+    if (ec) throw OutputError("output directory " + dir + ": " + ec.message());
+    if (!foreign.empty()) {
+      std::string list;
+      for (size_t i = 0; i < foreign.size() && i < 5; ++i) list += (i ? ", " : "") + foreign[i];
+      if (foreign.size() > 5) list += ", ...";
+      throw OutputError("output directory " + dir + " holds files rvegen did not write (" + list +
+                        "); rvegen replaces the output directory as a whole, so give a new or "
+                        "empty directory, or one an earlier run wrote");
+    }
+  }
+  fs::create_directories(target.parent_path(), ec);
+  if (ec) {
+    throw OutputError("cannot create " + target.parent_path().string() + ": " + ec.message());
+  }
+  target_ = target.string();
+  remove_orphans(target);
+  std::string tmpl =
+      (target.parent_path() / (staging_prefix(target) + std::to_string(::getpid()) + "-XXXXXX"))
+          .string();
+  if (!::mkdtemp(tmpl.data())) {
+    throw OutputError("cannot write in " + target.parent_path().string() + ": " +
+                      std::strerror(errno));
+  }
+  stage_ = tmpl;
+}
+
+OutputSet::~OutputSet() {
+  if (committed_ || stage_.empty()) return;
+  std::error_code ec;
+  fs::remove_all(stage_, ec);
+}
+
+std::string OutputSet::staged_path(const std::string& name) const {
+  const auto& names = file_names();
+  if (std::find(names.begin(), names.end(), name) == names.end()) {
+    throw OutputError("not an output file name: " + name);
+  }
+  return (fs::path(stage_) / name).string();
+}
+
+void OutputSet::write_with(const std::string& name, const std::function<void(std::FILE*)>& fill) {
+  const std::string path = staged_path(name);
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0666);
+  if (fd < 0) throw OutputError("cannot create " + path + ": " + std::strerror(errno));
+  std::FILE* f = ::fdopen(fd, "wb");
+  if (!f) {
+    ::close(fd);
+    throw OutputError("cannot open " + path + ": " + std::strerror(errno));
+  }
+  try {
+    fill(f);
+  } catch (const OutputError& e) {
+    std::fclose(f);
+    throw OutputError("cannot write " + path + ": " + e.what());
+  } catch (...) {
+    std::fclose(f);
+    throw;
+  }
+  if (std::fflush(f) != 0 || std::ferror(f)) {
+    const int err = errno;
+    std::fclose(f);
+    throw OutputError("cannot write " + path + ": " + std::strerror(err));
+  }
+  if (std::fclose(f) != 0) throw OutputError("cannot write " + path + ": " + std::strerror(errno));
+}
+
+void OutputSet::write(const std::string& name, const std::string& bytes) {
+  write_with(name, [&](std::FILE* f) { put(f, bytes); });
+}
+
+void OutputSet::commit() {
+  if (committed_) return;
+  // The staging directory was created 0700; the set gets the usual permissions.
+  const mode_t mask = ::umask(0);
+  ::umask(mask);
+  ::chmod(stage_.c_str(), 0777 & ~mask);
+  std::error_code ec;
+  if (!fs::exists(fs::symlink_status(target_, ec))) {
+    if (::rename(stage_.c_str(), target_.c_str()) != 0) {
+      throw OutputError("cannot move " + stage_ + " to " + target_ + ": " + std::strerror(errno));
+    }
+    committed_ = true;
+    return;
+  }
+  if (::renameat2(AT_FDCWD, stage_.c_str(), AT_FDCWD, target_.c_str(), RENAME_EXCHANGE) == 0) {
+    // The staging name now holds the previous set.
+    committed_ = true;
+    fs::remove_all(stage_, ec);
+    return;
+  }
+  if (errno != EINVAL && errno != ENOSYS && errno != ENOTSUP) {
+    throw OutputError("cannot replace " + target_ + ": " + std::strerror(errno));
+  }
+  // No atomic exchange on this file system: move the old set aside, then the new one in (and
+  // the old one back if that fails).
+  std::string aside = stage_ + "-old";
+  if (::rename(target_.c_str(), aside.c_str()) != 0) {
+    throw OutputError("cannot replace " + target_ + ": " + std::strerror(errno));
+  }
+  if (::rename(stage_.c_str(), target_.c_str()) != 0) {
+    const int err = errno;
+    ::rename(aside.c_str(), target_.c_str());
+    throw OutputError("cannot move " + stage_ + " to " + target_ + ": " + std::strerror(err));
+  }
+  committed_ = true;
+  fs::remove_all(aside, ec);
+}
+
+std::string read_file(const std::string& path, size_t max_bytes) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) throw InputError(path + ": cannot read (" + std::strerror(errno) + ")");
+  struct stat st {};
+  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+    ::close(fd);
+    throw InputError(path + ": not a regular file");
+  }
+  if (static_cast<unsigned long long>(st.st_size) > max_bytes) {
+    ::close(fd);
+    throw InputError(path + ": too large (" + std::to_string(st.st_size) + " bytes, at most " +
+                     std::to_string(max_bytes) + ")");
+  }
+  std::string out(static_cast<size_t>(st.st_size), '\0');
+  size_t got = 0;
+  while (got < out.size()) {
+    const ssize_t n = ::read(fd, out.data() + got, out.size() - got);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) break;
+    got += static_cast<size_t>(n);
+  }
+  ::close(fd);
+  out.resize(got);
+  return out;
+}
+}  // namespace rvegen

@@ -1,0 +1,83 @@
+// File writers for the command line: VTK XML (.vti image, .vtp surfaces) written directly,
+// so the command-line tool needs no VTK; and the output set, which puts a run's files in place
+// as one whole.
+#pragma once
+
+#include <cstdio>
+#include <functional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "rvegen/io/inclusions_json.hpp"
+#include "rvegen/model/inclusion_set.hpp"
+#include "rvegen/raster/mesh.hpp"
+#include "rvegen/raster/voxelize.hpp"
+
+namespace rvegen {
+
+/// VTK XML ImageData, one cell per voxel, cell arrays "phase" (UInt8), "inclusion_id" (Int32)
+/// and, when computed, "fraction" (Float32). Streamed to `out` (no copy of the image).
+void write_vti(const VoxelImage& image, std::FILE* out);
+std::string vti_bytes(const VoxelImage& image);
+/// Legacy VTK STRUCTURED_POINTS material map as AMITEX_FFTP reads it (materialID.vtk): binary
+/// big-endian unsigned short "MaterialId" per cell, numbered 1..N in phase-label order over the
+/// labels present in the image. Streamed in blocks.
+void write_material_vtk(const VoxelImage& image, std::FILE* out);
+std::string material_vtk_bytes(const VoxelImage& image);
+/// VTK XML PolyData with cell arrays "inclusion_id", "family", "shape", "phase" (Int32) and
+/// "axis" (Float32 x 3).
+/// With `inclusions_json` (write_inclusions_json), field data "rvegen_inclusions" holds it.
+std::string vtp_bytes(const SurfaceMesh& mesh, const std::string& inclusions_json = "");
+
+/// The files one run writes into its output directory, and nothing else. An output directory
+/// holds one complete set or the previous one, never a mix:
+///  - the constructor checks, before any work, that `dir` is absent, empty or holds only an
+///    earlier set (names in file_names(); anything else is refused, since the whole directory is
+///    replaced), and creates a private staging directory (mode 0700, unpredictable name) next to
+///    it, which also proves the place writable; it removes staging directories that killed runs
+///    left behind;
+///  - files are created in the staging directory exclusively (O_EXCL, O_NOFOLLOW);
+///  - commit() swaps the staging directory in for `dir` in one rename (renameat2
+///    RENAME_EXCHANGE; on file systems without it, two renames with the old set put back on
+///    failure) and removes the previous set, stale files included.
+/// Without commit() (an error, an exception) the staging directory is removed and `dir` is
+/// untouched. Throws OutputError naming the path on any failure.
+class OutputSet {
+ public:
+  explicit OutputSet(const std::string& dir);
+  ~OutputSet();
+  OutputSet(const OutputSet&) = delete;
+  OutputSet& operator=(const OutputSet&) = delete;
+
+  /// Names an output set may hold.
+  static const std::vector<std::string>& file_names();
+  /// Writes file `name` (one of file_names()) into the staging directory.
+  void write(const std::string& name, const std::string& bytes);
+  /// Writes file `name` through `fill`, which streams into the open file.
+  void write_with(const std::string& name, const std::function<void(std::FILE*)>& fill);
+  /// Path of `name` in the staging directory, for writers that open files themselves (HDF5);
+  /// the file must not exist yet.
+  std::string staged_path(const std::string& name) const;
+  /// Puts the staged set in place of the directory (see above).
+  void commit();
+  /// The output directory as given, and the staging directory.
+  const std::string& dir() const { return dir_; }
+  const std::string& staging_dir() const { return stage_; }
+
+ private:
+  std::string dir_, target_, stage_;
+  bool committed_ = false;
+};
+
+/// A failure to write outputs (exit 1 of `rvegen generate`).
+class OutputError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Reads a whole file; refuses one that is not a regular file or is larger than `max_bytes`
+/// (without reading it all). Throws InputError naming the path.
+std::string read_file(const std::string& path, size_t max_bytes = size_t(1) << 30);
+
+}  // namespace rvegen

@@ -1,0 +1,435 @@
+#include "rvegen/model/body.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace rvegen {
+namespace {
+
+// Frame of a cylinder: unit axis u and the unit direction v of its wave (orthogonal to u).
+struct FibreFrame {
+  Vec3 u, v;
+  double h;
+};
+
+FibreFrame fibre_frame(const Inclusion& inc) {
+  FibreFrame f;
+  f.h = inc.shape.half_axis.norm();
+  f.u = inc.shape.half_axis / f.h;
+  const Vec3 e1 = any_orthogonal(f.u), e2 = f.u.cross(e1);
+  f.v = std::cos(inc.mod.wave_angle) * e1 + std::sin(inc.mod.wave_angle) * e2;
+  return f;
+}
+
+// Lipschitz bound of the shear x -> x - A sin(k s + phase) v (and of its inverse): 1 + A k.
+double shear_lipschitz(const Modifiers& m) {
+  return m.wavy() ? 1.0 + m.wave_amplitude * 2.0 * M_PI / m.wave_length : 1.0;
+}
+
+// Grows a straight shape: sphere and ellipsoid by the factor `f` (f >= 1), cylinders by dr in
+// radius and dl in half length.
+Shape grown_cylinder(const Shape& s, double dr, double dl) {
+  const double h = s.half_axis.norm();
+  return Shape::cylinder(s.center, s.radius + dr, s.half_axis * ((h + dl) / h));
+}
+
+// Envelope with a shell of thickness t (convex; holds every point within t of the body).
+Shape grown(const Inclusion& inc, double t) {
+  const Shape& s = inc.shape;
+  const Modifiers& m = inc.mod;
+  switch (s.kind) {
+    case ShapeKind::Sphere: {
+      double r = s.radius;
+      if (m.deformed()) r *= m.deform_scale * (1.0 + m.deform_amplitude);
+      if (m.debonded()) r += m.debond_gap;
+      return Shape::sphere(s.center, r + t);
+    }
+    case ShapeKind::Cylinder:
+      return grown_cylinder(s, m.wave_amplitude + t, t);
+    case ShapeKind::Ellipsoid: {
+      Shape e = s;
+      if (m.deformed()) e = e.scaled(m.deform_scale * (1.0 + m.deform_amplitude));
+      // E + ball(t) lies inside E scaled by 1 + t / a_min: h_E(d) + t |d| <= (1 + t / a_min)
+      // h_E(d) because h_E(d) >= a_min |d|.
+      if (t > 0.0) e = e.scaled(1.0 + t / e.semi_axes.minCoeff());
+      return e;
+    }
+  }
+  return s;
+}
+
+// Distance from x, at distance d from a convex core known to lie in [lo, hi], to the level
+// d = level: a lower bound.
+double gap_to_level(double lo, double hi, double level) {
+  if (level < lo) return lo - level;
+  if (level > hi) return level - hi;
+  return 0.0;
+}
+
+// Integral over the unit sphere of f(n), by Gauss-Legendre in cos(theta) and the trapezoid
+// rule in phi (spectrally accurate for smooth f).
+template <class F>
+double sphere_integral(int n_theta, F f) {
+  std::vector<double> x, w;
+  gauss_legendre(n_theta, &x, &w);
+  const int n_phi = 2 * n_theta;
+  double sum = 0.0;
+  for (int i = 0; i < n_theta; ++i) {
+    const double st = std::sqrt(std::max(0.0, 1.0 - x[i] * x[i]));
+    for (int j = 0; j < n_phi; ++j) {
+      const double ph = 2.0 * M_PI * (j + 0.5) / n_phi;
+      sum += w[i] * f(Vec3(st * std::cos(ph), st * std::sin(ph), x[i]));
+    }
+  }
+  return sum * 2.0 * M_PI / n_phi;
+}
+
+}  // namespace
+
+void gauss_legendre(int n, std::vector<double>* x, std::vector<double>* w) {
+  x->assign(n, 0.0);
+  w->assign(n, 0.0);
+  for (int i = 0; i < (n + 1) / 2; ++i) {
+    double z = std::cos(M_PI * (i + 0.75) / (n + 0.5)), dp = 1.0;
+    for (int it = 0; it < 100; ++it) {
+      double p0 = 1.0, p1 = z;
+      for (int k = 2; k <= n; ++k) {
+        const double p2 = ((2.0 * k - 1.0) * z * p1 - (k - 1.0) * p0) / k;
+        p0 = p1;
+        p1 = p2;
+      }
+      dp = n * (z * p1 - p0) / (z * z - 1.0);
+      const double dz = p1 / dp;
+      z -= dz;
+      if (std::abs(dz) < 1e-15) break;
+    }
+    (*x)[i] = -z;
+    (*x)[n - 1 - i] = z;
+    (*w)[i] = (*w)[n - 1 - i] = 2.0 / ((1.0 - z * z) * dp * dp);
+  }
+}
+
+double deformation_field(const Modifiers& m, const Vec3& n) {
+  double g = 0.0;
+  for (const auto& wv : m.deform_waves) {
+    g += wv.weight * std::cos(wv.wavenumber * n.dot(wv.direction) + wv.phase);
+  }
+  return g;
+}
+
+double deformed_radius(const Modifiers& m, const Vec3& n) {
+  return m.deform_scale * (1.0 + m.deform_amplitude * deformation_field(m, n));
+}
+
+double deformation_volume_scale(const Modifiers& m) {
+  double k = 0.0;
+  for (const auto& wv : m.deform_waves) k = std::max(k, wv.wavenumber);
+  const int n = 24 + 2 * static_cast<int>(std::ceil(k));
+  const double e = m.deform_amplitude;
+  // Volume of |y| <= 1 + e g(n): (1/3) int (1 + e g)^3 dn; the unit ball has 4 pi / 3.
+  const double v = sphere_integral(
+      n, [&](const Vec3& u) { return std::pow(1.0 + e * deformation_field(m, u), 3); });
+  return std::cbrt(4.0 * M_PI / v);
+}
+
+Vec3 wave_offset(const Inclusion& inc, double s) {
+  const Modifiers& m = inc.mod;
+  if (!m.wavy()) return Vec3::Zero();
+  const FibreFrame f = fibre_frame(inc);
+  return m.wave_amplitude * std::sin(2.0 * M_PI * s / m.wave_length + m.wave_phase) * f.v;
+}
+
+double ellipsoid_distance(const Shape& e, const Vec3& x) {
+  const Vec3 y = e.rotation.transpose() * (x - e.center);
+  const Vec3& a = e.semi_axes;
+  if (y.cwiseQuotient(a).squaredNorm() <= 1.0) return 0.0;
+  // The closest point is z_i = a_i^2 y_i / (s + a_i^2) with s > 0 the root of
+  // F(s) = sum (a_i y_i / (s + a_i^2))^2 - 1, decreasing in s (bisection, then exact point).
+  auto F = [&](double s) {
+    double sum = 0.0;
+    for (int i = 0; i < 3; ++i) sum += std::pow(a[i] * y[i] / (s + a[i] * a[i]), 2);
+    return sum - 1.0;
+  };
+  double lo = 0.0, hi = a.maxCoeff() * y.norm() + a.maxCoeff() * a.maxCoeff();
+  for (int it = 0; it < 200 && hi - lo > 1e-15 * (hi + 1e-300); ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (F(mid) > 0.0 ? lo : hi) = mid;
+  }
+  const double s = 0.5 * (lo + hi);
+  Vec3 z;
+  for (int i = 0; i < 3; ++i) z[i] = a[i] * a[i] * y[i] / (s + a[i] * a[i]);
+  return (y - z).norm();
+}
+
+Shape envelope(const Inclusion& inc) {
+  const Modifiers& m = inc.mod;
+  if (!m.any() && m.packing_pad == 0.0) return inc.shape;
+  // Touching shells: the core alone, padded; other shells whole, padded.
+  return grown(inc, (m.shells_may_touch ? 0.0 : m.coating) + m.packing_pad);
+}
+
+Shape outer_bound(const Inclusion& inc) {
+  return inc.mod.any() ? grown(inc, inc.mod.coating) : inc.shape;
+}
+
+Inclusion place_like(const Inclusion& drawn, const Shape& packed, double scale) {
+  Inclusion out = drawn;
+  Shape core = drawn.shape;
+  core.center = packed.center;
+  if (core.kind == ShapeKind::Cylinder) {
+    core.half_axis = packed.half_axis.normalized() * drawn.shape.half_axis.norm();
+  } else if (core.kind == ShapeKind::Ellipsoid) {
+    core.rotation = packed.rotation;
+  }
+  out.shape = core.scaled(scale);
+  Modifiers& m = out.mod;
+  m.coating *= scale;
+  m.wave_amplitude *= scale;
+  m.wave_length *= scale;
+  m.debond_gap *= scale;
+  m.packing_pad *= scale;
+  return out;
+}
+
+BodyQuery::BodyQuery(const Inclusion& inc) : inc_(inc), m_(inc.mod), s_(inc.shape) {
+  c_ = s_.center;
+  switch (s_.kind) {
+    case ShapeKind::Sphere:
+      to_unit_ = Mat3::Identity() / s_.radius;
+      amin_ = amax_ = s_.radius;
+      break;
+    case ShapeKind::Ellipsoid:
+      to_unit_ = s_.semi_axes.cwiseInverse().asDiagonal() * s_.rotation.transpose();
+      amin_ = s_.semi_axes.minCoeff();
+      amax_ = s_.semi_axes.maxCoeff();
+      break;
+    case ShapeKind::Cylinder: {
+      const FibreFrame f = fibre_frame(inc);
+      u_ = f.u;
+      v_ = f.v;
+      h_ = f.h;
+      lipschitz_ = shear_lipschitz(m_);
+      if (m_.wavy()) k_ = 2.0 * M_PI / m_.wave_length;
+      break;
+    }
+  }
+  for (const auto& wv : m_.deform_waves) kmax_ = std::max(kmax_, wv.wavenumber);
+  if (m_.debonded()) {
+    cos_cap_ = 1.0 - 2.0 * m_.debond_fraction;
+    theta_cap_ = std::acos(cos_cap_);
+  }
+}
+
+double BodyQuery::cylinder_sdf(const Vec3& x) const {
+  const Vec3 d = x - c_;
+  const double s = d.dot(u_);
+  Vec3 t = d - s * u_;
+  if (k_ > 0.0) t -= m_.wave_amplitude * std::sin(k_ * s + m_.wave_phase) * v_;
+  const double d_ax = std::abs(s) - h_, d_rad = t.norm() - s_.radius;
+  if (d_ax > 0.0 || d_rad > 0.0) {
+    return std::hypot(std::max(d_ax, 0.0), std::max(d_rad, 0.0));
+  }
+  return std::max(d_ax, d_rad);
+}
+
+double BodyQuery::cone_distance(const Vec3& d, double rho) const {
+  if (rho == 0.0) return 0.0;
+  const double theta = std::acos(std::clamp(d.dot(m_.debond_axis) / rho, -1.0, 1.0));
+  const double a = std::abs(theta - theta_cap_);
+  return a < 0.5 * M_PI ? rho * std::sin(a) : rho;
+}
+
+Region BodyQuery::region(const Vec3& x) const {
+  switch (s_.kind) {
+    case ShapeKind::Sphere:
+    case ShapeKind::Ellipsoid: {
+      const Vec3 y = to_unit_ * (x - c_);
+      const double q2 = y.squaredNorm();
+      if (m_.deformed()) {
+        if (q2 == 0.0) return Region::kCore;
+        const double rho = std::sqrt(q2);
+        return rho <= deformed_radius(m_, y / rho) ? Region::kCore : Region::kOutside;
+      }
+      if (q2 <= 1.0) return Region::kCore;
+      if (!m_.coated() && !m_.debonded()) return Region::kOutside;
+      if (s_.kind == ShapeKind::Sphere) {
+        const Vec3 d = x - c_;
+        const double rho = d.norm(), dist = rho - s_.radius;
+        if (m_.debonded() && dist <= m_.debond_gap && d.dot(m_.debond_axis) >= cos_cap_ * rho) {
+          return Region::kVoid;
+        }
+        return m_.coated() && dist <= m_.coating ? Region::kShell : Region::kOutside;
+      }
+      // Coated ellipsoid: cheap bounds on the distance first, the exact distance in between.
+      const double q = std::sqrt(q2);
+      if ((q - 1.0) * amin_ > m_.coating) return Region::kOutside;
+      if ((q - 1.0) * amax_ <= m_.coating) return Region::kShell;
+      return ellipsoid_distance(s_, x) <= m_.coating ? Region::kShell : Region::kOutside;
+    }
+    case ShapeKind::Cylinder: {
+      const double d = cylinder_sdf(x);
+      if (d <= 0.0) return Region::kCore;
+      return m_.coated() && d <= m_.coating ? Region::kShell : Region::kOutside;
+    }
+  }
+  return Region::kOutside;
+}
+
+double BodyQuery::clearance(const Vec3& x) const {
+  switch (s_.kind) {
+    case ShapeKind::Sphere:
+    case ShapeKind::Ellipsoid: {
+      const Vec3 y = to_unit_ * (x - c_);
+      const double q = y.norm();
+      if (m_.deformed()) {
+        // Boundary at |y| = R(n) = lambda (1 + e g(n)), R in [lambda (1 - e), lambda (1 + e)],
+        // |grad_S g| <= k (the largest wavenumber). Where |y| >= rb / 2 (rb = lambda (1 - e)),
+        // phi = |y| - R(n) has |grad phi| <= L = sqrt(1 + (2 e k / (1 - e))^2) in y; inside
+        // |y| < rb / 2 the ball of radius rb is in the core. Distances in y map to at least
+        // a_min times them in space.
+        const double e = m_.deform_amplitude, lam = m_.deform_scale, rb = lam * (1.0 - e);
+        if (q < 0.5 * rb) return (rb - q) * amin_;
+        const double phi = q - deformed_radius(m_, y / q);
+        const double L = std::sqrt(1.0 + std::pow(2.0 * e * kmax_ / (1.0 - e), 2));
+        return std::min(std::abs(phi) / L, 0.5 * rb) * amin_;
+      }
+      if (s_.kind == ShapeKind::Sphere) {
+        const Vec3 d = x - c_;
+        const double rho = d.norm(), dist = rho - s_.radius;
+        double c = std::abs(dist);
+        if (m_.coated()) c = std::min(c, std::abs(dist - m_.coating));
+        if (m_.debonded()) {
+          c = std::min({c, std::abs(dist - m_.debond_gap), cone_distance(d, rho)});
+        }
+        return c;
+      }
+      // Ellipsoid: the surface of qE lies at distance [|q - 1| a_min, |q - 1| a_max] from E's.
+      const double lo = std::abs(q - 1.0) * amin_, hi = std::abs(q - 1.0) * amax_;
+      double c = lo;
+      if (m_.coated() && q > 1.0) c = std::min(c, gap_to_level(lo, hi, m_.coating));
+      return c;
+    }
+    case ShapeKind::Cylinder: {
+      // Exact for straight fibres; the shear of a wavy one stretches distances by at most L.
+      const double d = cylinder_sdf(x);
+      double c = std::abs(d);
+      if (m_.coated()) c = std::min(c, std::abs(d - m_.coating));
+      return c / lipschitz_;
+    }
+  }
+  return 0.0;
+}
+
+namespace {
+// Solutions of a t^2 + b t + c <= 0 (a >= 0, and b = 0 whenever a = 0: the line is then
+// parallel to the axis of a cylinder and the set is everything when c <= 0, else nothing).
+bool quadratic_interval(double a, double b, double c, double* t0, double* t1) {
+  if (a <= 0.0) {
+    if (c > 0.0) return false;
+    *t0 = -HUGE_VAL;
+    *t1 = HUGE_VAL;
+    return true;
+  }
+  const double disc = b * b - 4.0 * a * c;
+  if (disc < 0.0) return false;
+  const double sq = std::sqrt(disc);
+  *t0 = (-b - sq) / (2.0 * a);
+  *t1 = (-b + sq) / (2.0 * a);
+  return true;
+}
+}  // namespace
+
+bool BodyQuery::x_interval(const Vec3& p, double* t0, double* t1) const {
+  const Vec3 d = p - c_;
+  switch (s_.kind) {
+    case ShapeKind::Sphere:
+    case ShapeKind::Ellipsoid: {
+      // |w + t a|^2 <= 1 with w = A d, a = A e_x.
+      const Vec3 w = to_unit_ * d, a = to_unit_.col(0);
+      return quadratic_interval(a.squaredNorm(), 2.0 * a.dot(w), w.squaredNorm() - 1.0, t0, t1);
+    }
+    case ShapeKind::Cylinder: {
+      // Lateral: |P (d + t e_x)|^2 <= r^2, P = I - u u^T; ends: |u . (d + t e_x)| <= h.
+      const Vec3 pd = d - d.dot(u_) * u_, pe = Vec3::UnitX() - u_.x() * u_;
+      double a, b;
+      if (!quadratic_interval(pe.squaredNorm(), 2.0 * pd.dot(pe),
+                              pd.squaredNorm() - s_.radius * s_.radius, &a, &b)) {
+        return false;
+      }
+      const double s0 = d.dot(u_), ux = u_.x();
+      if (std::abs(ux) < 1e-14) {
+        if (std::abs(s0) > h_) return false;
+      } else {
+        double e0 = (-h_ - s0) / ux, e1 = (h_ - s0) / ux;
+        if (e0 > e1) std::swap(e0, e1);
+        a = std::max(a, e0);
+        b = std::min(b, e1);
+      }
+      if (a > b) return false;
+      *t0 = a;
+      *t1 = b;
+      return true;
+    }
+  }
+  return false;
+}
+
+double BodyQuery::core_distance(const Vec3& x) const {
+  switch (s_.kind) {
+    case ShapeKind::Sphere:
+    case ShapeKind::Ellipsoid: {
+      const Vec3 y = to_unit_ * (x - c_);
+      const double q = y.norm();
+      if (m_.deformed()) {
+        if (q == 0.0) return -m_.deform_scale * (1.0 - m_.deform_amplitude) * amin_;
+        return (q - deformed_radius(m_, y / q)) * amin_;
+      }
+      if (s_.kind == ShapeKind::Sphere) return (x - c_).norm() - s_.radius;
+      return q > 1.0 ? ellipsoid_distance(s_, x) : (q - 1.0) * amin_;
+    }
+    case ShapeKind::Cylinder:
+      return cylinder_sdf(x);
+  }
+  return 0.0;
+}
+
+RegionVolumes region_volumes(const Inclusion& inc) {
+  const Shape& s = inc.shape;
+  const Modifiers& m = inc.mod;
+  RegionVolumes v;
+  v.core = s.volume();
+  const double t = m.coating;
+  if (m.coated()) {
+    // Steiner: V(K + tB) - V(K) = S t + M t^2 + 4 pi t^3 / 3, M = integral of the support
+    // function over the unit sphere.
+    double S = 0.0, M = 0.0;
+    switch (s.kind) {
+      case ShapeKind::Sphere:
+        S = 4.0 * M_PI * s.radius * s.radius;
+        M = 4.0 * M_PI * s.radius;
+        break;
+      case ShapeKind::Cylinder: {
+        const double L = 2.0 * s.half_axis.norm(), r = s.radius;
+        S = 2.0 * M_PI * r * r + 2.0 * M_PI * r * L;
+        M = M_PI * L + M_PI * M_PI * r;
+        break;
+      }
+      case ShapeKind::Ellipsoid: {
+        // x = A n on the unit sphere, A = diag(a): dS = det(A) |A^-1 n| dn, h(u) = |A u|.
+        const Vec3 a = s.semi_axes;
+        S = a.prod() *
+            sphere_integral(96, [&](const Vec3& n) { return n.cwiseQuotient(a).norm(); });
+        M = sphere_integral(96, [&](const Vec3& n) { return n.cwiseProduct(a).norm(); });
+        break;
+      }
+    }
+    v.shell = S * t + M * t * t + 4.0 / 3.0 * M_PI * t * t * t;
+  }
+  if (m.debonded()) {
+    const double r = s.radius, g = m.debond_gap;
+    v.void_ = m.debond_fraction * 4.0 / 3.0 * M_PI * (std::pow(r + g, 3) - r * r * r);
+  }
+  return v;
+}
+
+}  // namespace rvegen

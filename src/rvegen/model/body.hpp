@@ -1,0 +1,104 @@
+// Geometry of one inclusion with its modifiers (coating, waviness, deformation, debonding):
+// which region a point lies in, how far it is from the nearest region boundary, the exact
+// volume of each region, and the convex envelope the packers keep apart.
+//
+// Regions: the core (the inclusion's material), the interphase shell (points within `coating`
+// of the core), the debonding void. Plain inclusions have a core only and every function below
+// is exact for them. Modified geometry stays inside the inclusion's envelope, so envelopes that
+// do not overlap guarantee bodies that do not overlap.
+#pragma once
+
+#include <cstdint>
+
+#include "rvegen/model/inclusion_set.hpp"
+
+namespace rvegen {
+
+enum class Region : uint8_t { kOutside = 0, kCore = 1, kShell = 2, kVoid = 3 };
+
+/// The convex shape the packers keep apart: it holds the core, the void and the shell, grown by
+/// Modifiers::packing_pad. With shells_may_touch it holds the core only (grown by the pad, half
+/// the largest touching coating of the scene): such a shell reaches at most one pad beyond the
+/// envelope, and every other body lies one pad inside its own, so only touching shells meet.
+Shape envelope(const Inclusion& inc);
+/// A convex shape holding every region of the inclusion (the envelope with the whole shell).
+Shape outer_bound(const Inclusion& inc);
+
+/// The drawn inclusion (core at the origin, modifiers at scale 1) placed and turned as
+/// `packed`, its envelope after packing, and scaled by `scale` about its centre (modifier
+/// lengths too).
+Inclusion place_like(const Inclusion& drawn, const Shape& packed, double scale);
+
+/// An inclusion prepared for many point queries (frames and matrices computed once). Keeps a
+/// reference to the inclusion, which must outlive it.
+class BodyQuery {
+ public:
+  explicit BodyQuery(const Inclusion& inc);
+  /// Region of the point x (core first, then void, then shell).
+  Region region(const Vec3& x) const;
+  /// A lower bound on the distance from x to the nearest boundary between two regions of the
+  /// inclusion (including the outer boundary): a ball of that radius about x lies in one region.
+  double clearance(const Vec3& x) const;
+  /// Signed distance to the core's surface (negative inside): exact for spheres, straight
+  /// cylinders and outside ellipsoids; for wavy fibres measured in their sheared frame, for
+  /// deformed shapes radially (|y| - R(n)) a_min, inside ellipsoids (q - 1) a_min. The sign is
+  /// always exact (it agrees with region()).
+  double core_distance(const Vec3& x) const;
+  /// Signed distance to the interphase shell (negative inside it): max(d - t, -d) with d the
+  /// core distance above (exact for spheres and straight cylinders).
+  double shell_distance(const Vec3& x) const {
+    const double d = core_distance(x);
+    return std::max(d - m_.coating, -d);
+  }
+  /// True for an inclusion without modifiers (a core only, exact line intersections).
+  bool plain() const { return !m_.any(); }
+  /// True when the core is the straight convex shape (not wavy, not deformed): x_interval
+  /// applies to it whatever shell or void surrounds it.
+  bool straight_core() const { return !m_.wavy() && !m_.deformed(); }
+  /// Straight cores: the parameters [t0, t1] where the line p + t e_x lies in the core;
+  /// false when it misses the core.
+  bool x_interval(const Vec3& p, double* t0, double* t1) const;
+
+ private:
+  double cylinder_sdf(const Vec3& x) const;  // in the sheared frame of a wavy fibre
+  double cone_distance(const Vec3& d, double rho) const;
+  const Inclusion& inc_;
+  const Modifiers& m_;
+  const Shape& s_;
+  Vec3 c_;
+  Mat3 to_unit_ = Mat3::Identity();  // sphere, ellipsoid: y = to_unit (x - c)
+  double amin_ = 0.0, amax_ = 0.0;
+  Vec3 u_ = Vec3::UnitZ(), v_ = Vec3::UnitX();  // cylinder axis and wave direction
+  double h_ = 0.0, k_ = 0.0, lipschitz_ = 1.0;
+  double kmax_ = 0.0;  // largest deformation wavenumber
+  double cos_cap_ = 1.0, theta_cap_ = 0.0;
+};
+
+struct RegionVolumes {
+  double core = 0.0;
+  double shell = 0.0;
+  double void_ = 0.0;
+};
+/// Volumes of the regions: closed forms for spheres and cylinders (the shell by Steiner's
+/// formula; shearing a wavy fibre keeps volumes), converged quadrature for ellipsoid shells;
+/// a deformed core keeps the volume of its undeformed shape.
+RegionVolumes region_volumes(const Inclusion& inc);
+
+/// Deformation field g(n) of the inclusion for a unit direction n in its own frame, |g| <= 1.
+double deformation_field(const Modifiers& m, const Vec3& n);
+/// Radius of a deformed shape's surface in its normalised frame along unit n:
+/// deform_scale (1 + deform_amplitude g(n)) (1 for an undeformed one).
+double deformed_radius(const Modifiers& m, const Vec3& n);
+/// Scale that gives a deformed shape (|y| <= scale (1 + e g)) the volume of the unit ball.
+double deformation_volume_scale(const Modifiers& m);
+
+/// Lateral displacement of a wavy fibre's cross-section at axial coordinate s (world vector).
+Vec3 wave_offset(const Inclusion& inc, double s);
+
+/// Exact Euclidean distance from x to an ellipsoid (0 inside).
+double ellipsoid_distance(const Shape& e, const Vec3& x);
+
+/// Nodes and weights of the n-point Gauss-Legendre rule on [-1, 1].
+void gauss_legendre(int n, std::vector<double>* x, std::vector<double>* w);
+
+}  // namespace rvegen

@@ -1,0 +1,84 @@
+// The vector form of an RVE: box plus inclusions. Every representation (surfaces, voxels,
+// reports) is a pure function of it.
+#pragma once
+
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "rvegen/geometry/shapes.hpp"
+#include "rvegen/model/errors.hpp"
+
+namespace rvegen {
+
+struct Box {
+  Vec3 origin = Vec3::Zero();
+  Vec3 size = Vec3::Ones();
+  bool periodic = true;
+  double volume() const { return size.prod(); }
+};
+
+/// Refuses (InputError naming `path`) a box the arithmetic cannot serve: sizes outside
+/// [1e-12, 1e12], a largest size more than 1e6 times the smallest, or an origin further than
+/// 1000 box sizes from zero (coordinates would lose the precision the exact tests need).
+void check_box(const Box& box, const std::string& path);
+
+/// One random wave of a deformation: g(n) += weight cos(wavenumber (n . direction) + phase),
+/// n a unit direction in the inclusion's own frame.
+struct DeformationWave {
+  Vec3 direction = Vec3::UnitZ();
+  double weight = 0.0;
+  double wavenumber = 0.0;
+  double phase = 0.0;
+};
+
+/// What makes an inclusion more than its straight convex shape (see body.hpp for the geometry).
+/// Lengths are absolute, in the units of the box. All zero: a plain inclusion.
+struct Modifiers {
+  /// Interphase shell: every point within `coating` of the core.
+  double coating = 0.0;
+  /// Shells of neighbours may merge (cores are then packed coating apart, not 2 x coating).
+  bool shells_may_touch = false;
+  /// Cylinders: the cross-section at axial coordinate s is displaced by
+  /// wave_amplitude sin(2 pi s / wave_length + wave_phase) along the direction at angle
+  /// wave_angle about the axis from any_orthogonal(axis).
+  double wave_amplitude = 0.0, wave_length = 0.0, wave_phase = 0.0, wave_angle = 0.0;
+  /// Spheres and ellipsoids: in the normalised frame y = M^-1 (x - c) (M = rotation diag(semi
+  /// axes)), the surface is |y| = deform_scale (1 + deform_amplitude g(y / |y|)), |g| <= 1;
+  /// deform_scale keeps the volume of the undeformed shape.
+  double deform_amplitude = 0.0, deform_scale = 1.0;
+  std::vector<DeformationWave> deform_waves;
+  /// Spheres: a void of thickness debond_gap over the cap of the surface around debond_axis
+  /// that covers debond_fraction of the surface.
+  double debond_fraction = 0.0, debond_gap = 0.0;
+  Vec3 debond_axis = Vec3::UnitZ();
+
+  /// Clearance added to the packing envelope of every inclusion of a scene in which shells may
+  /// touch: half the largest such coating, so a shell that reaches beyond its own envelope
+  /// never meets another inclusion's body (only another touching shell).
+  double packing_pad = 0.0;
+
+  bool coated() const { return coating > 0.0; }
+  bool wavy() const { return wave_amplitude > 0.0; }
+  bool deformed() const { return deform_amplitude > 0.0; }
+  bool debonded() const { return debond_fraction > 0.0 && debond_gap > 0.0; }
+  bool any() const { return coated() || wavy() || deformed() || debonded(); }
+};
+
+struct Inclusion {
+  int id = 0;
+  int family = 0;
+  /// The straight convex core (for a deformed inclusion: the undeformed shape whose volume it
+  /// keeps; for a wavy fibre: the straight fibre it is sheared from).
+  Shape shape;
+  Modifiers mod;
+};
+
+struct InclusionSet {
+  Box box;
+  std::vector<Inclusion> inclusions;
+  /// Family names, indexed by Inclusion::family (may be empty).
+  std::vector<std::string> family_names;
+};
+
+}  // namespace rvegen

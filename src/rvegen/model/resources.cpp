@@ -1,0 +1,152 @@
+#include "rvegen/model/resources.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <string>
+
+namespace rvegen {
+namespace {
+
+// Measured costs (bytes), see README "Resources": per inclusion in the packer and lists, per
+// triangle of the surfaces (in memory and in the .vtp), per voxel, per narrow-band voxel.
+constexpr double kBytesPerInclusion = 2500.0;
+constexpr double kBytesPerFibrePiece = 400.0;  // per bounding sub-sphere of a long inclusion
+constexpr double kBytesPerTriangle = 300.0;    // mesh, .vtp text and arrays
+constexpr double kBytesPerBandVoxel = 40.0;    // values, OpenVDB leaves, the build's buffers
+
+// Triangles of one mean-size inclusion as tessellate() meshes it (MeshOptions defaults:
+// segments for an edge of 1/96 of the smallest box size, clamped to [12, 64]), times 1.3 for
+// the periodic images that cross the faces.
+double triangles(const Family& f, double box_min) {
+  auto segments = [&](double length) { return std::clamp(length / (box_min / 96.0), 12.0, 64.0); };
+  double n = 0.0;
+  switch (f.shape) {
+    case ShapeKind::Sphere: {
+      const double s = segments(2.0 * M_PI * f.radius.mean());
+      n = s * s;
+      break;
+    }
+    case ShapeKind::Ellipsoid: {
+      const double a =
+          std::max({f.semi_axes[0].mean(), f.semi_axes[1].mean(), f.semi_axes[2].mean()});
+      const double s = segments(2.0 * M_PI * a);
+      n = s * s;
+      break;
+    }
+    case ShapeKind::Cylinder: {
+      const double r = f.radius.mean(), s = segments(2.0 * M_PI * r);
+      const FamilyModifiers& m = f.modifiers;
+      const double rings = m.wave_amplitude > 0.0
+                               ? std::ceil(16.0 * 2.0 * r * f.aspect_ratio.mean() / m.wave_length)
+                               : 1.0;
+      n = 2.0 * s * rings + 2.0 * s;
+      break;
+    }
+  }
+  return 1.3 * n;
+}
+constexpr double kBaseBytes = 64.0 * 1024 * 1024;  // program, libraries, small buffers
+
+// Surface area of a family's mean-size inclusion (an estimate for the narrow band).
+double mean_area(const Family& f) {
+  switch (f.shape) {
+    case ShapeKind::Sphere: {
+      const double r = f.radius.mean();
+      return 4.0 * M_PI * r * r;
+    }
+    case ShapeKind::Cylinder: {
+      const double r = f.radius.mean(), l = r * f.aspect_ratio.mean();
+      return 2.0 * M_PI * r * r + 4.0 * M_PI * r * l;
+    }
+    case ShapeKind::Ellipsoid: {
+      // Knud Thomsen's approximation.
+      const double a = f.semi_axes[0].mean(), b = f.semi_axes[1].mean(), c = f.semi_axes[2].mean(),
+                   p = 1.6075;
+      return 4.0 * M_PI *
+             std::pow((std::pow(a * b, p) + std::pow(a * c, p) + std::pow(b * c, p)) / 3.0,
+                      1.0 / p);
+    }
+  }
+  return 0.0;
+}
+
+}  // namespace
+
+double ResourceEstimate::total_bytes() const {
+  return kBaseBytes + packing_bytes + std::max({surface_bytes, voxel_bytes, levelset_bytes});
+}
+
+ResourceEstimate estimate_resources(const Scene& scene) {
+  ResourceEstimate e;
+  const double vs = scene.levelset_voxel_size > 0.0 ? scene.levelset_voxel_size
+                                                    : scene.box.size.minCoeff() / 256.0;
+  for (size_t i = 0; i < scene.families.size(); ++i) {
+    const Family& f = scene.families[i];
+    const double n = scene.expected_count(static_cast<int>(i));
+    e.inclusions += n;
+    e.packing_bytes += n * kBytesPerInclusion;
+    if (f.shape != ShapeKind::Sphere) {
+      // Long inclusions are strings of bounding spheres in the packer's broad phase.
+      const double pieces =
+          f.shape == ShapeKind::Cylinder ? 2.0 * f.aspect_ratio.mean() + 1.0 : 3.0;
+      e.packing_bytes += n * pieces * kBytesPerFibrePiece;
+    }
+    e.surface_bytes += n * triangles(f, scene.box.size.minCoeff()) * kBytesPerTriangle;
+    const FamilyModifiers& m = f.modifiers;
+    const double area =
+        mean_area(f) * (m.wave_amplitude > 0.0 || m.deform_amplitude > 0.0 ? 1.5 : 1.0);
+    double surfaces = 0.0;
+    if (m.wave_amplitude > 0.0 || m.deform_amplitude > 0.0) surfaces += 1.0;
+    if (m.coating > 0.0) surfaces += 2.0;
+    e.band_voxels += n * surfaces * area * 2.0 * scene.levelset_half_width / (vs * vs);
+  }
+  e.voxels = static_cast<double>(scene.resolution[0]) * scene.resolution[1] * scene.resolution[2];
+  e.voxel_bytes = e.voxels * (scene.partial_volume ? 9.0 : 5.0) * 1.1;
+  e.levelset_bytes = e.band_voxels * kBytesPerBandVoxel;
+  return e;
+}
+
+double available_memory_bytes() {
+  double avail = 0.0;
+  std::ifstream mi("/proc/meminfo");
+  std::string key;
+  double kb = 0.0;
+  std::string unit;
+  while (mi >> key >> kb >> unit) {
+    if (key == "MemAvailable:") {
+      avail = kb * 1024.0;
+      break;
+    }
+  }
+  // cgroup v2 limit of this process's group.
+  std::ifstream maxf("/sys/fs/cgroup/memory.max"), curf("/sys/fs/cgroup/memory.current");
+  std::string max_text;
+  double cur = 0.0;
+  if (maxf >> max_text && max_text != "max" && curf >> cur) {
+    const double left = std::stod(max_text) - cur;
+    if (left > 0.0 && (avail == 0.0 || left < avail)) avail = left;
+  }
+  return avail;
+}
+
+std::string format_bytes(double bytes) {
+  char buf[64];
+  if (bytes >= 1e9) {
+    std::snprintf(buf, sizeof buf, "%.1f GB", bytes / 1e9);
+  } else {
+    std::snprintf(buf, sizeof buf, "%.0f MB", std::ceil(bytes / 1e6));
+  }
+  return buf;
+}
+
+std::string describe(const ResourceEstimate& e) {
+  return format_bytes(e.total_bytes()) + " (" +
+         std::to_string(static_cast<long long>(e.inclusions)) +
+         " inclusions: " + format_bytes(e.packing_bytes) + "; surfaces " +
+         format_bytes(e.surface_bytes) + "; voxels " + format_bytes(e.voxel_bytes) +
+         "; level sets " + format_bytes(e.levelset_bytes) + ")";
+}
+
+}  // namespace rvegen

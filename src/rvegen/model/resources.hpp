@@ -1,0 +1,38 @@
+// What a scene will cost before any of it is done: an estimate of the peak memory of a
+// `rvegen generate` run, to refuse a scene the machine cannot hold (exit 2, naming the figure)
+// instead of failing half-way.
+#pragma once
+
+#include <string>
+
+#include "rvegen/model/scene.hpp"
+
+namespace rvegen {
+
+struct ResourceEstimate {
+  double inclusions = 0.0;      // expected number of inclusions
+  double voxels = 0.0;          // voxels of the image
+  double band_voxels = 0.0;     // narrow-band voxels of the level sets
+  double packing_bytes = 0.0;   // the packer's bodies, pair lists and the inclusion list
+  double surface_bytes = 0.0;   // the tessellated surfaces and their file
+  double voxel_bytes = 0.0;     // the voxel image (written as it is, no copy)
+  double levelset_bytes = 0.0;  // the OpenVDB grids while they are built and written
+  /// Peak: the phases run one after the other, the inclusion list stays throughout.
+  double total_bytes() const;
+};
+
+/// Estimates from the scene alone (expected counts, mean sizes, resolution, voxel size). The
+/// per-item costs were measured on this program's runs (see README, "Resources"); the estimate
+/// is meant to be within a factor of about 1.5 of the measured peak, on the high side.
+ResourceEstimate estimate_resources(const Scene& scene);
+
+/// Memory this process may still take: the smaller of MemAvailable (/proc/meminfo) and what
+/// its cgroup allows; 0 when unknown.
+double available_memory_bytes();
+
+/// "1.2 GB (packing 0.3 GB, surfaces 0.1 GB, voxels 0.8 GB, level sets 0 GB)".
+std::string describe(const ResourceEstimate& e);
+/// "1.2 GB".
+std::string format_bytes(double bytes);
+
+}  // namespace rvegen

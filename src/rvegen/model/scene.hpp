@@ -1,0 +1,139 @@
+// Scene description: what `rvegen generate` reads (JSON) and what the VTK source builds from
+// its properties. Validation happens here, before any work or output.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "rvegen/geometry/random.hpp"
+#include "rvegen/model/inclusion_set.hpp"
+
+namespace rvegen {
+
+/// Distribution of one size (radius, aspect ratio, semi-axis).
+/// normal and lognormal take the mean and standard deviation of the size itself and are
+/// truncated to [max(lo, tiny), hi] with lo/hi at mean -/+ 6 std (normal) or exp(mu -/+ 6 sigma)
+/// (lognormal): draws outside are redrawn, so sizes are always positive and bounded.
+struct SizeLaw {
+  enum class Kind { kFixed, kUniform, kNormal, kLognormal };
+  Kind kind = Kind::kFixed;
+  double p1 = 0.0;  // fixed: value; uniform: min; normal, lognormal: mean
+  double p2 = 0.0;  // uniform: max; normal, lognormal: std
+
+  SizeLaw() = default;
+  SizeLaw(double value) : p1(value) {}  // NOLINT(google-explicit-constructor): a fixed size
+  bool fixed() const { return kind == Kind::kFixed; }
+  double sample(Random& rng) const;
+  /// Smallest and largest size the law can draw.
+  double lower() const;
+  double upper() const;
+  /// E[X^k] of the (truncated) law.
+  double moment(int k) const;
+  double mean() const { return moment(1); }
+};
+
+struct OrientationLaw {
+  enum class Kind { kIsotropic, kAligned, kVonMisesFisher, kPlanar };
+  Kind kind = Kind::kIsotropic;
+  Vec3 axis = Vec3::UnitZ();  // unit: aligned and von Mises-Fisher axis, planar normal
+  double kappa = 0.0;         // von Mises-Fisher concentration
+  /// A unit direction drawn from the law.
+  Vec3 sample(Random& rng) const;
+};
+
+/// Modifiers of a family (all zero: plain inclusions). See body.hpp for the geometry.
+struct FamilyModifiers {
+  double coating = 0.0;  // interphase thickness
+  bool shells_may_touch = false;
+  double wave_amplitude = 0.0, wave_length = 0.0;   // cylinders
+  double deform_amplitude = 0.0, smoothness = 1.0;  // spheres, ellipsoids; amplitude < 0.5
+  double debond_fraction = 0.0, debond_gap = 0.0;   // spheres
+  bool any() const {
+    return coating > 0.0 || wave_amplitude > 0.0 || deform_amplitude > 0.0 || debond_gap > 0.0;
+  }
+  /// Draws the per-inclusion modifiers (random phases, planes, waves, cap axes).
+  Modifiers draw(Random& rng) const;
+};
+
+struct Family {
+  std::string name;
+  FamilyModifiers modifiers;
+  ShapeKind shape = ShapeKind::Sphere;
+  SizeLaw radius;        // sphere, cylinder
+  SizeLaw aspect_ratio;  // cylinder: a = |l| / r
+  std::array<SizeLaw, 3> semi_axes;
+  double volume_fraction = -1.0;  // < 0 when only `count` is given
+  int count = -1;                 // < 0 when only `volume_fraction` is given
+  OrientationLaw orientation;
+
+  /// Expected volume of one inclusion.
+  double mean_volume() const;
+  /// Largest bounding radius any inclusion of the family can have.
+  double max_bounding_radius() const;
+  /// Largest smallest-width of any inclusion (the least box size every inclusion passes through).
+  double max_min_width() const;
+  /// Volume of a mean-size inclusion's packing envelope over its core volume (1 unmodified).
+  double envelope_ratio() const;
+  /// One inclusion drawn from the family's laws, centred at `center`.
+  Shape draw(const Vec3& center, Random& rng) const;
+};
+
+/// Settings of the molecular-dynamics packer (see packing.hpp).
+struct MdSettings {
+  long long max_steps = 2000000;
+  double max_seconds = 600.0;
+  /// Initial pressure m (force scale / valid scale - 1) and the steps over which a stalled
+  /// valid scale halves it: more patience means slower compression and denser jamming.
+  double pressure = 0.05;
+  int patience = 100;
+};
+
+struct Scene {
+  Box box;
+  uint64_t seed = 42;
+  std::string method = "md";
+  double min_gap = 0.0;
+  std::vector<Family> families;
+  std::array<int, 3> resolution = {64, 64, 64};
+  /// Voxel image: partial volumes ("fraction") and the subsamples per axis of boundary voxels.
+  bool partial_volume = true;
+  int subsamples = 4;
+  /// Level sets: voxel size (0: smallest box size / 256) and narrow-band half width in voxels.
+  double levelset_voxel_size = 0.0;
+  double levelset_half_width = 3.0;
+  /// Surfaces: cut periodic images at the box faces.
+  bool clip_surfaces = false;
+  /// RSA: attempts per inclusion before the target is declared out of reach.
+  int rsa_max_attempts = 20000;
+  /// RSA: time budget in seconds.
+  double rsa_max_seconds = 600.0;
+  MdSettings md;
+
+  /// Expected number of inclusions of family f (its count, or volume fraction / mean volume).
+  double expected_count(int f) const;
+  /// Expected total volume fraction.
+  double expected_volume_fraction() const;
+};
+
+/// Checks every field and the cross-field constraints of a scene, however it was built (file,
+/// VTK properties, code); parse_scene runs it too. Throws InputError naming the key.
+void validate_scene(const Scene& scene);
+/// The built-in default scene.
+Scene default_scene();
+
+/// Upper bound on the volume fraction that the scene's shapes can fill: the densest known
+/// packing of the best-packing shape among the families: spheres pi/(3 sqrt 2) = 0.7405
+/// (Kepler), ellipsoids 0.7707 (Donev et al. 2004), cylinders pi/(2 sqrt 3) = 0.9069 (aligned,
+/// hexagonal). A target above it is rejected as invalid input before any work.
+double max_packable_fraction(const Scene& scene);
+
+/// The inclusions a scene asks for, drawn from its laws (deterministic in scene.seed), centres
+/// not yet placed; `shape` is each core, `mod` its modifiers (drawn from a second stream, so
+/// adding a modifier does not change the cores). A `volume_fraction` family draws inclusions until
+/// the next one would take the family's volume further from its target than stopping, so the drawn
+/// volume is the target to within half an inclusion.
+std::vector<Inclusion> draw_population(const Scene& scene, Random& rng);
+
+}  // namespace rvegen

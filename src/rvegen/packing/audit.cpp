@@ -1,0 +1,100 @@
+#include "rvegen/packing/audit.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+
+#include "rvegen/model/body.hpp"
+#include "rvegen/model/neighbours.hpp"
+
+namespace rvegen {
+
+std::vector<OverlapRecord> find_overlaps(const InclusionSet& set, size_t limit) {
+  const auto& inc = set.inclusions;
+  // Modified inclusions are tested by their envelopes, which hold everything they add.
+  std::vector<Shape> env(inc.size());
+  for (size_t i = 0; i < inc.size(); ++i) env[i] = envelope(inc[i]);
+  double rmax = 0.0;
+  for (const auto& e : env) rmax = std::max(rmax, e.bounding_radius());
+  NeighbourGrid grid(set.box, 2.0 * rmax, inc.size());
+  for (int i = 0; i < static_cast<int>(inc.size()); ++i) grid.insert(i, inc[i].shape.center);
+  std::vector<OverlapRecord> out;
+  if (limit == 0) return out;
+  for (int i = 0; i < static_cast<int>(inc.size()) && out.size() < limit; ++i) {
+    const Shape& a = env[i];
+    const double ra = a.bounding_radius();
+    std::vector<int> cand;
+    grid.for_each_candidate(a.center, [&](int j) {
+      if (j >= i) cand.push_back(j);
+    });
+    std::sort(cand.begin(), cand.end());
+    for (int j : cand) {
+      if (out.size() >= limit) break;
+      const Shape& b = env[j];
+      for_each_image(set.box, a.center, ra, b.center, b.bounding_radius(), [&](const Vec3& s) {
+        if (out.size() >= limit) return;
+        if (j == i && s.isZero()) return;
+        // An inclusion against its own image: each image pair is met twice (+s and -s).
+        if (j == i && (s[0] < 0 || (s[0] == 0 && (s[1] < 0 || (s[1] == 0 && s[2] < 0))))) {
+          return;
+        }
+        const Contact c = intersect(a, b.translated(s));
+        if (c.overlap) out.push_back({i, j, s, c});
+      });
+    }
+  }
+  return out;
+}
+
+std::vector<int> find_outside(const InclusionSet& set) {
+  std::vector<int> out;
+  if (set.box.periodic) return out;
+  const Vec3 lo_box = set.box.origin, hi_box = set.box.origin + set.box.size;
+  for (int i = 0; i < static_cast<int>(set.inclusions.size()); ++i) {
+    Vec3 lo, hi;
+    set.inclusions[i].shape.aabb(&lo, &hi);
+    const double tol = 1e-9 * set.inclusions[i].shape.min_size();
+    if ((lo.array() < lo_box.array() - tol).any() || (hi.array() > hi_box.array() + tol).any()) {
+      out.push_back(i);
+    }
+  }
+  return out;
+}
+
+AuditReport audit(const InclusionSet& set, size_t limit) {
+  const auto t0 = std::chrono::steady_clock::now();
+  AuditReport r;
+  r.overlaps = find_overlaps(set, limit);
+  r.truncated = r.overlaps.size() >= limit;
+  r.outside = find_outside(set);
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return r;
+}
+
+std::string describe_failure(const AuditReport& report, const InclusionSet& set) {
+  const auto& inc = set.inclusions;
+  std::string out;
+  char buf[200];
+  for (size_t k = 0; k < report.overlaps.size() && k < 3; ++k) {
+    const OverlapRecord& o = report.overlaps[k];
+    std::snprintf(buf, sizeof buf, "%sinclusions %d and %d overlap by %.6g (%s%s)",
+                  out.empty() ? "" : "; ", inc[o.a].id, inc[o.b].id, o.contact.depth,
+                  contact_type_name(o.contact.type), o.shift.isZero() ? "" : ", periodic image");
+    out += buf;
+  }
+  if (report.overlaps.size() > 3) {
+    out += "; " + std::to_string(report.overlaps.size() - 3) +
+           (report.truncated ? " or more" : "") + " more overlapping pairs";
+  }
+  for (size_t k = 0; k < report.outside.size() && k < 3; ++k) {
+    std::snprintf(buf, sizeof buf, "%sinclusion %d leaves the box", out.empty() ? "" : "; ",
+                  inc[report.outside[k]].id);
+    out += buf;
+  }
+  if (report.outside.size() > 3) {
+    out += "; " + std::to_string(report.outside.size() - 3) + " more outside the box";
+  }
+  return out;
+}
+
+}  // namespace rvegen

@@ -1,0 +1,58 @@
+// The exact audit of an RVE: what `rvegen check` runs, and what every packed RVE passes before
+// it is returned, shown or written.
+#pragma once
+
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "rvegen/geometry/pair.hpp"
+#include "rvegen/model/inclusion_set.hpp"
+#include "rvegen/model/neighbours.hpp"
+
+namespace rvegen {
+
+struct OverlapRecord {
+  int a = 0;  // index into inclusions
+  int b = 0;
+  Vec3 shift = Vec3::Zero();  // b is tested at its position + shift
+  Contact contact;
+};
+
+/// Every overlapping pair (each pair and image once; an inclusion against its own periodic
+/// image is reported with a == b), sorted by (a, b); the search stops after `limit` records
+/// (so a result of `limit` records means "at least that many").
+std::vector<OverlapRecord> find_overlaps(const InclusionSet& set,
+                                         size_t limit = static_cast<size_t>(-1));
+
+/// Indices of inclusions not wholly inside a non-periodic box (empty for periodic boxes).
+std::vector<int> find_outside(const InclusionSet& set);
+
+struct AuditReport {
+  /// Overlapping pairs found (at most the limit given to audit(), sorted by (a, b)).
+  std::vector<OverlapRecord> overlaps;
+  /// True when the search stopped at the limit (there may be more).
+  bool truncated = false;
+  /// Non-periodic boxes: indices of inclusions not wholly inside.
+  std::vector<int> outside;
+  double seconds = 0.0;
+  bool clean() const { return overlaps.empty() && outside.empty(); }
+};
+
+/// Every pair (and every periodic image that can reach) by the exact pair tests, through the
+/// audit's own broad phase (NeighbourGrid, not a packer's), on the envelopes of modified
+/// inclusions; and, in a non-periodic box, every inclusion against the walls. Stops collecting
+/// overlaps at `limit`.
+AuditReport audit(const InclusionSet& set, size_t limit = 10000);
+
+/// One line naming the first overlaps or inclusions outside the box of a failed audit.
+std::string describe_failure(const AuditReport& report, const InclusionSet& set);
+
+/// A packed RVE failed the exact audit: a defect of the packer, never of the input. Nothing
+/// may be written or shown as a result.
+class AuditFailure : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+}  // namespace rvegen

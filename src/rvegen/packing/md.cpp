@@ -1,0 +1,735 @@
+// Molecular-dynamics packing (the paper's section 3) with growth, in the spirit of the
+// force-biased algorithm.
+//
+// All inclusions are drawn and placed at once at random positions. Every inclusion i is
+// scaled about its centre by a common factor: s_out + pad_i for the forces (the "outer" size)
+// while the configuration is certified non-overlapping at a smaller "inner" scale s_in. Each
+// step:
+//   1. every pair that overlaps at the outer scale (exact pair test) gets a repulsive contact
+//      proportional to the overlap depth, along the test's separating normal and applied at its
+//      point of application (paper, Table 1), so cylinders and ellipsoids also turn;
+//      non-periodic boxes add the same kind of contact with each wall;
+//   2. s_in is the largest scale at which every such pair is still separated by the plane of
+//      its contact normal (support functions, exact for spheres, a certified lower bound
+//      otherwise); pairs that do not overlap at the outer scale are valid below it, since a
+//      convex body scaled down about an inner point stays inside itself. The best s_in so far
+//      and its configuration are recorded;
+//   3. bodies move in the strongly damped limit of the paper's equations of motion: each
+//      contact's impulse is the one that would just separate the pair if it acted alone (with
+//      the translational and rotational mobilities of both bodies), plus a fraction kMomentum
+//      of the previous step's motion (damping 1 - kMomentum).
+// The outer scale follows the inner one: s_out = s_in (1 + m), with the "pressure" m halved
+// whenever s_in has stalled over md.patience steps (md.pressure is its initial value). The run ends
+// when s_in >= 1 (status "ok": the inclusions have their drawn sizes), when m < kMinPressure
+// (jammed), or on the step/time budget; then the status is "target_not_reached" and the best valid
+// configuration is returned shrunk to its scale.
+//
+// min_gap: inclusion i is tested at scale s + gap / (2 min_size_i); scaled so, it contains the
+// inclusion at scale s grown by gap / 2 in every direction, so valid pairs are >= gap apart.
+//
+// Broad phase: a Verlet list of pairs (with periodic shift) whose bounding capsules, inflated
+// by a skin, intersect; it is rebuilt when some body could have moved (translation, rotation
+// times its radius, growth) by more than half the skin. It is built on a cell grid of spheres
+// strung along each capsule's axis, so long fibres do not force huge cells.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <tuple>
+
+#include "rvegen/model/body.hpp"
+#include "rvegen/model/neighbours.hpp"
+#include "rvegen/packing/contacts.hpp"
+#include "rvegen/packing/packing.hpp"
+
+namespace rvegen {
+
+namespace {
+
+constexpr double kMomentum = 0.9;    // fraction of the last step's motion kept (damping 0.1)
+constexpr double kRelaxation = 1.0;  // scale of the summed contact impulses
+constexpr double kMinPressure = 1e-6;
+constexpr double kStall = 0.1;           // m halves when the valid scale grew by less than kStall m
+constexpr double kSkin = 0.5;            // Verlet skin, in capsule radii of each body
+constexpr double kStartFraction = 0.25;  // volume fraction of the initial force scale
+constexpr double kMaxTurn = 0.2;         // radians per step
+
+enum class Turn { kNone, kFree, kAboutAxis };
+
+struct Body {
+  Shape shape;  // current centre and orientation, sizes at scale 1
+  int family = 0;
+  double pad = 0.0;       // gap / (2 min_size)
+  double volume = 0.0;    // at scale 1
+  double bound = 0.0;     // bounding radius at scale 1
+  double cap_half = 0.0;  // bounding capsule at scale 1: half length along `axis`, radius
+  double cap_radius = 0.0;
+  Turn turn = Turn::kNone;
+  Vec3 turn_axis = Vec3::UnitZ();
+};
+
+// Squared distance between segments [p1, q1] and [p2, q2] (Ericson, Real-Time Collision
+// Detection, 5.1.9).
+double segment_distance2(const Vec3& p1, const Vec3& q1, const Vec3& p2, const Vec3& q2) {
+  const Vec3 d1 = q1 - p1, d2 = q2 - p2, r = p1 - p2;
+  const double a = d1.squaredNorm(), e = d2.squaredNorm(), f = d2.dot(r);
+  double s = 0.0, t = 0.0;
+  if (a <= 1e-300 && e <= 1e-300) return r.squaredNorm();
+  if (a <= 1e-300) {
+    t = std::clamp(f / e, 0.0, 1.0);
+  } else {
+    const double c = d1.dot(r);
+    if (e <= 1e-300) {
+      s = std::clamp(-c / a, 0.0, 1.0);
+    } else {
+      const double b = d1.dot(d2), den = a * e - b * b;
+      s = den > 1e-14 * a * e ? std::clamp((b * f - c * e) / den, 0.0, 1.0) : 0.0;
+      t = (b * s + f) / e;
+      if (t < 0.0) {
+        t = 0.0;
+        s = std::clamp(-c / a, 0.0, 1.0);
+      } else if (t > 1.0) {
+        t = 1.0;
+        s = std::clamp((b - c) / a, 0.0, 1.0);
+      }
+    }
+  }
+  return (p1 + d1 * s - (p2 + d2 * t)).squaredNorm();
+}
+
+struct PairEntry {
+  int a, b;
+  Vec3 shift;  // b is taken at its centre + shift
+};
+
+class MdPacker {
+ public:
+  MdPacker(const Scene& scene, const ProgressFn& progress)
+      : scene_(scene), box_(scene.box), progress_(progress) {}
+
+  PackingResult run();
+
+ private:
+  void init_bodies();
+  double force_scale(const Body& b) const { return s_out_ + b.pad; }
+  void build_pairs();
+  bool pairs_stale() const;
+  // Contacts of the current configuration at the force scale: accumulates their motion and
+  // returns a scale at which the current configuration is valid.
+  double contacts();
+  void move();  // damped motion from the accumulated contacts
+  void wrap(Body& b) const;
+  void snapshot(double scale);
+  void report_progress(bool force);
+  // Largest scale s <= s_out at which the plane through the contact with normal n separates
+  // a (scale s + pad_a) from b (scale s + pad_b, at its centre + shift).
+  double separating_scale(const Body& a, const Body& b, const Vec3& shift, const Vec3& n) const;
+
+  BodyMobility mobility_of(const Body& b, const Shape& scaled) const;
+  struct Sub {
+    Vec3 c;
+    double r;
+    int body;
+  };
+  struct Key {
+    int a, b, kx, ky, kz;
+    bool operator<(const Key& o) const {
+      return std::tie(a, b, kx, ky, kz) < std::tie(o.a, o.b, o.kx, o.ky, o.kz);
+    }
+    bool operator==(const Key& o) const {
+      return a == o.a && b == o.b && kx == o.kx && ky == o.ky && kz == o.kz;
+    }
+  };
+  static Key make_key(int a, int b, int kx, int ky, int kz);
+  std::vector<Sub> subs_;
+  std::vector<Key> keys_;
+  std::vector<double> half_skin_;
+  void add(int i, const Vec3& move, const Vec3& turn) {
+    move_[i] += move;
+    turn_[i] += turn;
+  }
+
+  const Scene& scene_;
+  const Box& box_;
+  const ProgressFn& progress_;
+  std::vector<Body> bodies_;
+  std::vector<Vec3> move_, turn_, vel_, omega_;
+  // Verlet list and the state it was built for. Centres are wrapped into a periodic box only
+  // when the list is rebuilt, so the stored shifts stay right between rebuilds.
+  std::vector<PairEntry> pairs_;
+  std::vector<Vec3> built_center_;
+  std::vector<double> turned_since_build_;
+  double built_scale_ = -1.0;
+  long long rebuilds_ = 0;
+  // Scale control: contacts act at s_out = max(s_start, s_in (1 + m)).
+  double s_out_ = 0.0, s_start_ = 0.0, m_ = 0.0;
+  long long steps_ = 0;
+  double max_overlap_ = 0.0;  // largest relative overlap depth of the last step
+  // Best valid configuration.
+  double best_scale_ = -1.0;
+  std::vector<Vec3> best_center_;
+  std::vector<int> oriented_;  // bodies that are not spheres
+  std::vector<Shape> best_oriented_;
+  std::vector<Inclusion> pop_;  // drawn cores and modifiers
+  std::chrono::steady_clock::time_point t0_, last_progress_;
+  // The time budget holds inside a step too (a pair-list build of a crowded scene can take
+  // longer than the budget): long loops call check_time(), which throws OutOfTime.
+  struct OutOfTime {};
+  std::chrono::steady_clock::time_point deadline_;
+  void check_time() const {
+    if (std::chrono::steady_clock::now() > deadline_) throw OutOfTime{};
+  }
+};
+
+void MdPacker::init_bodies() {
+  Random rng(scene_.seed);
+  pop_ = draw_population(scene_, rng);
+  const std::vector<Inclusion>& pop = pop_;
+  bodies_.resize(pop.size());
+  double total = 0.0;
+  for (size_t i = 0; i < pop.size(); ++i) {
+    Body& b = bodies_[i];
+    b.shape = envelope(pop[i]);  // modified inclusions are packed by their envelopes
+    b.family = pop[i].family;
+    b.volume = b.shape.volume();
+    b.bound = b.shape.bounding_radius();
+    b.pad = scene_.min_gap / (2.0 * b.shape.min_size());
+    total += b.volume;
+    const OrientationLaw& law = scene_.families[b.family].orientation;
+    switch (b.shape.kind) {
+      case ShapeKind::Sphere:
+        b.cap_radius = b.shape.radius;
+        break;
+      case ShapeKind::Cylinder:
+        b.cap_half = b.shape.half_axis.norm();
+        b.cap_radius = b.shape.radius;
+        break;
+      case ShapeKind::Ellipsoid: {
+        // Capsule around the longest axis with the middle semi-axis as radius.
+        Vec3 s = b.shape.semi_axes;
+        std::sort(s.data(), s.data() + 3);
+        b.cap_half = s[2];
+        b.cap_radius = s[1];
+        break;
+      }
+    }
+    if (b.shape.kind != ShapeKind::Sphere) {
+      oriented_.push_back(static_cast<int>(i));
+      switch (law.kind) {
+        case OrientationLaw::Kind::kAligned:
+          b.turn = Turn::kNone;
+          break;
+        case OrientationLaw::Kind::kPlanar:
+          b.turn = Turn::kAboutAxis;
+          b.turn_axis = law.axis;
+          break;
+        default:
+          b.turn = Turn::kFree;
+      }
+    }
+    // Random centre: anywhere in a periodic box, inside (as far as the scale allows) otherwise.
+    for (int a = 0; a < 3; ++a) b.shape.center[a] = box_.origin[a] + box_.size[a] * rng.uniform();
+  }
+  const double vf = total / box_.volume();
+  s_start_ = std::min(1.0, std::cbrt(kStartFraction / std::max(vf, 1e-12)));
+  s_out_ = s_start_;
+  m_ = scene_.md.pressure;
+  const size_t n = bodies_.size();
+  move_.assign(n, Vec3::Zero());
+  turn_.assign(n, Vec3::Zero());
+  vel_.assign(n, Vec3::Zero());
+  omega_.assign(n, Vec3::Zero());
+}
+
+void MdPacker::wrap(Body& b) const {
+  if (!box_.periodic) return;
+  for (int a = 0; a < 3; ++a) {
+    const double t = (b.shape.center[a] - box_.origin[a]) / box_.size[a];
+    b.shape.center[a] -= std::floor(t) * box_.size[a];
+  }
+}
+
+bool MdPacker::pairs_stale() const {
+  if (built_scale_ < 0.0) return true;
+  for (size_t i = 0; i < bodies_.size(); ++i) {
+    const Body& b = bodies_[i];
+    const double d = (b.shape.center - built_center_[i]).norm();
+    const double grow = b.bound * std::max(0.0, force_scale(b) - (built_scale_ + b.pad));
+    const double r = b.bound * force_scale(b);
+    if (d + turned_since_build_[i] * r + grow > half_skin_[i]) return true;
+  }
+  return false;
+}
+
+// Canonical key of a candidate pair: a <= b, b taken at its centre + k * box (k in box sizes);
+// for a == b one of k and -k.
+MdPacker::Key MdPacker::make_key(int a, int b, int kx, int ky, int kz) {
+  if (a > b) {
+    std::swap(a, b);
+    kx = -kx;
+    ky = -ky;
+    kz = -kz;
+  }
+  if (a == b && (kx < 0 || (kx == 0 && (ky < 0 || (ky == 0 && kz < 0))))) {
+    kx = -kx;
+    ky = -ky;
+    kz = -kz;
+  }
+  return {a, b, kx, ky, kz};
+}
+
+void MdPacker::build_pairs() {
+  const size_t n = bodies_.size();
+  built_center_.resize(n);
+  half_skin_.resize(n);
+  turned_since_build_.assign(n, 0.0);
+  built_scale_ = s_out_;
+  ++rebuilds_;
+  pairs_.clear();
+  for (Body& b : bodies_) wrap(b);
+  // Strings of spheres covering each capsule inflated by the body's half skin (relative to its
+  // size, so large bodies do not force frequent rebuilds).
+  subs_.clear();
+  std::vector<Vec3> seg_p(n), seg_q(n);
+  std::vector<double> cap_r(n);
+  for (size_t i = 0; i < n; ++i) {
+    const Body& b = bodies_[i];
+    built_center_[i] = b.shape.center;
+    const double f = force_scale(b);
+    half_skin_[i] = 0.5 * kSkin * b.cap_radius * f;
+    const Vec3 e = principal_axis(b.shape) * (b.cap_half * f);
+    const double rho = b.cap_radius * f + half_skin_[i];
+    seg_p[i] = b.shape.center - e;
+    seg_q[i] = b.shape.center + e;
+    cap_r[i] = rho;
+    const int k = b.cap_half > 0.0 ? static_cast<int>(std::ceil(2.0 * e.norm() / rho)) + 1 : 1;
+    const double spacing = k > 1 ? 2.0 * e.norm() / (k - 1) : 0.0;
+    const double rs = std::sqrt(rho * rho + 0.25 * spacing * spacing);
+    for (int t = 0; t < k; ++t) {
+      const double u = k > 1 ? -1.0 + 2.0 * t / (k - 1) : 0.0;
+      subs_.push_back({b.shape.center + u * e, rs, static_cast<int>(i)});
+    }
+  }
+  // Spheres up to twice the median radius are "small" and sorted into a grid of cells at
+  // least twice that radius; larger ones are registered in every cell they can reach.
+  std::vector<double> radii(subs_.size());
+  for (size_t p = 0; p < subs_.size(); ++p) radii[p] = subs_[p].r;
+  std::nth_element(radii.begin(), radii.begin() + radii.size() / 2, radii.end());
+  double r_cut = 2.0 * radii[radii.size() / 2];
+  std::vector<int> small, large;
+  for (size_t p = 0; p < subs_.size(); ++p) {
+    (subs_[p].r <= r_cut ? small : large).push_back(static_cast<int>(p));
+  }
+  if (large.size() > 2000) {
+    // Too many large spheres for the direct large-large pass: one level for all.
+    r_cut = *std::max_element(radii.begin(), radii.end());
+    small.clear();
+    large.clear();
+    for (size_t p = 0; p < subs_.size(); ++p) small.push_back(static_cast<int>(p));
+  }
+  keys_.clear();
+  auto add_min_image = [&](const Sub& p, const Sub& q) {
+    Vec3 d = q.c - p.c;
+    int k[3] = {0, 0, 0};
+    if (box_.periodic) {
+      for (int a = 0; a < 3; ++a) {
+        k[a] = static_cast<int>(std::floor(d[a] / box_.size[a] + 0.5));
+        d[a] -= k[a] * box_.size[a];
+      }
+    }
+    const double rr = p.r + q.r;
+    if (d.squaredNorm() > rr * rr) return;
+    if (p.body == q.body && k[0] == 0 && k[1] == 0 && k[2] == 0) return;
+    keys_.push_back(make_key(p.body, q.body, -k[0], -k[1], -k[2]));
+  };
+  auto add_all_images = [&](const Sub& p, const Sub& q) {
+    for_each_image(box_, p.c, p.r, q.c, q.r, [&](const Vec3& sh) {
+      int k[3] = {0, 0, 0};
+      if (box_.periodic) {
+        for (int a = 0; a < 3; ++a) k[a] = static_cast<int>(std::floor(sh[a] / box_.size[a] + 0.5));
+      }
+      if (p.body == q.body && k[0] == 0 && k[1] == 0 && k[2] == 0) return;
+      keys_.push_back(make_key(p.body, q.body, k[0], k[1], k[2]));
+    });
+  };
+  // Cells at least twice the largest small radius; large spheres reach r_small further.
+  double r_small = 0.0;
+  for (int p : small) r_small = std::max(r_small, subs_[p].r);
+  int nc[3];
+  const double cell = 2.0 * r_small;
+  bool use_grid = true;
+  for (int a = 0; a < 3; ++a) {
+    nc[a] = std::clamp(static_cast<int>(std::floor(box_.size[a] / cell)), 1, 1 << 10);
+  }
+  const double cap = 8.0 * static_cast<double>(subs_.size()) + 64.0;
+  if (static_cast<double>(nc[0]) * nc[1] * nc[2] > cap) {
+    // More cells than spheres: coarsen (cells stay >= 2 r_cut).
+    const double f = std::cbrt(static_cast<double>(nc[0]) * nc[1] * nc[2] / cap);
+    for (int a = 0; a < 3; ++a) nc[a] = std::max(1, static_cast<int>(nc[a] / f));
+  }
+  for (int a = 0; a < 3; ++a) use_grid &= !box_.periodic || nc[a] >= 3;
+  if (!use_grid) {
+    // Small periodic boxes: every pair of spheres with every image that can touch.
+    for (size_t p = 0; p < subs_.size(); ++p) {
+      if ((p & 255) == 0) check_time();
+      for (size_t q = p; q < subs_.size(); ++q) add_all_images(subs_[p], subs_[q]);
+    }
+  } else {
+    const long long ncell = static_cast<long long>(nc[0]) * nc[1] * nc[2];
+    const long long nc01 = static_cast<long long>(nc[0]) * nc[1];
+    auto cell_index = [&](double x, int a) {
+      int i = static_cast<int>(std::floor((x - box_.origin[a]) / box_.size[a] * nc[a]));
+      if (box_.periodic) {
+        i %= nc[a];
+        if (i < 0) i += nc[a];
+      } else {
+        i = std::clamp(i, 0, nc[a] - 1);
+      }
+      return i;
+    };
+    // Counting sort of the small spheres into cells.
+    std::vector<int> start(ncell + 1, 0), cell_id(small.size()), order(small.size());
+    for (size_t t = 0; t < small.size(); ++t) {
+      const Vec3& c = subs_[small[t]].c;
+      cell_id[t] = static_cast<int>(cell_index(c[0], 0) + nc[0] * cell_index(c[1], 1) +
+                                    nc01 * cell_index(c[2], 2));
+      ++start[cell_id[t] + 1];
+    }
+    for (long long c = 0; c < ncell; ++c) start[c + 1] += start[c];
+    {
+      std::vector<int> fill(start.begin(), start.end() - 1);
+      for (size_t t = 0; t < small.size(); ++t) order[fill[cell_id[t]]++] = small[t];
+    }
+    // Every cell and its 26 neighbours. A periodic grid has at least 3 cells per axis here (so
+    // neighbours do not alias); a non-periodic one may have 1 or 2, and then the neighbours
+    // outside the grid are skipped below (once these were not visited at all: a grid of 1 or 2
+    // cells along an axis missed pairs, and overlapping configurations were declared valid).
+    for (size_t t = 0; t < small.size(); ++t) {
+      if ((t & 1023) == 0) check_time();
+      const Sub& sp = subs_[small[t]];
+      const int cx = cell_index(sp.c[0], 0), cy = cell_index(sp.c[1], 1),
+                cz = cell_index(sp.c[2], 2);
+      for (int dz = -1; dz <= 1; ++dz) {
+        for (int dy = -1; dy <= 1; ++dy) {
+          for (int dx = -1; dx <= 1; ++dx) {
+            int x = cx + dx, y = cy + dy, z = cz + dz;
+            if (box_.periodic) {
+              x = (x + nc[0]) % nc[0];
+              y = (y + nc[1]) % nc[1];
+              z = (z + nc[2]) % nc[2];
+            } else if (x < 0 || y < 0 || z < 0 || x >= nc[0] || y >= nc[1] || z >= nc[2]) {
+              continue;
+            }
+            const long long c = x + nc[0] * y + nc01 * z;
+            for (int k = start[c]; k < start[c + 1]; ++k) {
+              if (order[k] > small[t]) add_min_image(sp, subs_[order[k]]);
+            }
+          }
+        }
+      }
+    }
+    if (!large.empty()) {
+      // Large spheres: registered in every cell within their radius plus r_small, so a small
+      // sphere that touches one finds it in its own cell.
+      std::vector<std::vector<int>> reg(ncell);
+      for (int q : large) {
+        const Sub& sq = subs_[q];
+        int lo[3], hi[3];
+        for (int a = 0; a < 3; ++a) {
+          const double w = box_.size[a] / nc[a];
+          lo[a] = static_cast<int>(std::floor((sq.c[a] - sq.r - r_small - box_.origin[a]) / w));
+          hi[a] = static_cast<int>(std::floor((sq.c[a] + sq.r + r_small - box_.origin[a]) / w));
+          if (box_.periodic) {
+            if (hi[a] - lo[a] + 1 >= nc[a]) {
+              lo[a] = 0;
+              hi[a] = nc[a] - 1;
+            }
+          } else {
+            lo[a] = std::clamp(lo[a], 0, nc[a] - 1);
+            hi[a] = std::clamp(hi[a], 0, nc[a] - 1);
+          }
+        }
+        for (int z = lo[2]; z <= hi[2]; ++z) {
+          for (int y = lo[1]; y <= hi[1]; ++y) {
+            for (int x = lo[0]; x <= hi[0]; ++x) {
+              const int xx = (x % nc[0] + nc[0]) % nc[0], yy = (y % nc[1] + nc[1]) % nc[1],
+                        zz = (z % nc[2] + nc[2]) % nc[2];
+              reg[xx + nc[0] * yy + nc01 * zz].push_back(q);
+            }
+          }
+        }
+      }
+      for (size_t t = 0; t < small.size(); ++t) {
+        if ((t & 1023) == 0) check_time();
+        const Sub& sp = subs_[small[t]];
+        const long long c = cell_id[t];
+        for (int q : reg[c]) add_all_images(sp, subs_[q]);
+      }
+      for (size_t u = 0; u < large.size(); ++u) {
+        check_time();
+        for (size_t v = u; v < large.size(); ++v) add_all_images(subs_[large[u]], subs_[large[v]]);
+      }
+    }
+  }
+  check_time();
+  std::sort(keys_.begin(), keys_.end());
+  keys_.erase(std::unique(keys_.begin(), keys_.end()), keys_.end());
+  check_time();
+  pairs_.reserve(keys_.size());
+  for (const Key& k : keys_) {
+    const Vec3 shift(k.kx * box_.size[0], k.ky * box_.size[1], k.kz * box_.size[2]);
+    const double rr = cap_r[k.a] + cap_r[k.b];
+    if (segment_distance2(seg_p[k.a], seg_q[k.a], seg_p[k.b] + shift, seg_q[k.b] + shift) >
+        rr * rr) {
+      continue;
+    }
+    pairs_.push_back({k.a, k.b, shift});
+  }
+}
+
+BodyMobility MdPacker::mobility_of(const Body& b, const Shape& scaled) const {
+  switch (b.turn) {
+    case Turn::kNone:
+      return body_mobility(scaled, false, Vec3::Zero());
+    case Turn::kFree:
+      return body_mobility(scaled, true, Vec3::Zero());
+    case Turn::kAboutAxis:
+      return body_mobility(scaled, true, b.turn_axis);
+  }
+  return body_mobility(scaled, false, Vec3::Zero());
+}
+
+double MdPacker::separating_scale(const Body& a, const Body& b, const Vec3& shift,
+                                  const Vec3& n) const {
+  // Support values of the unit-scale shapes about their centres: h_s(n) = (s + pad) h_1(n).
+  const double ha = a.shape.support_value(n) - n.dot(a.shape.center);
+  const double hb = b.shape.support_value(-n) + n.dot(b.shape.center);
+  const double gap = n.dot(b.shape.center + shift - a.shape.center);
+  return (gap - a.pad * ha - b.pad * hb) / (ha + hb);
+}
+
+double MdPacker::contacts() {
+  const size_t n = bodies_.size();
+  if (pairs_stale()) build_pairs();
+  for (size_t i = 0; i < n; ++i) {
+    move_[i].setZero();
+    turn_[i].setZero();
+  }
+  double s_in = s_out_;
+  max_overlap_ = 0.0;
+  size_t visited = 0;
+  for (const PairEntry& e : pairs_) {
+    if ((++visited & 4095) == 0) check_time();
+    const Body &ba = bodies_[e.a], &bb = bodies_[e.b];
+    const double fa = force_scale(ba), fb = force_scale(bb);
+    if (ba.shape.kind == ShapeKind::Sphere && bb.shape.kind == ShapeKind::Sphere) {
+      // Sphere pairs in closed form (the same test as intersect_sphere_sphere).
+      const double ra = ba.shape.radius, rb = bb.shape.radius;
+      const Vec3 d = bb.shape.center + e.shift - ba.shape.center;
+      const double rr = fa * ra + fb * rb, d2 = d.squaredNorm();
+      if (d2 >= rr * rr) continue;
+      const double dist = std::sqrt(d2), depth = rr - dist;
+      const Vec3 nrm = dist > 0.0 ? Vec3(d / dist) : Vec3::UnitX();
+      max_overlap_ = std::max(max_overlap_, depth / std::min(fa * ra, fb * rb));
+      s_in = std::min(s_in, (dist - ba.pad * ra - bb.pad * rb) / (ra + rb));
+      const Vec3 J = (kRelaxation * depth / (1.0 / ba.volume + 1.0 / bb.volume)) * nrm;
+      move_[e.a] -= J / ba.volume;
+      move_[e.b] += J / bb.volume;
+      continue;
+    }
+    const Shape A = ba.shape.scaled(fa);
+    const Shape B = bb.shape.scaled(fb).translated(e.shift);
+    const Contact c = intersect(A, B);
+    if (!c.overlap) continue;
+    max_overlap_ = std::max(max_overlap_, c.depth / std::min(A.min_size(), B.min_size()));
+    s_in = std::min(s_in, separating_scale(ba, bb, e.shift, c.normal));
+    // An inclusion against its own periodic image (e.a == e.b) only turns: the two moves
+    // cancel.
+    const ContactResponse r = contact_response(A.center, mobility_of(ba, A), B.center,
+                                               mobility_of(bb, B), c, kRelaxation);
+    add(e.a, r.move_a, r.turn_a);
+    add(e.b, r.move_b, r.turn_b);
+  }
+  if (!box_.periodic) {
+    // Walls: contacts push the shape at the force scale back inside; the valid scale is the
+    // largest at which the (unpadded) shape is inside.
+    for (size_t i = 0; i < n; ++i) {
+      const Body& b = bodies_[i];
+      Vec3 lo, hi;
+      b.shape.scaled(1.0).translated(-b.shape.center).aabb(&lo, &hi);  // half extents: hi
+      const double f = force_scale(b);
+      for (int a = 0; a < 3; ++a) {
+        const double c = b.shape.center[a], w0 = box_.origin[a], w1 = w0 + box_.size[a];
+        s_in = std::min(s_in, std::min(c - w0, w1 - c) / hi[a]);
+        const double below = w0 - (c - f * hi[a]), above = (c + f * hi[a]) - w1;
+        for (int side = 0; side < 2; ++side) {
+          const double depth = side == 0 ? below : above;
+          if (!(depth > 0.0)) continue;
+          Vec3 nrm = Vec3::Zero();
+          nrm[a] = side == 0 ? 1.0 : -1.0;  // into the box
+          const Shape cur = b.shape.scaled(f);
+          const Vec3 p = cur.support(-nrm);
+          max_overlap_ = std::max(max_overlap_, depth / cur.min_size());
+          // The wall is an immovable body beyond the face (normal from the inclusion to it).
+          Contact c;
+          c.overlap = true;
+          c.depth = depth;
+          c.normal = -nrm;
+          c.point = p;
+          const ContactResponse r =
+              contact_response(cur.center, mobility_of(b, cur), p, BodyMobility{}, c, 1.0);
+          add(static_cast<int>(i), r.move_a, r.turn_a);
+        }
+      }
+    }
+  }
+  return std::max(0.0, s_in);
+}
+
+void MdPacker::move() {
+  for (size_t i = 0; i < bodies_.size(); ++i) {
+    Body& b = bodies_[i];
+    vel_[i] = kMomentum * vel_[i] + move_[i];
+    b.shape.center += vel_[i];
+    if (b.turn != Turn::kNone) {
+      omega_[i] = kMomentum * omega_[i] + turn_[i];
+      double ang = omega_[i].norm();
+      if (ang > kMaxTurn) {
+        omega_[i] *= kMaxTurn / ang;
+        ang = kMaxTurn;
+      }
+      if (ang > 0.0) {
+        const Mat3 R = Eigen::AngleAxisd(ang, omega_[i] / ang).toRotationMatrix();
+        if (b.shape.kind == ShapeKind::Cylinder) {
+          const double len = b.shape.half_axis.norm();
+          b.shape.half_axis = (R * b.shape.half_axis).normalized() * len;
+        } else {
+          const Mat3 Q = R * b.shape.rotation;
+          // Re-orthonormalise (Gram-Schmidt) so rounding does not accumulate.
+          const Vec3 c0 = Q.col(0).normalized();
+          const Vec3 c1 = (Q.col(1) - c0.dot(Q.col(1)) * c0).normalized();
+          b.shape.rotation.col(0) = c0;
+          b.shape.rotation.col(1) = c1;
+          b.shape.rotation.col(2) = c0.cross(c1);
+        }
+        turned_since_build_[i] += ang;
+      }
+    }
+  }
+}
+
+void MdPacker::snapshot(double scale) {
+  // Centres of all bodies, orientations of the others (spheres have none worth keeping).
+  best_scale_ = scale;
+  best_center_.resize(bodies_.size());
+  for (size_t i = 0; i < bodies_.size(); ++i) best_center_[i] = bodies_[i].shape.center;
+  best_oriented_.resize(oriented_.size());
+  for (size_t k = 0; k < oriented_.size(); ++k) best_oriented_[k] = bodies_[oriented_[k]].shape;
+}
+
+void MdPacker::report_progress(bool force) {
+  if (!progress_) return;
+  const auto now = std::chrono::steady_clock::now();
+  if (!force && std::chrono::duration<double>(now - last_progress_).count() < 1.0) return;
+  last_progress_ = now;
+  double vol = 0.0;
+  for (const Body& b : bodies_) vol += b.volume;
+  char buf[200];
+  std::snprintf(buf, sizeof buf,
+                "md: step %lld, volume fraction %.4f valid / %.4f target, largest overlap %.2e, "
+                "pressure %.1e, %zu pairs, %lld rebuilds",
+                steps_, vol * std::pow(std::clamp(best_scale_, 0.0, 1.0), 3) / box_.volume(),
+                vol / box_.volume(), max_overlap_, m_, pairs_.size(), rebuilds_);
+  progress_(buf);
+}
+
+PackingResult MdPacker::run() {
+  t0_ = last_progress_ = std::chrono::steady_clock::now();
+  deadline_ = t0_ + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                        std::chrono::duration<double>(scene_.md.max_seconds));
+  init_bodies();
+  PackingResult res;
+  res.method = "md";
+  res.set.box = box_;
+  const int nf = static_cast<int>(scene_.families.size());
+  res.target_count.assign(nf, 0);
+  res.target_volume_fraction.assign(nf, 0.0);
+  for (const Inclusion& inc : pop_) {
+    ++res.target_count[inc.family];
+    res.target_volume_fraction[inc.family] += inc.shape.volume() / box_.volume();
+  }
+  std::string why = "target reached";
+  if (bodies_.empty()) best_scale_ = 1.0;
+  double mark = 0.0;  // best scale at the last pressure check
+  while (!bodies_.empty()) {
+    double s_in = 0.0;
+    try {
+      s_in = contacts();
+    } catch (const OutOfTime&) {
+      why = "time budget";
+      break;
+    }
+    if (s_in > best_scale_) snapshot(s_in);
+    if (best_scale_ >= 1.0) break;
+    move();
+    ++steps_;
+    if (steps_ % scene_.md.patience == 0) {
+      // Pressure control: halve m when the valid scale has stalled.
+      if (best_scale_ < mark * (1.0 + kStall * m_)) {
+        m_ *= 0.5;
+        // Stalled: the starting scale may itself be jammed (long fibres), so the outer scale
+        // may now drop below it.
+        s_start_ = 0.0;
+      }
+      mark = best_scale_;
+      if (m_ < kMinPressure) {
+        why = "jammed";
+        break;
+      }
+    }
+    s_out_ = std::max(s_start_, s_in * (1.0 + m_));
+    if (steps_ >= scene_.md.max_steps) {
+      why = "step budget";
+      break;
+    }
+    if ((steps_ & 15) == 0) {
+      const double t =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0_).count();
+      if (t > scene_.md.max_seconds) {
+        why = "time budget";
+        break;
+      }
+      report_progress(false);
+    }
+  }
+  res.status = best_scale_ >= 1.0 ? "ok" : "target_not_reached";
+  // Out of time before any valid configuration: nothing is placed (best_center_ is empty).
+  res.scale = std::clamp(best_scale_, 0.0, 1.0);
+  res.steps = steps_;
+  res.stop_reason = why;
+  res.placed_count.assign(nf, 0);
+  if (best_oriented_.size() == oriented_.size()) {
+    for (size_t k = 0; k < oriented_.size(); ++k) bodies_[oriented_[k]].shape = best_oriented_[k];
+  }
+  for (size_t i = 0; i < best_center_.size(); ++i) {
+    Body b = bodies_[i];
+    b.shape.center = best_center_[i];
+    wrap(b);
+    Inclusion inc = place_like(pop_[i], b.shape, res.scale);
+    inc.id = static_cast<int>(res.set.inclusions.size());
+    res.set.inclusions.push_back(inc);
+    ++res.placed_count[inc.family];
+  }
+  res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0_).count();
+  report_progress(true);
+  return res;
+}
+
+}  // namespace
+
+PackingResult pack_md(const Scene& scene, const ProgressFn& progress) {
+  MdPacker packer(scene, progress);
+  return packer.run();
+}
+
+}  // namespace rvegen

@@ -1,0 +1,53 @@
+// Packing engines: turn a validated Scene into an InclusionSet with no overlapping pair.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "rvegen/model/scene.hpp"
+
+namespace rvegen {
+
+struct PackingResult {
+  InclusionSet set;
+  /// "ok" or "target_not_reached" (the best non-overlapping configuration is still in `set`).
+  std::string status = "ok";
+  std::string method;
+  /// Why the run ended ("target reached", "jammed", "step budget", "time budget", ...).
+  std::string stop_reason;
+  std::vector<int> target_count;               // per family
+  std::vector<int> placed_count;               // per family
+  std::vector<double> target_volume_fraction;  // per family, of the drawn population
+  double seconds = 0.0;
+  /// Seconds of the exact audit that generate() runs on the result.
+  double audit_seconds = 0.0;
+  long long attempts = 0;  // rsa: placement attempts
+  long long steps = 0;     // md: integration steps
+  /// md: size scale of the returned inclusions relative to the drawn ones (1 when reached;
+  /// below 1 the best valid configuration is returned shrunk about the centres).
+  double scale = 1.0;
+};
+
+/// Progress callback: receives one human-readable line at a time.
+using ProgressFn = std::function<void(const std::string&)>;
+
+/// Random sequential adsorption: the population is drawn (draw_population), then inclusions are
+/// placed one at a time (largest first) at uniform random positions and kept when clear of every
+/// placed one (and their periodic images) by scene.min_gap. Each inclusion gets at most
+/// scene.rsa_max_attempts draws; when one fails the run stops with status "target_not_reached".
+PackingResult pack_rsa(const Scene& scene, const ProgressFn& progress = nullptr);
+
+/// Molecular-dynamics packing with growth (see md.cpp for the scheme). Never overlapping by
+/// the exact tests; bounded by scene.md (steps, seconds); status "target_not_reached" with the
+/// best valid configuration (shrunk by `scale`) when jammed or out of budget.
+PackingResult pack_md(const Scene& scene, const ProgressFn& progress = nullptr);
+
+/// Runs the scene's method, then the exact audit (audit.hpp) of the result. Throws AuditFailure
+/// when the audit finds an overlap (or, in a non-periodic box, an inclusion leaving it): no
+/// overlapping RVE is ever returned, whatever the status. `before_audit` is a test hook that may
+/// alter the packed set before the audit (fault injection).
+PackingResult generate(const Scene& scene, const ProgressFn& progress = nullptr,
+                       const std::function<void(InclusionSet&)>& before_audit = nullptr);
+
+}  // namespace rvegen

@@ -309,7 +309,49 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
 
 void vtkRVEGenerator::PrintSelf(ostream& os, vtkIndent indent) {
   this->Superclass::PrintSelf(os, indent);
-  os << indent << "Seed: " << this->Seed << "\n";
+  auto v3 = [&](const char* name, const auto* v) {
+    os << indent << name << ": " << v[0] << " " << v[1] << " " << v[2] << "\n";
+  };
   os << indent << "SceneFile: " << (this->SceneFile ? this->SceneFile : "(none)") << "\n";
+  os << indent << "Seed: " << this->Seed << "\n";
+  os << indent << "Method: " << (this->Method == 1 ? "rsa" : "md") << "\n";
+  v3("BoxSize", this->BoxSize);
+  os << indent << "Periodic: " << this->Periodic << "\n";
+  os << indent << "MinGap: " << this->MinGap << "\n";
+  os << indent << "SphereRadius: " << this->SphereRadius << "\n";
+  os << indent << "SphereRadiusStd: " << this->SphereRadiusStd << "\n";
+  os << indent << "SphereVolumeFraction: " << this->SphereVolumeFraction << "\n";
+  os << indent << "SphereCount: " << this->SphereCount << "\n";
+  os << indent << "SphereCoating: " << this->SphereCoating << "\n";
+  os << indent << "SphereDeformation: " << this->SphereDeformation << "\n";
+  os << indent << "SphereDebondFraction: " << this->SphereDebondFraction << "\n";
+  os << indent << "SphereDebondGap: " << this->SphereDebondGap << "\n";
+  os << indent << "FibreRadius: " << this->FibreRadius << "\n";
+  os << indent << "FibreRadiusStd: " << this->FibreRadiusStd << "\n";
+  os << indent << "FibreAspectRatio: " << this->FibreAspectRatio << "\n";
+  os << indent << "FibreVolumeFraction: " << this->FibreVolumeFraction << "\n";
+  os << indent << "FibreCount: " << this->FibreCount << "\n";
+  os << indent << "FibreOrientation: " << this->FibreOrientation << "\n";
+  v3("FibreAxis", this->FibreAxis);
+  os << indent << "FibreKappa: " << this->FibreKappa << "\n";
+  os << indent << "FibreCoating: " << this->FibreCoating << "\n";
+  os << indent << "FibreWaveAmplitude: " << this->FibreWaveAmplitude << "\n";
+  os << indent << "FibreWavelength: " << this->FibreWavelength << "\n";
+  v3("EllipsoidSemiAxes", this->EllipsoidSemiAxes);
+  os << indent << "EllipsoidVolumeFraction: " << this->EllipsoidVolumeFraction << "\n";
+  os << indent << "EllipsoidCount: " << this->EllipsoidCount << "\n";
+  os << indent << "EllipsoidOrientation: " << this->EllipsoidOrientation << "\n";
+  v3("EllipsoidAxis", this->EllipsoidAxis);
+  os << indent << "EllipsoidKappa: " << this->EllipsoidKappa << "\n";
+  os << indent << "EllipsoidCoating: " << this->EllipsoidCoating << "\n";
+  os << indent << "EllipsoidDeformation: " << this->EllipsoidDeformation << "\n";
+  os << indent << "ShellsMayTouch: " << this->ShellsMayTouch << "\n";
+  os << indent << "DeformationSmoothness: " << this->DeformationSmoothness << "\n";
+  v3("Resolution", this->Resolution);
+  os << indent << "PartialVolume: " << this->PartialVolume << "\n";
+  os << indent << "ClipSurfaces: " << this->ClipSurfaces << "\n";
+  os << indent << "LevelSetVoxelSize: " << this->LevelSetVoxelSize << "\n";
+  os << indent << "Threads: " << this->Threads << "\n";
+  v3("PortExecutions", this->PortExecutions);
   os << indent << "Status: " << this->Status << "\n";
 }

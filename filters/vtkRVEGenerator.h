@@ -63,7 +63,7 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   /// Orientation laws: 0 isotropic, 1 aligned (axis), 2 von Mises-Fisher (axis, kappa), 3 planar
   /// (axis = the plane normal). Modifiers: see the scene file's "coating", "waviness",
   /// "deformation", "debonding" (0 leaves a modifier out).
-  vtkSetMacro(Method, int);
+  vtkSetClampMacro(Method, int, 0, 1);
   vtkGetMacro(Method, int);
   vtkSetMacro(SphereRadiusStd, double);
   vtkGetMacro(SphereRadiusStd, double);
@@ -75,11 +75,11 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   vtkGetMacro(FibreCount, int);
   vtkSetMacro(EllipsoidCount, int);
   vtkGetMacro(EllipsoidCount, int);
-  vtkSetMacro(FibreOrientation, int);
+  vtkSetClampMacro(FibreOrientation, int, 0, 3);
   vtkGetMacro(FibreOrientation, int);
   vtkSetMacro(FibreKappa, double);
   vtkGetMacro(FibreKappa, double);
-  vtkSetMacro(EllipsoidOrientation, int);
+  vtkSetClampMacro(EllipsoidOrientation, int, 0, 3);
   vtkGetMacro(EllipsoidOrientation, int);
   vtkSetMacro(EllipsoidKappa, double);
   vtkGetMacro(EllipsoidKappa, double);

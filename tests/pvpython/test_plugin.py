@@ -176,6 +176,21 @@ props.UpdatePropertyInformation()
 check(props.GetProperty("Status").GetElement(0) == "invalid", "coating + deformation accepted")
 Delete(props)
 
+# Enumerated properties are clamped, and PrintSelf prints every property of the panel (the
+# module is not Python-wrapped: str() of the server object calls its PrintSelf).
+source = gen.GetClientSideObject()
+gen.GetProperty("Method").SetElement(0, 7)
+gen.GetProperty("FibreOrientation").SetElement(0, -2)
+gen.UpdateVTKObjects()
+printed = str(source)
+check("Method: rsa" in printed, "Method 7 not clamped to 1 (rsa)")
+check("FibreOrientation: 0" in printed, "FibreOrientation -2 not clamped to 0")
+missing = [n for n in gen.ListProperties() if n + ":" not in printed]
+check(not missing, "PrintSelf leaves out %s" % missing)
+gen.Method = 0
+gen.FibreOrientation = 0
+gen.UpdateVTKObjects()
+
 # A scene file overrides the properties.
 scene_path = os.path.join(tempfile.mkdtemp(), "scene.json")
 with open(scene_path, "w") as f:

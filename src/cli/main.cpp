@@ -232,6 +232,10 @@ int cmd_generate(const std::vector<std::string>& args) {
   } catch (const rvegen::AuditFailure& e) {
     std::cerr << "rvegen: " << e.what() << "; nothing was written\n";
     return kExitAudit;
+  } catch (const rvegen::InputError& e) {
+    // Found during the work (an unlucky draw past the inclusion limit, say).
+    std::cerr << "rvegen: invalid scene: " << e.what() << "; nothing was written\n";
+    return kExitInvalid;
   } catch (const rvegen::OutputError& e) {
     std::cerr << "rvegen: " << e.what() << "; " << out_dir << " is unchanged\n";
     return kExitOutput;

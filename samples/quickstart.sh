@@ -10,5 +10,10 @@ cmake --build build -j"$(nproc)"
 cmake --install build >/dev/null
 ./install/bin/rvegen generate -o out/default
 ./install/bin/rvegen check out/default/inclusions.json
-xvfb-run -a -s "-screen 0 1280x1024x24" pvpython --force-offscreen-rendering \
-  samples/render_rve.py out/default out/default/rve.png
+# The picture (one more try if the X server connection fails, as it has been seen to under load).
+for attempt in 1 2; do
+  xvfb-run -a -s "-screen 0 1280x1024x24" pvpython --force-offscreen-rendering \
+    samples/render_rve.py out/default out/default/rve.png && break
+  [ "$attempt" -eq 2 ] && exit 1
+  echo "quickstart: rendering failed; trying once more" >&2
+done

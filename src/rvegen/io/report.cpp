@@ -71,6 +71,12 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
       OJson rows = OJson::array();
       for (int k = 0; k < 3; ++k) rows.push_back({a(k, 0), a(k, 1), a(k, 2)});
       j["orientation_tensor"] = rows;
+      // The law's tensor next to it, and the largest difference of a component.
+      const Mat3 t = fam.orientation.tensor();
+      OJson trows = OJson::array();
+      for (int k = 0; k < 3; ++k) trows.push_back({t(k, 0), t(k, 1), t(k, 2)});
+      j["target_orientation_tensor"] = trows;
+      if (r.placed_count[f] > 0) j["orientation_tensor_error"] = (a - t).cwiseAbs().maxCoeff();
     } else {
       // g(r) of the centres over five mean diameters (at most half the box).
       double mean_d = 0.0;

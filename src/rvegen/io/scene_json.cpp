@@ -33,9 +33,22 @@ OrientationLaw parse_orientation(const Json& j, const std::string& p) {
     only_keys(j, {"law", "normal"}, p);
     law.kind = OrientationLaw::Kind::kPlanar;
     law.axis = unit("normal");
+  } else if (name == "tensor") {
+    only_keys(j, {"law", "a2"}, p);
+    law.kind = OrientationLaw::Kind::kTensor;
+    const std::string q = p + ".a2";
+    const Json& a = require(j, "a2", p);
+    if (!a.is_array() || a.size() != 3) fail(q, "expected a 3 x 3 array [[a11,a12,a13],...]");
+    for (int r = 0; r < 3; ++r) {
+      const std::string qr = q + "[" + std::to_string(r) + "]";
+      if (!a[r].is_array() || a[r].size() != 3) fail(qr, "expected a row of 3 numbers");
+      for (int c = 0; c < 3; ++c) {
+        law.a2(r, c) = number(a[r][c], qr + "[" + std::to_string(c) + "]");
+      }
+    }
   } else {
-    fail(p + ".law",
-         "unknown orientation law \"" + name + "\" (isotropic, aligned, von_mises_fisher, planar)");
+    fail(p + ".law", "unknown orientation law \"" + name +
+                         "\" (isotropic, aligned, von_mises_fisher, planar, tensor)");
   }
   return law;
 }
@@ -62,8 +75,13 @@ SizeLaw parse_size(const Json& j, const std::string& p) {
     law.p2 = number(require(j, "std", p), p + ".std");
     if (!(law.p2 >= 0.0)) fail(p + ".std", "must be >= 0");
     if (law.p2 > 10.0 * law.p1) fail(p + ".std", "must be at most 10 x mean");
+  } else if (name == "weibull") {
+    only_keys(j, {"law", "shape", "scale"}, p);
+    law.kind = SizeLaw::Kind::kWeibull;
+    law.p1 = positive(require(j, "shape", p), p + ".shape");
+    law.p2 = positive(require(j, "scale", p), p + ".scale");
   } else {
-    fail(p + ".law", "unknown size law \"" + name + "\" (uniform, normal, lognormal)");
+    fail(p + ".law", "unknown size law \"" + name + "\" (uniform, normal, lognormal, weibull)");
   }
   return law;
 }
@@ -220,7 +238,19 @@ Scene parse_scene(const std::string& text) {
   }
   if (root.contains("md")) {
     const Json& m = root["md"];
-    only_keys(m, {"max_steps", "max_seconds", "pressure", "patience"}, "md");
+    only_keys(m, {"max_steps", "max_seconds", "pressure", "patience", "rotation"}, "md");
+    if (m.contains("rotation")) {
+      const std::string r = string(m["rotation"], "md.rotation");
+      if (r == "keep_tensor") {
+        s.md.rotation = MdSettings::Rotation::kKeepTensor;
+      } else if (r == "fixed") {
+        s.md.rotation = MdSettings::Rotation::kFixed;
+      } else if (r == "free") {
+        s.md.rotation = MdSettings::Rotation::kFree;
+      } else {
+        fail("md.rotation", "unknown rotation mode \"" + r + "\" (keep_tensor, fixed, free)");
+      }
+    }
     if (m.contains("pressure")) {
       s.md.pressure = positive(m["pressure"], "md.pressure");
       if (s.md.pressure > 1.0) fail("md.pressure", "must be in (0, 1]");
@@ -313,6 +343,8 @@ nlohmann::ordered_json size_json(const SizeLaw& l) {
       return {{"law", "normal"}, {"mean", l.p1}, {"std", l.p2}};
     case SizeLaw::Kind::kLognormal:
       return {{"law", "lognormal"}, {"mean", l.p1}, {"std", l.p2}};
+    case SizeLaw::Kind::kWeibull:
+      return {{"law", "weibull"}, {"shape", l.p1}, {"scale", l.p2}};
   }
   return l.p1;
 }
@@ -331,6 +363,9 @@ std::string scene_to_json(const Scene& s) {
                 {"max_seconds", s.md.max_seconds},
                 {"pressure", s.md.pressure},
                 {"patience", s.md.patience}};
+  if (s.md.rotation != MdSettings::Rotation::kKeepTensor) {
+    root["md"]["rotation"] = s.md.rotation == MdSettings::Rotation::kFixed ? "fixed" : "free";
+  }
   root["rsa"] = {{"max_attempts", s.rsa_max_attempts}, {"max_seconds", s.rsa_max_seconds}};
   OJson fams = OJson::array();
   for (const auto& f : s.families) {
@@ -365,6 +400,12 @@ std::string scene_to_json(const Scene& s) {
         case OrientationLaw::Kind::kPlanar:
           j["orientation"] = {{"law", "planar"}, {"normal", v3(o.axis)}};
           break;
+        case OrientationLaw::Kind::kTensor: {
+          OJson rows = OJson::array();
+          for (int r = 0; r < 3; ++r) rows.push_back({o.a2(r, 0), o.a2(r, 1), o.a2(r, 2)});
+          j["orientation"] = {{"law", "tensor"}, {"a2", rows}};
+          break;
+        }
       }
     }
     const FamilyModifiers& m = f.modifiers;

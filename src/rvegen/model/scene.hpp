@@ -12,15 +12,18 @@
 
 namespace rvegen {
 
+struct AcgLaw;
+
 /// Distribution of one size (radius, aspect ratio, semi-axis).
 /// normal and lognormal take the mean and standard deviation of the size itself and are
 /// truncated to [max(lo, tiny), hi] with lo/hi at mean -/+ 6 std (normal) or exp(mu -/+ 6 sigma)
-/// (lognormal): draws outside are redrawn, so sizes are always positive and bounded.
+/// (lognormal): draws outside are redrawn, so sizes are always positive and bounded. weibull
+/// (shape k, scale lambda) is truncated to its quantiles 1e-9 and 1 - 1e-9.
 struct SizeLaw {
-  enum class Kind { kFixed, kUniform, kNormal, kLognormal };
+  enum class Kind { kFixed, kUniform, kNormal, kLognormal, kWeibull };
   Kind kind = Kind::kFixed;
-  double p1 = 0.0;  // fixed: value; uniform: min; normal, lognormal: mean
-  double p2 = 0.0;  // uniform: max; normal, lognormal: std
+  double p1 = 0.0;  // fixed: value; uniform: min; normal, lognormal: mean; weibull: shape k
+  double p2 = 0.0;  // uniform: max; normal, lognormal: std; weibull: scale lambda
 
   SizeLaw() = default;
   SizeLaw(double value) : p1(value) {}  // NOLINT(google-explicit-constructor): a fixed size
@@ -34,13 +37,20 @@ struct SizeLaw {
   double mean() const { return moment(1); }
 };
 
+/// Law of the directions of a family's axes (cylinder axis, ellipsoid first semi-axis).
+/// `tensor` draws from the angular central Gaussian (ACG) whose second-order orientation tensor
+/// is `a2`: p = x / |x| with x ~ N(0, B), B fitted to a2 (see orientation.hpp).
 struct OrientationLaw {
-  enum class Kind { kIsotropic, kAligned, kVonMisesFisher, kPlanar };
+  enum class Kind { kIsotropic, kAligned, kVonMisesFisher, kPlanar, kTensor };
   Kind kind = Kind::kIsotropic;
-  Vec3 axis = Vec3::UnitZ();  // unit: aligned and von Mises-Fisher axis, planar normal
-  double kappa = 0.0;         // von Mises-Fisher concentration
-  /// A unit direction drawn from the law.
+  Vec3 axis = Vec3::UnitZ();         // unit: aligned and von Mises-Fisher axis, planar normal
+  double kappa = 0.0;                // von Mises-Fisher concentration
+  Mat3 a2 = Mat3::Identity() / 3.0;  // tensor: the target <p p^T>
+  /// A unit direction drawn from the law (the tensor law fits its ACG on every call: draw many
+  /// through an AcgSampler instead).
   Vec3 sample(Random& rng) const;
+  /// The law's second-order orientation tensor <p p^T> (exact).
+  Mat3 tensor() const;
 };
 
 /// Modifiers of a family (all zero: plain inclusions). See body.hpp for the geometry.
@@ -76,8 +86,9 @@ struct Family {
   double max_min_width() const;
   /// Volume of a mean-size inclusion's packing envelope over its core volume (1 unmodified).
   double envelope_ratio() const;
-  /// One inclusion drawn from the family's laws, centred at `center`.
-  Shape draw(const Vec3& center, Random& rng) const;
+  /// One inclusion drawn from the family's laws, centred at `center` (`acg`: the tensor law's
+  /// fitted ACG, so it is not fitted again for every draw).
+  Shape draw(const Vec3& center, Random& rng, const AcgLaw* acg = nullptr) const;
 };
 
 /// Settings of the molecular-dynamics packer (see packing.hpp).
@@ -88,6 +99,14 @@ struct MdSettings {
   /// valid scale halves it: more patience means slower compression and denser jamming.
   double pressure = 0.05;
   int patience = 100;
+  /// How contact torques may turn inclusions with an axis (JSON md.rotation):
+  ///  kKeepTensor ("keep_tensor", default): they turn (never out of a plane or line the law
+  ///    confines them to), and after every step one linear map of all the family's axes restores
+  ///    the law's orientation tensor A2, so every configuration the packer keeps has A2 exactly;
+  ///  kFixed ("fixed"): every inclusion keeps its drawn orientation (translation only);
+  ///  kFree ("free"): the paper's free turning; A2 drifts (the report gives the obtained one).
+  enum class Rotation { kKeepTensor, kFixed, kFree };
+  Rotation rotation = Rotation::kKeepTensor;
 };
 
 struct Scene {
@@ -133,7 +152,8 @@ double max_packable_fraction(const Scene& scene);
 /// not yet placed; `shape` is each core, `mod` its modifiers (drawn from a second stream, so
 /// adding a modifier does not change the cores). A `volume_fraction` family draws inclusions until
 /// the next one would take the family's volume further from its target than stopping, so the drawn
-/// volume is the target to within half an inclusion.
+/// volume is the target to within half an inclusion. The axes of each oriented family are then
+/// corrected (match_orientation_tensor) so their <p p^T> is the law's tensor() exactly.
 std::vector<Inclusion> draw_population(const Scene& scene, Random& rng);
 
 }  // namespace rvegen

@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "rvegen/model/neighbours.hpp"
+#include "rvegen/model/orientation.hpp"
 
 namespace rvegen {
 
@@ -13,7 +14,7 @@ Mat3 orientation_tensor(const InclusionSet& set, int family) {
   int n = 0;
   for (const auto& inc : set.inclusions) {
     if (inc.family != family || inc.shape.kind == ShapeKind::Sphere) continue;
-    const Vec3 u = principal_axis(inc.shape);
+    const Vec3 u = law_axis(inc.shape);
     a += u * u.transpose();
     ++n;
   }

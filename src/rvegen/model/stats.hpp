@@ -7,7 +7,8 @@
 
 namespace rvegen {
 
-/// Second-order orientation tensor <u u^T> over the inclusions of `family` that have an axis
+/// Second-order orientation tensor <u u^T> of the axes the orientation laws govern (law_axis:
+/// cylinder axis, ellipsoid first semi-axis) over the inclusions of `family` that have one
 /// (trace 1; I/3 for isotropic, e e^T for aligned along e). Zero when there are none.
 Mat3 orientation_tensor(const InclusionSet& set, int family);
 

@@ -31,14 +31,17 @@
 // by a skin, intersect; it is rebuilt when some body could have moved (translation, rotation
 // times its radius, growth) by more than half the skin. It is built on a cell grid of spheres
 // strung along each capsule's axis, so long fibres do not force huge cells.
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <tuple>
 
 #include "rvegen/model/body.hpp"
 #include "rvegen/model/neighbours.hpp"
+#include "rvegen/model/orientation.hpp"
 #include "rvegen/packing/contacts.hpp"
 #include "rvegen/packing/packing.hpp"
 
@@ -118,6 +121,10 @@ class MdPacker {
   // returns a scale at which the current configuration is valid.
   double contacts();
   void move();  // damped motion from the accumulated contacts
+  // md.rotation keep_tensor: one linear map per family restores the law's A2 after turning.
+  void hold_tensors();
+  Turn turn_mode(const OrientationLaw& law, Vec3* axis) const;
+  std::map<int, std::vector<int>> held_;  // family -> bodies that turn
   void wrap(Body& b) const;
   void snapshot(double scale);
   void report_progress(bool force);
@@ -215,16 +222,9 @@ void MdPacker::init_bodies() {
     }
     if (b.shape.kind != ShapeKind::Sphere) {
       oriented_.push_back(static_cast<int>(i));
-      switch (law.kind) {
-        case OrientationLaw::Kind::kAligned:
-          b.turn = Turn::kNone;
-          break;
-        case OrientationLaw::Kind::kPlanar:
-          b.turn = Turn::kAboutAxis;
-          b.turn_axis = law.axis;
-          break;
-        default:
-          b.turn = Turn::kFree;
+      b.turn = turn_mode(law, &b.turn_axis);
+      if (b.turn != Turn::kNone && scene_.md.rotation == MdSettings::Rotation::kKeepTensor) {
+        held_[b.family].push_back(static_cast<int>(i));
       }
     }
     // Random centre: anywhere in a periodic box, inside (as far as the scale allows) otherwise.
@@ -239,6 +239,47 @@ void MdPacker::init_bodies() {
   turn_.assign(n, Vec3::Zero());
   vel_.assign(n, Vec3::Zero());
   omega_.assign(n, Vec3::Zero());
+}
+
+// How bodies of a family with law `law` may turn under md.rotation.
+Turn MdPacker::turn_mode(const OrientationLaw& law, Vec3* axis) const {
+  switch (scene_.md.rotation) {
+    case MdSettings::Rotation::kFixed:
+      return Turn::kNone;
+    case MdSettings::Rotation::kFree:
+      if (law.kind == OrientationLaw::Kind::kAligned) return Turn::kNone;
+      if (law.kind == OrientationLaw::Kind::kPlanar) {
+        *axis = law.axis;
+        return Turn::kAboutAxis;
+      }
+      return Turn::kFree;
+    case MdSettings::Rotation::kKeepTensor:
+      break;
+  }
+  // Directions the law never takes (eigenvalue 0 of its tensor) stay out of reach: turning is
+  // free, about the one null direction (planar), or none (aligned).
+  const Eigen::SelfAdjointEigenSolver<Mat3> es(law.tensor());
+  int zeros = 0;
+  for (int k = 0; k < 3; ++k) zeros += es.eigenvalues()[k] <= 1e-12 ? 1 : 0;
+  if (zeros >= 2) return Turn::kNone;
+  if (zeros == 1) {
+    *axis = es.eigenvectors().col(0);
+    return Turn::kAboutAxis;
+  }
+  return Turn::kFree;
+}
+
+void MdPacker::hold_tensors() {
+  for (const auto& [family, members] : held_) {
+    std::vector<Vec3> dirs(members.size());
+    for (size_t k = 0; k < members.size(); ++k) dirs[k] = law_axis(bodies_[members[k]].shape);
+    if (!match_orientation_tensor(&dirs, scene_.families[family].orientation.tensor(), 1e-10)) {
+      continue;
+    }
+    for (size_t k = 0; k < members.size(); ++k) {
+      turned_since_build_[members[k]] += set_law_axis(&bodies_[members[k]].shape, dirs[k]);
+    }
+  }
 }
 
 void MdPacker::wrap(Body& b) const {
@@ -537,6 +578,17 @@ double MdPacker::contacts() {
       move_[e.b] += J / bb.volume;
       continue;
     }
+    {
+      // Bounding capsules first: most listed pairs of long bodies are apart.
+      const Vec3 ea = principal_axis(ba.shape) * (ba.cap_half * fa);
+      const Vec3 eb = principal_axis(bb.shape) * (bb.cap_half * fb);
+      const Vec3 cb = bb.shape.center + e.shift;
+      const double rr = ba.cap_radius * fa + bb.cap_radius * fb;
+      if (segment_distance2(ba.shape.center - ea, ba.shape.center + ea, cb - eb, cb + eb) >=
+          rr * rr) {
+        continue;
+      }
+    }
     const Shape A = ba.shape.scaled(fa);
     const Shape B = bb.shape.scaled(fb).translated(e.shift);
     const Contact c = intersect(A, B);
@@ -616,6 +668,7 @@ void MdPacker::move() {
       }
     }
   }
+  hold_tensors();
 }
 
 void MdPacker::snapshot(double scale) {

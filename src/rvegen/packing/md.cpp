@@ -68,6 +68,12 @@ struct Body {
   double bound = 0.0;     // bounding radius at scale 1
   double cap_half = 0.0;  // bounding capsule at scale 1: half length along `axis`, radius
   double cap_radius = 0.0;
+  // Aligned fibres (plain cylinders at least twice as long as wide that never turn) grow in
+  // radius only, at full length: growing in length, they would butt end to end in columns that
+  // wrap around a periodic box and jam at any density. Their force shape is radius
+  // s r + half_gap and half length h + half_gap, and `pad` is 0.
+  bool radial = false;
+  double half_gap = 0.0;
   Turn turn = Turn::kNone;
   Vec3 turn_axis = Vec3::UnitZ();
 };
@@ -116,6 +122,17 @@ class MdPacker {
  private:
   void init_bodies();
   double force_scale(const Body& b) const { return s_out_ + b.pad; }
+  // The shape a body is tested with at growth s (at its current centre and orientation).
+  static Shape at_scale(const Body& b, double s);
+  // Its bounding capsule at growth s: half length and radius.
+  static double cap_half_at(const Body& b, double s) {
+    return b.radial ? b.cap_half + b.half_gap : b.cap_half * (s + b.pad);
+  }
+  static double cap_radius_at(const Body& b, double s) {
+    return b.radial ? b.cap_radius * s + b.half_gap : b.cap_radius * (s + b.pad);
+  }
+  // Support value of the body at growth s along unit n, about its centre: alpha + s beta.
+  static void support_line(const Body& b, const Vec3& n, double* alpha, double* beta);
   void build_pairs();
   bool pairs_stale() const;
   // Contacts of the current configuration at the force scale: accumulates their motion and
@@ -163,6 +180,9 @@ class MdPacker {
   std::vector<Body> bodies_;
   std::vector<Vec3> move_, turn_, vel_, omega_;
   std::vector<Vec3> axis_;  // principal axis of every body this step
+  // Steps over which a stalled valid scale halves the pressure: md.patience, times the mean
+  // elongation / 6.7 (at most 6) of the bodies, as long bodies rearrange more slowly.
+  long long patience_ = 100;
   // Verlet list and the state it was built for. Centres are wrapped into a periodic box only
   // when the list is rebuilt, so the stored shifts stay right between rebuilds.
   std::vector<PairEntry> pairs_;
@@ -195,7 +215,7 @@ void MdPacker::init_bodies() {
   pop_ = draw_population(scene_, rng);
   const std::vector<Inclusion>& pop = pop_;
   bodies_.resize(pop.size());
-  double total = 0.0, crowding = 0.0;
+  double total = 0.0, crowding = 0.0, radial = 0.0;
   for (size_t i = 0; i < pop.size(); ++i) {
     Body& b = bodies_[i];
     b.shape = envelope(pop[i]);  // modified inclusions are packed by their envelopes
@@ -204,9 +224,8 @@ void MdPacker::init_bodies() {
     b.bound = b.shape.bounding_radius();
     b.pad = scene_.min_gap / (2.0 * b.shape.min_size());
     total += b.volume;
-    // Elongated bodies cross about 2 a phi others at volume fraction phi (a: half length over
-    // radius of the bounding capsule), spheres touch about 6 phi: weigh the start by it.
-    crowding += b.volume * std::max(1.0, b.shape.bounding_radius() / b.shape.min_size() / 3.0);
+    // crowding: elongated bodies cross about 2 a phi others at volume fraction phi (a: half
+    // length over radius), spheres touch about 6 phi: the start is weighed by it.
     const OrientationLaw& law = scene_.families[b.family].orientation;
     switch (b.shape.kind) {
       case ShapeKind::Sphere:
@@ -231,12 +250,32 @@ void MdPacker::init_bodies() {
       if (b.turn != Turn::kNone && scene_.md.rotation == MdSettings::Rotation::kKeepTensor) {
         held_[b.family].push_back(static_cast<int>(i));
       }
+      const Eigen::SelfAdjointEigenSolver<Mat3> es(law.tensor());
+      if (b.turn == Turn::kNone && b.shape.kind == ShapeKind::Cylinder && !pop[i].mod.any() &&
+          es.eigenvalues()[1] <= 1e-12 && b.shape.half_axis.norm() >= 2.0 * b.shape.radius) {
+        b.radial = true;
+        b.half_gap = 0.5 * scene_.min_gap;
+        b.pad = 0.0;
+      }
+    }
+    // Start where few bodies touch: volume fraction kStartFraction for bodies growing in every
+    // direction, weighed by crossings (see crowding) ...
+    if (b.radial) {
+      radial += b.volume;  // ... and for aligned fibres, whose volume grows as s^2
+    } else {
+      crowding += b.volume * std::max(1.0, b.bound / b.shape.min_size() / 3.0);
     }
     // Random centre: anywhere in a periodic box, inside (as far as the scale allows) otherwise.
     for (int a = 0; a < 3; ++a) b.shape.center[a] = box_.origin[a] + box_.size[a] * rng.uniform();
   }
+  double elongation = 0.0;
+  for (const Body& b : bodies_) elongation += b.volume * b.bound / b.shape.min_size();
+  elongation /= std::max(total, 1e-300);
+  patience_ = std::llround(scene_.md.patience * std::clamp(elongation / 6.7, 1.0, 6.0));
   const double vf = crowding / box_.volume();
   s_start_ = std::min(1.0, std::cbrt(kStartFraction / std::max(vf, 1e-12)));
+  if (radial > 0.0)
+    s_start_ = std::min(s_start_, std::sqrt(kStartFraction * box_.volume() / radial));
   s_out_ = s_start_;
   m_ = scene_.md.pressure;
   const size_t n = bodies_.size();
@@ -300,8 +339,8 @@ bool MdPacker::pairs_stale() const {
   for (size_t i = 0; i < bodies_.size(); ++i) {
     const Body& b = bodies_[i];
     const double d = (b.shape.center - built_center_[i]).norm();
-    const double grow = b.bound * std::max(0.0, force_scale(b) - (built_scale_ + b.pad));
-    const double r = b.bound * force_scale(b);
+    const double grow = (b.radial ? b.cap_radius : b.bound) * std::max(0.0, s_out_ - built_scale_);
+    const double r = cap_half_at(b, s_out_) + cap_radius_at(b, s_out_);
     if (d + turned_since_build_[i] * r + grow > half_skin_[i]) return true;
   }
   return false;
@@ -341,12 +380,14 @@ void MdPacker::build_pairs() {
   for (size_t i = 0; i < n; ++i) {
     const Body& b = bodies_[i];
     built_center_[i] = b.shape.center;
-    const double f = force_scale(b);
     // Long bodies get a skin of a fraction of their length too: their ends sweep far when
     // they grow or turn, and the capsule test in contacts() keeps the extra pairs cheap.
-    half_skin_[i] = 0.5 * kSkin * std::max(b.cap_radius, kSkinLength * b.cap_half) * f;
-    const Vec3 e = principal_axis(b.shape) * (b.cap_half * f);
-    const double rho = b.cap_radius * f + half_skin_[i];
+    // Aligned fibres (radial) neither turn nor grow in length: the skin of a half-grown fibre.
+    half_skin_[i] =
+        b.radial ? 0.5 * kSkin * b.cap_radius * std::max(s_out_, 0.5)
+                 : 0.5 * kSkin * std::max(b.cap_radius, kSkinLength * b.cap_half) * force_scale(b);
+    const Vec3 e = principal_axis(b.shape) * cap_half_at(b, s_out_);
+    const double rho = cap_radius_at(b, s_out_) + half_skin_[i];
     seg_p[i] = b.shape.center - e;
     seg_q[i] = b.shape.center + e;
     cap_r[i] = rho;
@@ -547,13 +588,37 @@ BodyMobility MdPacker::mobility_of(const Body& b, const Shape& scaled) const {
   return body_mobility(scaled, false, Vec3::Zero());
 }
 
+Shape MdPacker::at_scale(const Body& b, double s) {
+  if (!b.radial) return b.shape.scaled(s + b.pad);
+  Shape out = b.shape;
+  out.radius = b.shape.radius * s + b.half_gap;
+  if (b.half_gap > 0.0) out.half_axis = b.shape.half_axis * (1.0 + b.half_gap / b.cap_half);
+  return out;
+}
+
+void MdPacker::support_line(const Body& b, const Vec3& n, double* alpha, double* beta) {
+  if (b.radial) {
+    // Cylinder: half length |n.u| + radius sqrt(1 - (n.u)^2), radius s r + half_gap.
+    const double c = std::min(1.0, std::abs(n.dot(b.shape.half_axis)) / b.cap_half);
+    const double sn = std::sqrt(std::max(0.0, 1.0 - c * c));
+    *alpha = (b.cap_half + b.half_gap) * c + b.half_gap * sn;
+    *beta = b.shape.radius * sn;
+    return;
+  }
+  // Scaled about the centre: h_s(n) = (s + pad) h_1(n).
+  const double h = b.shape.support_value(n) - n.dot(b.shape.center);
+  *alpha = b.pad * h;
+  *beta = h;
+}
+
 double MdPacker::separating_scale(const Body& a, const Body& b, const Vec3& shift,
                                   const Vec3& n) const {
-  // Support values of the unit-scale shapes about their centres: h_s(n) = (s + pad) h_1(n).
-  const double ha = a.shape.support_value(n) - n.dot(a.shape.center);
-  const double hb = b.shape.support_value(-n) + n.dot(b.shape.center);
-  const double gap = n.dot(b.shape.center + shift - a.shape.center);
-  return (gap - a.pad * ha - b.pad * hb) / (ha + hb);
+  double alpha_a, beta_a, alpha_b, beta_b;
+  support_line(a, n, &alpha_a, &beta_a);
+  support_line(b, -n, &alpha_b, &beta_b);
+  const double room = n.dot(b.shape.center + shift - a.shape.center) - alpha_a - alpha_b;
+  if (beta_a + beta_b <= 1e-300) return room >= 0.0 ? 1e300 : 0.0;  // holds at every scale
+  return room / (beta_a + beta_b);
 }
 
 double MdPacker::contacts() {
@@ -587,20 +652,42 @@ double MdPacker::contacts() {
       move_[e.b] += J / bb.volume;
       continue;
     }
+    if (ba.radial && bb.radial && std::abs(axis_[e.a].dot(axis_[e.b])) >= 1.0 - 1e-12) {
+      // Parallel fibres in closed form: they overlap exactly when their axial ranges do and
+      // their axes are nearer than the sum of the radii; the push is sideways only, so aligned
+      // fibres never butt end to end in columns.
+      const Vec3& u = axis_[e.a];
+      const Vec3 d = bb.shape.center + e.shift - ba.shape.center;
+      const double along = std::abs(d.dot(u));
+      if (along >= cap_half_at(ba, s_out_) + cap_half_at(bb, s_out_)) continue;
+      const Vec3 side = d - d.dot(u) * u;
+      const double dist = side.norm(), ra = ba.shape.radius, rb = bb.shape.radius;
+      const double reach = cap_radius_at(ba, s_out_) + cap_radius_at(bb, s_out_);
+      if (dist >= reach) continue;
+      const double depth = reach - dist;
+      const Vec3 nrm = dist > 0.0 ? Vec3(side / dist) : any_orthogonal(u);
+      max_overlap_ = std::max(max_overlap_, depth / (s_out_ * std::min(ra, rb)));
+      s_in = std::min(s_in, (dist - ba.half_gap - bb.half_gap) / (ra + rb));
+      const Vec3 J = (kRelaxation * depth / (1.0 / ba.volume + 1.0 / bb.volume)) * nrm;
+      move_[e.a] -= J / ba.volume;
+      move_[e.b] += J / bb.volume;
+      continue;
+    }
     {
       // Bounding spheres, then capsules: most listed pairs of long bodies are apart.
       const Vec3 cb = bb.shape.center + e.shift;
-      const double rr = ba.cap_radius * fa + bb.cap_radius * fb;
-      const double reach = rr + ba.cap_half * fa + bb.cap_half * fb;
+      const double rr = cap_radius_at(ba, s_out_) + cap_radius_at(bb, s_out_);
+      const double ha = cap_half_at(ba, s_out_), hb = cap_half_at(bb, s_out_);
+      const double reach = rr + ha + hb;
       if ((cb - ba.shape.center).squaredNorm() >= reach * reach) continue;
-      const Vec3 ea = axis_[e.a] * (ba.cap_half * fa), eb = axis_[e.b] * (bb.cap_half * fb);
+      const Vec3 ea = axis_[e.a] * ha, eb = axis_[e.b] * hb;
       if (segment_distance2(ba.shape.center - ea, ba.shape.center + ea, cb - eb, cb + eb) >=
           rr * rr) {
         continue;
       }
     }
-    const Shape A = ba.shape.scaled(fa);
-    const Shape B = bb.shape.scaled(fb).translated(e.shift);
+    const Shape A = at_scale(ba, s_out_);
+    const Shape B = at_scale(bb, s_out_).translated(e.shift);
     const Contact c = intersect(A, B);
     if (!c.overlap) continue;
     max_overlap_ = std::max(max_overlap_, c.depth / std::min(A.min_size(), B.min_size()));
@@ -617,19 +704,27 @@ double MdPacker::contacts() {
     // largest at which the (unpadded) shape is inside.
     for (size_t i = 0; i < n; ++i) {
       const Body& b = bodies_[i];
-      Vec3 lo, hi;
-      b.shape.scaled(1.0).translated(-b.shape.center).aabb(&lo, &hi);  // half extents: hi
-      const double f = force_scale(b);
+      Vec3 half, lo, hi;
+      b.shape.scaled(1.0).translated(-b.shape.center).aabb(&lo, &half);  // half extents
+      const Shape cur = at_scale(b, s_out_);
+      cur.aabb(&lo, &hi);
       for (int a = 0; a < 3; ++a) {
         const double c = b.shape.center[a], w0 = box_.origin[a], w1 = w0 + box_.size[a];
-        s_in = std::min(s_in, std::min(c - w0, w1 - c) / hi[a]);
-        const double below = w0 - (c - f * hi[a]), above = (c + f * hi[a]) - w1;
+        // Half extent along axis a at growth s: al + s be (unpadded).
+        double al = 0.0, be = half[a];
+        if (b.radial) {
+          const double u = std::min(1.0, std::abs(b.shape.half_axis[a]) / b.cap_half);
+          al = b.cap_half * u;
+          be = b.shape.radius * std::sqrt(std::max(0.0, 1.0 - u * u));
+        }
+        const double room = std::min(c - w0, w1 - c) - al;
+        s_in = std::min(s_in, be > 0.0 ? room / be : (room >= 0.0 ? 1e300 : 0.0));
+        const double below = w0 - lo[a], above = hi[a] - w1;
         for (int side = 0; side < 2; ++side) {
           const double depth = side == 0 ? below : above;
           if (!(depth > 0.0)) continue;
           Vec3 nrm = Vec3::Zero();
           nrm[a] = side == 0 ? 1.0 : -1.0;  // into the box
-          const Shape cur = b.shape.scaled(f);
           const Vec3 p = cur.support(-nrm);
           max_overlap_ = std::max(max_overlap_, depth / cur.min_size());
           // The wall is an immovable body beyond the face (normal from the inclusion to it).
@@ -696,15 +791,19 @@ void MdPacker::report_progress(bool force) {
   if (!force && std::chrono::duration<double>(now - last_progress_).count() < 1.0) return;
   last_progress_ = now;
   double vol = 0.0;
-  for (const Body& b : bodies_) vol += b.volume;
+  double valid = 0.0;
+  const double s = std::clamp(best_scale_, 0.0, 1.0);
+  for (const Body& b : bodies_) {
+    vol += b.volume;
+    valid += b.volume * (b.radial ? s * s : s * s * s);
+  }
   char buf[200];
   std::snprintf(
       buf, sizeof buf,
       "md: %.1f s, step %lld, volume fraction %.4f valid / %.4f target, largest overlap %.2e, "
       "pressure %.1e, %zu pairs, %lld rebuilds",
-      std::chrono::duration<double>(now - t0_).count(), steps_,
-      vol * std::pow(std::clamp(best_scale_, 0.0, 1.0), 3) / box_.volume(), vol / box_.volume(),
-      max_overlap_, m_, pairs_.size(), rebuilds_);
+      std::chrono::duration<double>(now - t0_).count(), steps_, valid / box_.volume(),
+      vol / box_.volume(), max_overlap_, m_, pairs_.size(), rebuilds_);
   progress_(buf);
 }
 
@@ -738,7 +837,7 @@ PackingResult MdPacker::run() {
     if (best_scale_ >= 1.0) break;
     move();
     ++steps_;
-    if (steps_ % scene_.md.patience == 0) {
+    if (steps_ % patience_ == 0) {
       // Pressure control: halve m when the valid scale has stalled.
       if (best_scale_ < mark * (1.0 + kStall * m_)) {
         m_ *= 0.5;
@@ -780,7 +879,9 @@ PackingResult MdPacker::run() {
     Body b = bodies_[i];
     b.shape.center = best_center_[i];
     wrap(b);
-    Inclusion inc = place_like(pop_[i], b.shape, res.scale);
+    // Aligned fibres (radial) keep their length: only the radius is scaled.
+    Inclusion inc = place_like(pop_[i], b.shape, b.radial ? 1.0 : res.scale);
+    if (b.radial) inc.shape.radius *= res.scale;
     inc.id = static_cast<int>(res.set.inclusions.size());
     res.set.inclusions.push_back(inc);
     ++res.placed_count[inc.family];

@@ -83,6 +83,7 @@ vtkRVEGenerator::vtkRVEGenerator() {
   this->PartialVolume = d.partial_volume;
   this->LevelSetVoxelSize = d.levelset_voxel_size;
   for (int a = 0; a < 3; ++a) this->FibreAxis[a] = this->EllipsoidAxis[a] = a == 2 ? 1.0 : 0.0;
+  for (int k = 0; k < 6; ++k) this->FibreOrientationTensor[k] = k < 3 ? 1.0 / 3.0 : 0.0;
 }
 
 vtkRVEGenerator::~vtkRVEGenerator() {
@@ -137,6 +138,11 @@ rvegen::Scene SceneFromProperties(const vtkRVEGenerator* g) {
   amount(fib, self->GetFibreVolumeFraction(), self->GetFibreCount());
   fib.orientation =
       orientation(self->GetFibreOrientation(), self->GetFibreAxis(), self->GetFibreKappa());
+  if (self->GetFibreOrientation() == 4) {
+    const double* t = self->GetFibreOrientationTensor();
+    fib.orientation.kind = rvegen::OrientationLaw::Kind::kTensor;
+    fib.orientation.a2 << t[0], t[3], t[4], t[3], t[1], t[5], t[4], t[5], t[2];
+  }
   for (int a = 0; a < 3; ++a) ell.semi_axes[a] = self->GetEllipsoidSemiAxes()[a];
   amount(ell, self->GetEllipsoidVolumeFraction(), self->GetEllipsoidCount());
   ell.orientation = orientation(self->GetEllipsoidOrientation(), self->GetEllipsoidAxis(),
@@ -333,6 +339,9 @@ void vtkRVEGenerator::PrintSelf(ostream& os, vtkIndent indent) {
   os << indent << "FibreCount: " << this->FibreCount << "\n";
   os << indent << "FibreOrientation: " << this->FibreOrientation << "\n";
   v3("FibreAxis", this->FibreAxis);
+  os << indent << "FibreOrientationTensor:";
+  for (double v : this->FibreOrientationTensor) os << " " << v;
+  os << "\n";
   os << indent << "FibreKappa: " << this->FibreKappa << "\n";
   os << indent << "FibreCoating: " << this->FibreCoating << "\n";
   os << indent << "FibreWaveAmplitude: " << this->FibreWaveAmplitude << "\n";

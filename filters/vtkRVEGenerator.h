@@ -61,7 +61,8 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   /// Method: 0 molecular dynamics, 1 random sequential adsorption. Family amounts: a count
   /// >= 1 replaces the volume fraction. Size spreads: lognormal standard deviation (0: fixed).
   /// Orientation laws: 0 isotropic, 1 aligned (axis), 2 von Mises-Fisher (axis, kappa), 3 planar
-  /// (axis = the plane normal). Modifiers: see the scene file's "coating", "waviness",
+  /// (axis = the plane normal), 4 tensor (fibres only: FibreOrientationTensor, the orientation
+  /// tensor A2 as a11 a22 a33 a12 a13 a23). Modifiers: see the scene file's "coating", "waviness",
   /// "deformation", "debonding" (0 leaves a modifier out).
   vtkSetClampMacro(Method, int, 0, 1);
   vtkGetMacro(Method, int);
@@ -75,7 +76,7 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   vtkGetMacro(FibreCount, int);
   vtkSetMacro(EllipsoidCount, int);
   vtkGetMacro(EllipsoidCount, int);
-  vtkSetClampMacro(FibreOrientation, int, 0, 3);
+  vtkSetClampMacro(FibreOrientation, int, 0, 4);
   vtkGetMacro(FibreOrientation, int);
   vtkSetMacro(FibreKappa, double);
   vtkGetMacro(FibreKappa, double);
@@ -111,6 +112,8 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   vtkGetMacro(LevelSetVoxelSize, double);
   vtkSetVector3Macro(FibreAxis, double);
   vtkGetVector3Macro(FibreAxis, double);
+  vtkSetVector6Macro(FibreOrientationTensor, double);
+  vtkGetVector6Macro(FibreOrientationTensor, double);
   vtkSetVector3Macro(EllipsoidAxis, double);
   vtkGetVector3Macro(EllipsoidAxis, double);
 
@@ -182,6 +185,7 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   double LevelSetVoxelSize;
   int Threads = 0;
   double FibreAxis[3];
+  double FibreOrientationTensor[6];
   double EllipsoidAxis[3];
   int PortExecutions[3] = {0, 0, 0};
 

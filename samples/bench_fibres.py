@@ -78,7 +78,7 @@ def run(name, scene):
         report = json.load(f)
     audit = subprocess.run([exe, "check", os.path.join(out, "inclusions.json")],
                            capture_output=True, text=True)
-    report["overlaps"] = 0 if audit.returncode == 0 else audit.stdout.strip().splitlines()[-1]
+    report["overlaps"] = 0 if audit.returncode == 0 else (audit.stdout + audit.stderr).strip()
     report["wall"], report["peak_mb"], report["curve"] = wall, peak / 1024.0, curve
     return report
 

@@ -96,6 +96,32 @@ $py -c "import json,sys; r=json.load(open('$WORK/md_wall/report.json')); sys.exi
   || fail "report of the target MD cannot reach"
 expect_rc 0 "$RVEGEN" check "$WORK/md_wall/inclusions.json"
 
+# Fibres above their jamming fraction (isotropic, L/D 20, 0.40): exit 3 within the time budget, the
+# orientation tensor of the written fibres still the law's, no overlap.
+echo "{$BOX,\"seed\":3,\"md\":{\"max_seconds\":5},\"families\":[{\"shape\":\"cylinder\",\"radius\":0.015,\"aspect_ratio\":20,\"volume_fraction\":0.4,\"orientation\":{\"law\":\"tensor\",\"a2\":[[0.6,0.1,0],[0.1,0.3,0],[0,0,0.1]]}}],\"voxels\":{\"resolution\":16}}" >"$WORK/fibre_wall.json"
+expect_rc 3 "$RVEGEN" generate -q "$WORK/fibre_wall.json" -o "$WORK/fibre_wall"
+$py - "$WORK/fibre_wall" <<'PY' || fail "report of the fibre target above jamming"
+import json, sys
+d = sys.argv[1]
+r = json.load(open(d + "/report.json"))
+f = r["families"][0]
+assert r["status"] == "target_not_reached" and 0.05 < r["volume_fraction"] < 0.4, r["volume_fraction"]
+# A2 recomputed from the written inclusions, against the law's.
+inc = json.load(open(d + "/inclusions.json"))["inclusions"]
+a = [[0.0] * 3 for _ in range(3)]
+for i in inc:
+    h = i["half_axis"]
+    n = sum(x * x for x in h) ** 0.5
+    for p in range(3):
+        for q in range(3):
+            a[p][q] += h[p] * h[q] / (n * n * len(inc))
+want = [[0.6, 0.1, 0], [0.1, 0.3, 0], [0, 0, 0.1]]
+err = max(abs(a[p][q] - want[p][q]) for p in range(3) for q in range(3))
+assert err < 1e-8 and f["orientation_tensor_error"] < 1e-8, (err, f["orientation_tensor_error"])
+assert f["target_orientation_tensor"] == want
+PY
+expect_rc 0 "$RVEGEN" check "$WORK/fibre_wall/inclusions.json"
+
 # check: overlapping pairs are listed with their type, exit 1.
 cat >"$WORK/overlap.json" <<'JSON'
 {"format": "rvegen.inclusions/1", "box": {"origin": [0,0,0], "size": [1,1,1], "periodic": true},

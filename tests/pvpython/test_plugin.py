@@ -170,6 +170,18 @@ names = servermanager.Fetch(props, idx=1).GetFieldData().GetAbstractArray("phase
 check(names is not None and names.GetNumberOfValues() == 5 and names.GetValue(4) == "spheres interphase",
       "phase names with a coating")
 check(servermanager.Fetch(props, idx=2).GetNumberOfCells() > 1000, "coated spheres: no level-set surfaces")
+# The orientation tensor law from the panel: the fibres' A2 is the one given.
+props.FibreOrientation = 4
+props.FibreOrientationTensor = [0.6, 0.3, 0.1, 0.1, 0.0, 0.0]
+rows = stats_rows(OutputPort(props, 0))
+a = {i: v for q, n, i, v in rows if q == "orientation_tensor" and n == "fibres"}
+want = {0: 0.6, 1: 0.1, 3: 0.1, 4: 0.3, 8: 0.1}
+check(all(abs(a.get(i, -1) - v) < 1e-8 for i, v in want.items()), "tensor law from the panel: %s" % a)
+props.FibreOrientationTensor = [0.6, 0.3, 0.2, 0.0, 0.0, 0.0]  # trace 1.1
+props.UpdatePipeline()
+props.UpdatePropertyInformation()
+check(props.GetProperty("Status").GetElement(0) == "invalid", "tensor of trace 1.1 accepted")
+props.FibreOrientation = 1
 props.SphereDeformation = 0.1
 props.UpdatePipeline()
 props.UpdatePropertyInformation()

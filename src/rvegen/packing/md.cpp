@@ -252,7 +252,11 @@ void MdPacker::init_bodies() {
       }
       const Eigen::SelfAdjointEigenSolver<Mat3> es(law.tensor());
       if (b.turn == Turn::kNone && b.shape.kind == ShapeKind::Cylinder && !pop[i].mod.any() &&
-          es.eigenvalues()[1] <= 1e-12 && b.shape.half_axis.norm() >= 2.0 * b.shape.radius) {
+          es.eigenvalues()[1] <= 1e-12 && b.shape.half_axis.norm() >= 2.0 * b.shape.radius &&
+          (!box_.periodic ||
+           2.0 * (b.shape.half_axis.norm() + 0.5 * scene_.min_gap) < box_.size.minCoeff())) {
+        // (a fibre at least as long as the periodic box could meet its own image end to end
+        // at every radius: it grows in length too)
         b.radial = true;
         b.half_gap = 0.5 * scene_.min_gap;
         b.pad = 0.0;
@@ -833,7 +837,9 @@ PackingResult MdPacker::run() {
       why = "time budget";
       break;
     }
-    if (s_in > best_scale_) snapshot(s_in);
+    // A scale of 0 is no configuration (inclusions of size 0): nothing is kept until one is
+    // valid at a positive scale.
+    if (s_in > best_scale_ && s_in > 0.0) snapshot(s_in);
     if (best_scale_ >= 1.0) break;
     move();
     ++steps_;

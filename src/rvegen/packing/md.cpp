@@ -633,7 +633,7 @@ double MdPacker::contacts() {
     turn_[i].setZero();
   }
   axis_.resize(n);
-  for (size_t i = 0; i < n; ++i) axis_[i] = principal_axis(bodies_[i].shape);
+  for (int i : oriented_) axis_[i] = principal_axis(bodies_[i].shape);  // spheres have none
   double s_in = s_out_;
   max_overlap_ = 0.0;
   size_t visited = 0;

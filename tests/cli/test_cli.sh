@@ -96,7 +96,8 @@ $py -c "import json,sys; r=json.load(open('$WORK/md_wall/report.json')); sys.exi
   || fail "report of the target MD cannot reach"
 expect_rc 0 "$RVEGEN" check "$WORK/md_wall/inclusions.json"
 
-# Fibres above their jamming fraction (isotropic, L/D 20, 0.40): exit 3 within the time budget, the
+# Fibres above their jamming fraction (L/D 20, 0.40): exit 3 within the time budget (how far it got
+# depends on the machine: the sanitizer build reaches 0.03 in 5 s), the
 # orientation tensor of the written fibres still the law's, no overlap.
 echo "{$BOX,\"seed\":3,\"md\":{\"max_seconds\":5},\"families\":[{\"shape\":\"cylinder\",\"radius\":0.015,\"aspect_ratio\":20,\"volume_fraction\":0.4,\"orientation\":{\"law\":\"tensor\",\"a2\":[[0.6,0.1,0],[0.1,0.3,0],[0,0,0.1]]}}],\"voxels\":{\"resolution\":16}}" >"$WORK/fibre_wall.json"
 expect_rc 3 "$RVEGEN" generate -q "$WORK/fibre_wall.json" -o "$WORK/fibre_wall"
@@ -105,7 +106,7 @@ import json, sys
 d = sys.argv[1]
 r = json.load(open(d + "/report.json"))
 f = r["families"][0]
-assert r["status"] == "target_not_reached" and 0.05 < r["volume_fraction"] < 0.4, r["volume_fraction"]
+assert r["status"] == "target_not_reached" and 0.0 < r["volume_fraction"] < 0.4, r["volume_fraction"]
 # A2 recomputed from the written inclusions, against the law's.
 inc = json.load(open(d + "/inclusions.json"))["inclusions"]
 a = [[0.0] * 3 for _ in range(3)]

@@ -59,7 +59,7 @@ vtkRVEGenerator::vtkRVEGenerator() {
   this->EllipsoidVolumeFraction = d.families[2].volume_fraction;
   this->SceneFile = nullptr;
   this->ClipSurfaces = d.clip_surfaces;
-  this->Method = d.method == "rsa" ? 1 : 0;
+  this->Method = static_cast<int>(d.method);
   this->SphereRadiusStd = 0.0;
   this->SphereCount = -1;
   this->FibreRadiusStd = 0.0;
@@ -104,7 +104,7 @@ rvegen::Scene SceneFromProperties(const vtkRVEGenerator* g) {
   s.box.size = rvegen::Vec3(self->GetBoxSize()[0], self->GetBoxSize()[1], self->GetBoxSize()[2]);
   s.box.periodic = self->GetPeriodic();
   s.min_gap = self->GetMinGap();
-  s.method = self->GetMethod() == 1 ? "rsa" : "md";
+  s.method = static_cast<rvegen::Method>(self->GetMethod());
   auto size = [](double value, double std) {
     rvegen::SizeLaw law(value);
     if (std > 0.0) {
@@ -236,16 +236,8 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
     vtkErrorMacro(<< "invalid scene: " << e.what());
     return 0;
   }
-  rvegen::Scene key_scene = scene;
-  // Output settings do not change the packing: keep them out of the cache key.
-  const rvegen::Scene defaults;
-  key_scene.resolution = {0, 0, 0};
-  key_scene.partial_volume = defaults.partial_volume;
-  key_scene.subsamples = defaults.subsamples;
-  key_scene.clip_surfaces = defaults.clip_surfaces;
-  key_scene.levelset_voxel_size = defaults.levelset_voxel_size;
-  key_scene.levelset_half_width = defaults.levelset_half_width;
-  const std::string key = rvegen::scene_to_json(key_scene);
+  // Output settings do not change the packing: the cache is keyed by the packing part alone.
+  const std::string key = rvegen::packing_to_json(scene);
   if (!this->Cached || this->Cached->key != key) {
     try {
       // generate() audits the packed RVE exactly; an RVE that fails is never shown.
@@ -258,9 +250,9 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
     }
   }
   const rvegen::PackingResult& result = this->Cached->result;
-  this->Status = result.status;
-  if (result.status != "ok") {
-    vtkWarningMacro(<< "target volume fraction not reached (" << result.status
+  this->Status = rvegen::status_name(result.status);
+  if (result.status != rvegen::PackingStatus::kOk) {
+    vtkWarningMacro(<< "target volume fraction not reached (" << rvegen::status_name(result.status)
                     << "); showing the best configuration found");
   }
 
@@ -270,7 +262,7 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
   };
   vtkNew<vtkStringArray> status;
   status->SetName("status");
-  status->InsertNextValue(result.status);
+  status->InsertNextValue(rvegen::status_name(result.status));
 
   if (wanted(0)) {
     rvegen::MeshOptions mopt;
@@ -320,7 +312,8 @@ void vtkRVEGenerator::PrintSelf(ostream& os, vtkIndent indent) {
   };
   os << indent << "SceneFile: " << (this->SceneFile ? this->SceneFile : "(none)") << "\n";
   os << indent << "Seed: " << this->Seed << "\n";
-  os << indent << "Method: " << (this->Method == 1 ? "rsa" : "md") << "\n";
+  os << indent << "Method: " << rvegen::method_name(static_cast<rvegen::Method>(this->Method))
+     << "\n";
   v3("BoxSize", this->BoxSize);
   os << indent << "Periodic: " << this->Periodic << "\n";
   os << indent << "MinGap: " << this->MinGap << "\n";

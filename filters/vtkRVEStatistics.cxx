@@ -43,7 +43,7 @@ int vtkRVEStatistics::RequestData(vtkInformation*, vtkInformationVector** in,
   const std::vector<double> vf = rvegen::phase_volume_fractions(set, phases);
   for (const auto& p : phases) row("volume_fraction", p.name, p.label, vf[p.label]);
   for (const auto& p : phases) {
-    if (p.kind != "core") continue;
+    if (p.kind != rvegen::PhaseKind::kCore) continue;
     const int f = p.family;
     int count = 0;
     double diameter = 0.0;

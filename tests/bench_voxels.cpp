@@ -117,7 +117,7 @@ int main(int argc, char** argv) {
       } else {
         const auto lf = rvegen::label_fractions(im);
         for (size_t l = 0; l < im.phases.size(); ++l) {
-          if (im.phases[l].kind == "core") vf += lf[l];
+          if (im.phases[l].kind == rvegen::PhaseKind::kCore) vf += lf[l];
         }
       }
       std::printf("%s\t%zu\t%d\t%s\t%.4f\t%.6f\t%.6f\t%.2e\t%d\n", which.c_str(),

@@ -196,7 +196,7 @@ TEST(FibreOrientation, EveryLawIsDeliveredNearItsDensityLimit) {
   for (const auto& [law, vf] : laws) {
     const Scene s = fibre_scene(law, vf, 10.0, 1000);
     const PackingResult r = pack_md(s);
-    EXPECT_EQ(r.status, "ok") << law << " reached " << r.scale;
+    EXPECT_EQ(r.status, PackingStatus::kOk) << law << " reached " << r.scale;
     EXPECT_TRUE(find_overlaps(r.set).empty()) << law;
     ASSERT_GE(r.set.inclusions.size(), 1000u);
     EXPECT_LT(tensor_error(r, s), 0.02) << law;
@@ -209,7 +209,7 @@ TEST(FibreOrientation, EllipsoidsWithATensorKeepIt) {
       {"shape":"ellipsoid","semi_axes":[0.05,0.02,0.015],"volume_fraction":0.3,
        "orientation":{"law":"tensor","a2":[[0.2,0.1,0],[0.1,0.6,0],[0,0,0.2]]}}]})");
   const PackingResult r = pack_md(s);
-  EXPECT_EQ(r.status, "ok");
+  EXPECT_EQ(r.status, PackingStatus::kOk);
   EXPECT_TRUE(find_overlaps(r.set).empty());
   EXPECT_GE(r.set.inclusions.size(), 1000u);
   EXPECT_LT(tensor_error(r, s), 1e-8);
@@ -221,7 +221,7 @@ TEST(FibreOrientation, FixedRotationKeepsEveryDrawnDirectionAndFreeRotationDrift
   Random rng(fixed.seed);
   const std::vector<Inclusion> drawn = draw_population(fixed, rng);
   const PackingResult r = pack_md(fixed);
-  ASSERT_EQ(r.status, "ok");
+  ASSERT_EQ(r.status, PackingStatus::kOk);
   ASSERT_EQ(r.set.inclusions.size(), drawn.size());
   for (size_t i = 0; i < drawn.size(); ++i) {
     EXPECT_LT((law_axis(r.set.inclusions[i].shape) - law_axis(drawn[i].shape)).norm(), 1e-12);
@@ -239,14 +239,14 @@ TEST(FibreOrientation, AboveJammingStopsWithTheOrientationKept) {
   Scene s = fibre_scene(R"({"law":"tensor","a2":[[0.7,0,0],[0,0.25,0],[0,0,0.05]]})", 0.45, 20.0,
                         400, R"({"max_seconds":4})");
   PackingResult r = pack_md(s);
-  EXPECT_EQ(r.status, "target_not_reached");
+  EXPECT_EQ(r.status, PackingStatus::kTargetNotReached);
   EXPECT_LT(r.scale, 1.0);
   EXPECT_TRUE(find_overlaps(r.set).empty());
   EXPECT_LT(tensor_error(r, s), 1e-8);
 
   s = fibre_scene(R"({"law":"aligned","axis":[1,0,0]})", 0.85, 20.0, 1500, R"({"max_seconds":4})");
   r = pack_md(s);
-  EXPECT_EQ(r.status, "target_not_reached");
+  EXPECT_EQ(r.status, PackingStatus::kTargetNotReached);
   EXPECT_TRUE(find_overlaps(r.set).empty());
   Random rng(s.seed);
   const std::vector<Inclusion> drawn = draw_population(s, rng);
@@ -262,7 +262,7 @@ TEST(FibreOrientation, AlignedFibresKeepTheGapInANonPeriodicBox) {
       "min_gap":0.004,"families":[{"shape":"cylinder","radius":0.02,"aspect_ratio":8,
       "volume_fraction":0.3,"orientation":{"law":"aligned","axis":[0,1,0]}}]})");
   const PackingResult r = pack_md(s);
-  ASSERT_EQ(r.status, "ok") << r.scale;
+  ASSERT_EQ(r.status, PackingStatus::kOk) << r.scale;
   EXPECT_TRUE(find_overlaps(r.set).empty());
   EXPECT_TRUE(find_outside(r.set).empty());
   const auto& inc = r.set.inclusions;

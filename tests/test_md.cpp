@@ -210,7 +210,7 @@ TEST(Md, ReachesDenseSpherePackingWithoutOverlap) {
   const Scene s = parse_scene(R"({"box":{"size":[1,1,1]},"seed":2,"families":[
       {"shape":"sphere","volume_fraction":0.6,"count":1000}]})");
   const PackingResult r = pack_md(s);
-  EXPECT_EQ(r.status, "ok");
+  EXPECT_EQ(r.status, PackingStatus::kOk);
   EXPECT_EQ(r.scale, 1.0);
   EXPECT_NEAR(total_fraction(r), 0.6, 1e-9);
   expect_valid(r);
@@ -225,7 +225,7 @@ TEST(Md, MixedShapesWithLawsNonPeriodicAndGap) {
       {"shape":"ellipsoid","semi_axes":[0.06,0.04,{"law":"lognormal","mean":0.03,"std":0.005}],
        "volume_fraction":0.1,"orientation":{"law":"planar","normal":[0,0,1]}}]})");
   const PackingResult r = pack_md(s);
-  ASSERT_EQ(r.status, "ok");
+  ASSERT_EQ(r.status, PackingStatus::kOk);
   expect_valid(r);
   const auto& inc = r.set.inclusions;
   for (size_t i = 0; i < inc.size(); ++i) {
@@ -247,7 +247,7 @@ TEST(Md, AlignedFibresStayAligned) {
       {"shape":"cylinder","radius":0.03,"aspect_ratio":5,"volume_fraction":0.45,
        "orientation":{"law":"aligned","axis":[0,1,0]}}]})");
   const PackingResult r = pack_md(s);
-  EXPECT_EQ(r.status, "ok");
+  EXPECT_EQ(r.status, PackingStatus::kOk);
   expect_valid(r);
   EXPECT_NEAR(orientation_tensor(r.set, 0)(1, 1), 1.0, 1e-12);
 }
@@ -268,8 +268,8 @@ TEST(Md, ImpossibleVolumeFractionJamsCleanly) {
   const Scene s = parse_scene(R"({"box":{"size":[1,1,1]},"seed":1,"families":[
       {"shape":"sphere","volume_fraction":0.7,"count":500}]})");
   const PackingResult r = pack_md(s);
-  EXPECT_EQ(r.status, "target_not_reached");
-  EXPECT_EQ(r.stop_reason, "jammed");
+  EXPECT_EQ(r.status, PackingStatus::kTargetNotReached);
+  EXPECT_EQ(r.stop_reason, StopReason::kJammed);
   EXPECT_LT(r.scale, 1.0);
   EXPECT_GT(total_fraction(r), 0.58);  // far beyond RSA's 0.38
   EXPECT_EQ(r.set.inclusions.size(), 500u);
@@ -281,8 +281,8 @@ TEST(Md, BudgetStopsWithTheBestValidConfiguration) {
       {"shape":"sphere","volume_fraction":0.6,"count":2000}]})");
   s.md.max_steps = 5;
   const PackingResult r = pack_md(s);
-  EXPECT_EQ(r.status, "target_not_reached");
-  EXPECT_EQ(r.stop_reason, "step budget");
+  EXPECT_EQ(r.status, PackingStatus::kTargetNotReached);
+  EXPECT_EQ(r.stop_reason, StopReason::kStepBudget);
   EXPECT_EQ(r.steps, 5);
   EXPECT_GT(r.scale, 0.0);
   expect_valid(r);
@@ -293,7 +293,7 @@ TEST(Md, TenToOneSizeRatio) {
       {"shape":"sphere","radius":0.15,"count":10},
       {"shape":"sphere","radius":0.015,"count":6000}]})");
   const PackingResult r = pack_md(s);
-  EXPECT_EQ(r.status, "ok");
+  EXPECT_EQ(r.status, PackingStatus::kOk);
   expect_valid(r);
 }
 
@@ -302,7 +302,7 @@ TEST(Md, VeryLongFibresAtLowVolumeFraction) {
   const Scene s = parse_scene(R"({"box":{"size":[1,1,1]},"seed":3,"families":[
       {"shape":"cylinder","radius":0.012,"aspect_ratio":50,"volume_fraction":0.05}]})");
   const PackingResult r = pack_md(s);
-  EXPECT_EQ(r.status, "ok");
+  EXPECT_EQ(r.status, PackingStatus::kOk);
   expect_valid(r);
 }
 
@@ -333,14 +333,14 @@ TEST(Md, SingleInclusionAndBarelyLargerBox) {
     const Scene one = parse_scene(std::string(R"({"box":{"size":[1,1,1],"periodic":)") + periodic +
                                   R"(},"families":[{"shape":"sphere","radius":0.49,"count":1}]})");
     const PackingResult r = pack_md(one);
-    EXPECT_EQ(r.status, "ok");
+    EXPECT_EQ(r.status, PackingStatus::kOk);
     expect_valid(r);
   }
   // A cylinder whose bounding sphere spans 0.91 of a non-periodic box.
   const Scene tight = parse_scene(R"({"box":{"size":[1,1,1],"periodic":false},"seed":2,
       "families":[{"shape":"cylinder","radius":0.05,"aspect_ratio":9,"count":1}]})");
   const PackingResult r = pack_md(tight);
-  EXPECT_EQ(r.status, "ok");
+  EXPECT_EQ(r.status, PackingStatus::kOk);
   expect_valid(r);
 }
 

@@ -36,7 +36,7 @@ double centre_fraction(const VoxelImage& im) {
   const auto lf = label_fractions(im);
   double v = 0.0;
   for (const auto& p : im.phases) {
-    if (p.kind == "core") v += lf[p.label];
+    if (p.kind == PhaseKind::kCore) v += lf[p.label];
   }
   return v;
 }
@@ -233,8 +233,10 @@ TEST(Bodies, RegionVolumesMatchTheVoxelImage) {
     const auto lf = label_fractions(im);
     EXPECT_NEAR(partial_volume_fraction(im), v.core, 2e-4 + 1e-3 * v.core) << "set " << s;
     for (const auto& p : im.phases) {
-      if (p.kind == "interphase") EXPECT_NEAR(lf[p.label], v.shell, 0.01 * v.shell) << "set " << s;
-      if (p.kind == "void") EXPECT_NEAR(lf[p.label], v.void_, 0.02 * v.void_) << "set " << s;
+      if (p.kind == PhaseKind::kInterphase)
+        EXPECT_NEAR(lf[p.label], v.shell, 0.01 * v.shell) << "set " << s;
+      if (p.kind == PhaseKind::kVoid)
+        EXPECT_NEAR(lf[p.label], v.void_, 0.02 * v.void_) << "set " << s;
     }
   }
 }
@@ -287,7 +289,7 @@ const PackingResult& modified_rve() {
 // "shells_may_touch" neighbours. Checked point by point with the exact regions.
 TEST(Modifiers, PackedBodiesDoNotOverlap) {
   const PackingResult& r = modified_rve();
-  ASSERT_EQ(r.status, "ok");
+  ASSERT_EQ(r.status, PackingStatus::kOk);
   EXPECT_TRUE(find_overlaps(r.set).empty());
   const auto& incs = r.set.inclusions;
   std::vector<BodyQuery> bodies;
@@ -334,11 +336,13 @@ TEST(Modifiers, PhaseVolumeFractionsAreExactAndVoxelsAgree) {
     const RegionVolumes v = region_volumes(inc);
     for (const auto& p : im.phases) {
       if (p.family != inc.family) continue;
-      exact[p.label] += p.kind == "core" ? v.core : p.kind == "interphase" ? v.shell : v.void_;
+      exact[p.label] += p.kind == PhaseKind::kCore         ? v.core
+                        : p.kind == PhaseKind::kInterphase ? v.shell
+                                                           : v.void_;
     }
   }
   for (const auto& p : im.phases) {
-    if (p.kind == "matrix") continue;
+    if (p.kind == PhaseKind::kMatrix) continue;
     if (p.name == "touching interphase") {
       // Merged shells count once in the image: the sum of shells is an upper bound.
       EXPECT_LT(lf[p.label], exact[p.label]) << p.name;
@@ -422,11 +426,12 @@ TEST(LevelSets, OnlyForWhatNeedsOneAndSignsMatchTheRegions) {
       for (int n = 0; n < 200; ++n) {
         const Vec3 x =
             inc.shape.center + env.bounding_radius() * std::cbrt(rng.uniform()) * rng.unit_vector();
-        const double d =
-            info.kind == "core" ? bodies[i].core_distance(x) : bodies[i].shell_distance(x);
+        const double d = info.kind == PhaseKind::kCore ? bodies[i].core_distance(x)
+                                                       : bodies[i].shell_distance(x);
         if (std::abs(d) < 2.0 * o.voxel_size) continue;  // the sign is decided at the voxel scale
         const Region reg = bodies[i].region(x);
-        const bool inside = info.kind == "core" ? reg == Region::kCore : reg == Region::kShell;
+        const bool inside =
+            info.kind == PhaseKind::kCore ? reg == Region::kCore : reg == Region::kShell;
         // Points outside this body may lie in a neighbour of the same grid: skip them.
         if (!inside) continue;
         EXPECT_LT(level_set_value(ls, g, x), 0.0) << info.name << " at " << x.transpose();

@@ -73,7 +73,7 @@ TEST(Validation, EveryBadFieldOfASceneBuiltInCodeIsNamed) {
       {"box.origin[2]", [](Scene& s) { s.box.origin[2] = kNaN; }},
       {"box.size[0]", [](Scene& s) { s.box.size[0] = 1e300; }},
       {"box.size", [](Scene& s) { s.box.size = Vec3(1e-7, 1, 1); }},
-      {"method", [](Scene& s) { s.method = "simulated annealing"; }},
+      {"method", [](Scene& s) { s.method = static_cast<Method>(7); }},
       {"families[0].radius", [](Scene& s) { s.families[0].radius = SizeLaw(-0.05); }},
       {"families[0].radius", [](Scene& s) { s.families[0].radius = SizeLaw(kNaN); }},
       {"families[1].aspect_ratio.std",
@@ -245,8 +245,8 @@ TEST(Budgets, MdTimeBudgetHoldsInsideACrowdedPairListBuild) {
       "families":[{"shape":"cylinder","radius":0.05,"aspect_ratio":0.001,"count":30000}],
       "voxels":{"resolution":8}})");
   const PackingResult r = generate(s);
-  EXPECT_EQ(r.status, "target_not_reached");
-  EXPECT_EQ(r.stop_reason, "time budget");
+  EXPECT_EQ(r.status, PackingStatus::kTargetNotReached);
+  EXPECT_EQ(r.stop_reason, StopReason::kTimeBudget);
   // The clock was once read every 16 steps only: the budget now stops a step half-way.
   EXPECT_LT(r.steps, 16);
   EXPECT_GE(r.scale, 0.0);
@@ -258,8 +258,8 @@ TEST(Budgets, RsaTimeBudget) {
       "rsa":{"max_attempts":1000000000,"max_seconds":0.2},
       "families":[{"shape":"sphere","radius":0.07,"volume_fraction":0.5}]})");
   const PackingResult r = generate(s);
-  EXPECT_EQ(r.status, "target_not_reached");
-  EXPECT_EQ(r.stop_reason, "time budget");
+  EXPECT_EQ(r.status, PackingStatus::kTargetNotReached);
+  EXPECT_EQ(r.stop_reason, StopReason::kTimeBudget);
   EXPECT_TRUE(audit(r.set).clean());
 }
 

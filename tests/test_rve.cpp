@@ -206,7 +206,7 @@ TEST(Rsa, ReachesTargetWithoutOverlapPeriodicAndNot) {
   for (bool periodic : {true, false}) {
     const Scene scene = small_scene(periodic);
     const PackingResult r = pack_rsa(scene);
-    EXPECT_EQ(r.status, "ok");
+    EXPECT_EQ(r.status, PackingStatus::kOk);
     EXPECT_TRUE(find_overlaps(r.set).empty());
     EXPECT_TRUE(find_outside(r.set).empty());
     const auto vf = family_volume_fractions(r.set, 3);
@@ -228,7 +228,7 @@ TEST(Rsa, MinGapIsHonoured) {
   Scene scene = small_scene(true);
   scene.min_gap = 0.01;
   const PackingResult r = pack_rsa(scene);
-  ASSERT_EQ(r.status, "ok");
+  ASSERT_EQ(r.status, PackingStatus::kOk);
   const auto& inc = r.set.inclusions;
   for (size_t i = 0; i < inc.size(); ++i) {
     for (size_t j = i + 1; j < inc.size(); ++j) {
@@ -246,7 +246,7 @@ TEST(Rsa, ImpossibleTargetStopsCleanly) {
       {"shape":"sphere","radius":0.08,"volume_fraction":0.5}]})");
   scene.rsa_max_attempts = 2000;
   const PackingResult r = pack_rsa(scene);
-  EXPECT_EQ(r.status, "target_not_reached");
+  EXPECT_EQ(r.status, PackingStatus::kTargetNotReached);
   EXPECT_LT(r.placed_count[0], r.target_count[0]);
   EXPECT_GT(r.placed_count[0], 0);
   EXPECT_TRUE(find_overlaps(r.set).empty());

@@ -223,9 +223,11 @@ int cmd_generate(const std::vector<std::string>& args) {
       std::fprintf(stderr, "rvegen: %zu inclusions, volume fraction %.4f, %.2f s -> %s\n",
                    result.set.inclusions.size(), total, seconds_since(t0), out_dir.c_str());
     }
-    if (result.status != "ok") {
-      std::cerr << "rvegen: target volume fraction not reached (status " << result.status << ", "
-                << result.stop_reason << "); the best valid configuration found was written\n";
+    if (result.status != rvegen::PackingStatus::kOk) {
+      std::cerr << "rvegen: target volume fraction not reached (status "
+                << rvegen::status_name(result.status) << ", "
+                << rvegen::stop_reason_name(result.stop_reason)
+                << "); the best valid configuration found was written\n";
       return kExitNotReached;
     }
     return kExitOk;

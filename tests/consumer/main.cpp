@@ -10,5 +10,5 @@ int main() {
   const rvegen::PackingResult r = rvegen::generate(scene);
   std::printf("%zu inclusions, %zu bytes of JSON\n", r.set.inclusions.size(),
               rvegen::write_inclusions_json(r.set).size());
-  return r.status == "ok" && !r.set.inclusions.empty() ? 0 : 1;
+  return r.status == rvegen::PackingStatus::kOk && !r.set.inclusions.empty() ? 0 : 1;
 }

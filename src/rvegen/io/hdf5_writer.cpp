@@ -131,7 +131,7 @@ void write_hdf5(const std::string& path, const VoxelImage& im, const InclusionSe
       label.push_back(p.label);
       family.push_back(p.family);
       name.push_back(p.name);
-      kind.push_back(p.kind);
+      kind.push_back(phase_kind_name(p.kind));
     }
     dataset(ph, "label", H5T_NATIVE_INT32, {label.size()}, label.data());
     dataset(ph, "family", H5T_NATIVE_INT32, {family.size()}, family.data());

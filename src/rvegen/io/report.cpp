@@ -23,9 +23,9 @@ std::vector<double> phase_volume_fractions(const InclusionSet& set,
     const RegionVolumes v = region_volumes(inc);
     for (const auto& p : phases) {
       if (p.family != inc.family) continue;
-      if (p.kind == "core") exact[p.label] += v.core;
-      if (p.kind == "interphase") exact[p.label] += v.shell;
-      if (p.kind == "void") exact[p.label] += v.void_;
+      if (p.kind == PhaseKind::kCore) exact[p.label] += v.core;
+      if (p.kind == PhaseKind::kInterphase) exact[p.label] += v.shell;
+      if (p.kind == PhaseKind::kVoid) exact[p.label] += v.void_;
     }
   }
   double solid = 0.0;
@@ -50,8 +50,8 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
       voxel_vf[f] = label_vf[f + 1];
   }
   OJson root;
-  root["status"] = r.status;
-  root["method"] = scene.method;
+  root["status"] = status_name(r.status);
+  root["method"] = method_name(scene.method);
   root["seed"] = scene.seed;
   double total = 0.0, target_total = 0.0;
   OJson fams = OJson::array();
@@ -113,7 +113,7 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
     OJson j;
     j["label"] = p.label;
     j["name"] = p.name;
-    j["kind"] = p.kind;
+    j["kind"] = phase_kind_name(p.kind);
     if (p.family >= 0) j["family"] = p.family;
     j["volume_fraction"] = exact[p.label];
     if (image) j["voxel_volume_fraction"] = label_vf[p.label];
@@ -137,7 +137,7 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
     OJson grids = OJson::array();
     for (const auto& g : levelsets->grids) {
       grids.push_back({{"name", g.name},
-                       {"kind", g.kind},
+                       {"kind", phase_kind_name(g.kind)},
                        {"family", g.family},
                        {"phase", g.phase},
                        {"inclusions", g.inclusions},
@@ -151,8 +151,8 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
                          static_cast<double>(std::max(1LL, levelsets->dense_bytes));
     root["levelsets"] = ls;
   }
-  root["stop_reason"] = r.stop_reason;
-  if (scene.method == "md") {
+  root["stop_reason"] = stop_reason_name(r.stop_reason);
+  if (scene.method == Method::kMd) {
     root["steps"] = r.steps;
     root["scale"] = r.scale;
   } else {

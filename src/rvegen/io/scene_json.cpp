@@ -231,7 +231,16 @@ Scene parse_scene(const std::string& text) {
     }
     s.seed = static_cast<uint64_t>(seed);
   }
-  if (root.contains("method")) s.method = string(root["method"], "method");
+  if (root.contains("method")) {
+    const std::string m = string(root["method"], "method");
+    if (m == "md") {
+      s.method = Method::kMd;
+    } else if (m == "rsa") {
+      s.method = Method::kRsa;
+    } else {
+      throw InputError("method: unknown method \"" + m + "\" (md, rsa)");
+    }
+  }
   if (root.contains("min_gap")) {
     s.min_gap = number(root["min_gap"], "min_gap");
     if (s.min_gap < 0.0) fail("min_gap", "must be >= 0");
@@ -348,16 +357,16 @@ nlohmann::ordered_json size_json(const SizeLaw& l) {
   }
   return l.p1;
 }
-}  // namespace
 
-std::string scene_to_json(const Scene& s) {
-  using OJson = nlohmann::ordered_json;
+using OJson = nlohmann::ordered_json;
+
+OJson packing_json(const PackingSpec& s) {
   auto v3 = [](const Vec3& v) { return OJson::array({v[0], v[1], v[2]}); };
   OJson root;
   root["box"] = {
       {"origin", v3(s.box.origin)}, {"size", v3(s.box.size)}, {"periodic", s.box.periodic}};
   root["seed"] = s.seed;
-  root["method"] = s.method;
+  root["method"] = method_name(s.method);
   root["min_gap"] = s.min_gap;
   root["md"] = {{"max_steps", s.md.max_steps},
                 {"max_seconds", s.md.max_seconds},
@@ -420,6 +429,16 @@ std::string scene_to_json(const Scene& s) {
     fams.push_back(j);
   }
   root["families"] = fams;
+  return root;
+}
+}  // namespace
+
+std::string packing_to_json(const PackingSpec& s) {
+  return packing_json(s).dump(2) + "\n";
+}
+
+std::string scene_to_json(const Scene& s) {
+  OJson root = packing_json(s);
   root["voxels"] = {{"resolution", {s.resolution[0], s.resolution[1], s.resolution[2]}},
                     {"partial_volume", s.partial_volume},
                     {"subsamples", s.subsamples}};

@@ -11,5 +11,8 @@ namespace rvegen {
 Scene parse_scene(const std::string& json_text);
 /// JSON text of a scene (what parse_scene reads).
 std::string scene_to_json(const Scene& scene);
+/// JSON text of the packing part alone (the scene's keys that the packing depends on): equal
+/// texts give equal packings.
+std::string packing_to_json(const PackingSpec& spec);
 
 }  // namespace rvegen

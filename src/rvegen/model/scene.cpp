@@ -306,13 +306,13 @@ Shape Family::draw(const Vec3& center, Random& rng, const AcgLaw* acg) const {
   return Shape::sphere(center, radius.sample(rng));
 }
 
-double Scene::expected_count(int f) const {
+double PackingSpec::expected_count(int f) const {
   const Family& fam = families[f];
   if (fam.count >= 0) return fam.count;
   return fam.volume_fraction * box.volume() / fam.mean_volume();
 }
 
-double Scene::expected_volume_fraction() const {
+double PackingSpec::expected_volume_fraction() const {
   double total = 0.0;
   for (size_t f = 0; f < families.size(); ++f) {
     total += expected_count(static_cast<int>(f)) * families[f].mean_volume() / box.volume();
@@ -320,7 +320,7 @@ double Scene::expected_volume_fraction() const {
   return total;
 }
 
-std::vector<Inclusion> draw_population(const Scene& scene, Random& rng) {
+std::vector<Inclusion> draw_population(const PackingSpec& scene, Random& rng) {
   std::vector<Inclusion> out;
   const double V = scene.box.volume();
   Random mod_rng(scene.seed ^ 0x6d6f646966696572ULL);  // modifiers: their own stream
@@ -373,7 +373,7 @@ std::vector<Inclusion> draw_population(const Scene& scene, Random& rng) {
   return out;
 }
 
-double max_packable_fraction(const Scene& scene) {
+double max_packable_fraction(const PackingSpec& scene) {
   double best = 0.0;
   for (const auto& f : scene.families) {
     switch (f.shape) {
@@ -466,12 +466,16 @@ double mean_smallest_size(const Family& f) {
 
 }  // namespace
 
+const char* method_name(Method method) {
+  return method == Method::kRsa ? "rsa" : "md";
+}
+
 void validate_scene(const Scene& s) {
   check_box(s.box, "box");
   if (s.families.empty()) fail("families", "at least one family is needed");
   if (!(s.min_gap >= 0.0) || !std::isfinite(s.min_gap)) fail("min_gap", "must be >= 0");
-  if (s.method != "rsa" && s.method != "md") {
-    fail("method", "unknown method \"" + s.method + "\" (md, rsa)");
+  if (s.method != Method::kMd && s.method != Method::kRsa) {
+    fail("method", "unknown method " + std::to_string(static_cast<int>(s.method)) + " (md, rsa)");
   }
   if (s.rsa_max_attempts < 1 || s.rsa_max_attempts > 1000000000)
     fail("rsa.max_attempts", "must be an integer in [1, 1e9]");
@@ -626,7 +630,7 @@ Scene default_scene() {
   s.box.size = Vec3(1, 1, 1);
   s.box.periodic = true;
   s.seed = 42;
-  s.method = "md";
+  s.method = Method::kMd;
   Family spheres;
   spheres.name = "spheres";
   spheres.shape = ShapeKind::Sphere;

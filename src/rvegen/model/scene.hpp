@@ -109,21 +109,19 @@ struct MdSettings {
   Rotation rotation = Rotation::kKeepTensor;
 };
 
-struct Scene {
+/// The packing method: molecular dynamics (the default) or random sequential adsorption.
+enum class Method { kMd, kRsa };
+/// Its JSON name: "md", "rsa".
+const char* method_name(Method method);
+
+/// What the packing depends on, and nothing else: the same PackingSpec gives the same inclusions
+/// (the VTK source caches its packing under this part alone).
+struct PackingSpec {
   Box box;
   uint64_t seed = 42;
-  std::string method = "md";
+  Method method = Method::kMd;
   double min_gap = 0.0;
   std::vector<Family> families;
-  std::array<int, 3> resolution = {64, 64, 64};
-  /// Voxel image: partial volumes ("fraction") and the subsamples per axis of boundary voxels.
-  bool partial_volume = true;
-  int subsamples = 4;
-  /// Level sets: voxel size (0: smallest box size / 256) and narrow-band half width in voxels.
-  double levelset_voxel_size = 0.0;
-  double levelset_half_width = 3.0;
-  /// Surfaces: cut periodic images at the box faces.
-  bool clip_surfaces = false;
   /// RSA: attempts per inclusion before the target is declared out of reach.
   int rsa_max_attempts = 20000;
   /// RSA: time budget in seconds.
@@ -136,6 +134,22 @@ struct Scene {
   double expected_volume_fraction() const;
 };
 
+/// What only the representations of a packed set depend on.
+struct OutputSpec {
+  std::array<int, 3> resolution = {64, 64, 64};
+  /// Voxel image: partial volumes ("fraction") and the subsamples per axis of boundary voxels.
+  bool partial_volume = true;
+  int subsamples = 4;
+  /// Level sets: voxel size (0: smallest box size / 256) and narrow-band half width in voxels.
+  double levelset_voxel_size = 0.0;
+  double levelset_half_width = 3.0;
+  /// Surfaces: cut periodic images at the box faces.
+  bool clip_surfaces = false;
+};
+
+/// A whole scene: the packing and the outputs.
+struct Scene : PackingSpec, OutputSpec {};
+
 /// Checks every field and the cross-field constraints of a scene, however it was built (file,
 /// VTK properties, code); parse_scene runs it too. Throws InputError naming the key.
 void validate_scene(const Scene& scene);
@@ -146,7 +160,7 @@ Scene default_scene();
 /// packing of the best-packing shape among the families: spheres pi/(3 sqrt 2) = 0.7405
 /// (Kepler), ellipsoids 0.7707 (Donev et al. 2004), cylinders pi/(2 sqrt 3) = 0.9069 (aligned,
 /// hexagonal). A target above it is rejected as invalid input before any work.
-double max_packable_fraction(const Scene& scene);
+double max_packable_fraction(const PackingSpec& scene);
 
 /// The inclusions a scene asks for, drawn from its laws (deterministic in scene.seed), centres
 /// not yet placed; `shape` is each core, `mod` its modifiers (drawn from a second stream, so
@@ -154,6 +168,6 @@ double max_packable_fraction(const Scene& scene);
 /// the next one would take the family's volume further from its target than stopping, so the drawn
 /// volume is the target to within half an inclusion. The axes of each oriented family are then
 /// corrected (match_orientation_tensor) so their <p p^T> is the law's tensor() exactly.
-std::vector<Inclusion> draw_population(const Scene& scene, Random& rng);
+std::vector<Inclusion> draw_population(const PackingSpec& scene, Random& rng);
 
 }  // namespace rvegen

@@ -5,9 +5,30 @@
 
 namespace rvegen {
 
-PackingResult generate(const Scene& scene, const ProgressFn& progress,
+const char* status_name(PackingStatus status) {
+  return status == PackingStatus::kOk ? "ok" : "target_not_reached";
+}
+
+const char* stop_reason_name(StopReason reason) {
+  switch (reason) {
+    case StopReason::kTargetReached:
+      return "target reached";
+    case StopReason::kJammed:
+      return "jammed";
+    case StopReason::kStepBudget:
+      return "step budget";
+    case StopReason::kTimeBudget:
+      return "time budget";
+    case StopReason::kNoRoom:
+      return "no room after max_attempts";
+  }
+  return "target reached";
+}
+
+PackingResult generate(const PackingSpec& scene, const ProgressFn& progress,
                        const std::function<void(InclusionSet&)>& before_audit) {
-  PackingResult r = scene.method == "rsa" ? pack_rsa(scene, progress) : pack_md(scene, progress);
+  PackingResult r =
+      scene.method == Method::kRsa ? pack_rsa(scene, progress) : pack_md(scene, progress);
   for (const Family& f : scene.families) r.set.family_names.push_back(f.name);
   if (before_audit) before_audit(r.set);
   const AuditReport a = audit(r.set, 16);

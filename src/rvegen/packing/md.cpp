@@ -114,7 +114,7 @@ struct PairEntry {
 
 class MdPacker {
  public:
-  MdPacker(const Scene& scene, const ProgressFn& progress)
+  MdPacker(const PackingSpec& scene, const ProgressFn& progress)
       : scene_(scene), box_(scene.box), progress_(progress) {}
 
   PackingResult run();
@@ -174,7 +174,7 @@ class MdPacker {
     turn_[i] += turn;
   }
 
-  const Scene& scene_;
+  const PackingSpec& scene_;
   const Box& box_;
   const ProgressFn& progress_;
   std::vector<Body> bodies_;
@@ -817,7 +817,7 @@ PackingResult MdPacker::run() {
                         std::chrono::duration<double>(scene_.md.max_seconds));
   init_bodies();
   PackingResult res;
-  res.method = "md";
+  res.method = Method::kMd;
   res.set.box = box_;
   const int nf = static_cast<int>(scene_.families.size());
   res.target_count.assign(nf, 0);
@@ -826,7 +826,7 @@ PackingResult MdPacker::run() {
     ++res.target_count[inc.family];
     res.target_volume_fraction[inc.family] += inc.shape.volume() / box_.volume();
   }
-  std::string why = "target reached";
+  StopReason why = StopReason::kTargetReached;
   if (bodies_.empty()) best_scale_ = 1.0;
   double mark = 0.0;  // best scale at the last pressure check
   while (!bodies_.empty()) {
@@ -834,7 +834,7 @@ PackingResult MdPacker::run() {
     try {
       s_in = contacts();
     } catch (const OutOfTime&) {
-      why = "time budget";
+      why = StopReason::kTimeBudget;
       break;
     }
     // A scale of 0 is no configuration (inclusions of size 0): nothing is kept until one is
@@ -853,26 +853,26 @@ PackingResult MdPacker::run() {
       }
       mark = best_scale_;
       if (m_ < kMinPressure) {
-        why = "jammed";
+        why = StopReason::kJammed;
         break;
       }
     }
     s_out_ = std::max(s_start_, s_in * (1.0 + m_));
     if (steps_ >= scene_.md.max_steps) {
-      why = "step budget";
+      why = StopReason::kStepBudget;
       break;
     }
     if ((steps_ & 15) == 0) {
       const double t =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - t0_).count();
       if (t > scene_.md.max_seconds) {
-        why = "time budget";
+        why = StopReason::kTimeBudget;
         break;
       }
       report_progress(false);
     }
   }
-  res.status = best_scale_ >= 1.0 ? "ok" : "target_not_reached";
+  res.status = best_scale_ >= 1.0 ? PackingStatus::kOk : PackingStatus::kTargetNotReached;
   // Out of time before any valid configuration: nothing is placed (best_center_ is empty).
   res.scale = std::clamp(best_scale_, 0.0, 1.0);
   res.steps = steps_;
@@ -899,7 +899,7 @@ PackingResult MdPacker::run() {
 
 }  // namespace
 
-PackingResult pack_md(const Scene& scene, const ProgressFn& progress) {
+PackingResult pack_md(const PackingSpec& scene, const ProgressFn& progress) {
   MdPacker packer(scene, progress);
   return packer.run();
 }

@@ -9,13 +9,21 @@
 
 namespace rvegen {
 
+/// kOk, or kTargetNotReached (the best non-overlapping configuration is still in the result).
+enum class PackingStatus { kOk, kTargetNotReached };
+/// Why a packing run ended.
+enum class StopReason { kTargetReached, kJammed, kStepBudget, kTimeBudget, kNoRoom };
+/// JSON names: "ok", "target_not_reached".
+const char* status_name(PackingStatus status);
+/// JSON names: "target reached", "jammed", "step budget", "time budget",
+/// "no room after max_attempts".
+const char* stop_reason_name(StopReason reason);
+
 struct PackingResult {
   InclusionSet set;
-  /// "ok" or "target_not_reached" (the best non-overlapping configuration is still in `set`).
-  std::string status = "ok";
-  std::string method;
-  /// Why the run ended ("target reached", "jammed", "step budget", "time budget", ...).
-  std::string stop_reason;
+  PackingStatus status = PackingStatus::kOk;
+  Method method = Method::kMd;
+  StopReason stop_reason = StopReason::kTargetReached;
   std::vector<int> target_count;               // per family
   std::vector<int> placed_count;               // per family
   std::vector<double> target_volume_fraction;  // per family, of the drawn population
@@ -36,18 +44,18 @@ using ProgressFn = std::function<void(const std::string&)>;
 /// placed one at a time (largest first) at uniform random positions and kept when clear of every
 /// placed one (and their periodic images) by scene.min_gap. Each inclusion gets at most
 /// scene.rsa_max_attempts draws; when one fails the run stops with status "target_not_reached".
-PackingResult pack_rsa(const Scene& scene, const ProgressFn& progress = nullptr);
+PackingResult pack_rsa(const PackingSpec& scene, const ProgressFn& progress = nullptr);
 
 /// Molecular-dynamics packing with growth (see md.cpp for the scheme). Never overlapping by
 /// the exact tests; bounded by scene.md (steps, seconds); status "target_not_reached" with the
 /// best valid configuration (shrunk by `scale`) when jammed or out of budget.
-PackingResult pack_md(const Scene& scene, const ProgressFn& progress = nullptr);
+PackingResult pack_md(const PackingSpec& scene, const ProgressFn& progress = nullptr);
 
 /// Runs the scene's method, then the exact audit (audit.hpp) of the result. Throws AuditFailure
 /// when the audit finds an overlap (or, in a non-periodic box, an inclusion leaving it): no
 /// overlapping RVE is ever returned, whatever the status. `before_audit` is a test hook that may
 /// alter the packed set before the audit (fault injection).
-PackingResult generate(const Scene& scene, const ProgressFn& progress = nullptr,
+PackingResult generate(const PackingSpec& scene, const ProgressFn& progress = nullptr,
                        const std::function<void(InclusionSet&)>& before_audit = nullptr);
 
 }  // namespace rvegen

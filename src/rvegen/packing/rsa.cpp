@@ -10,11 +10,11 @@
 
 namespace rvegen {
 
-PackingResult pack_rsa(const Scene& scene, const ProgressFn& progress) {
+PackingResult pack_rsa(const PackingSpec& scene, const ProgressFn& progress) {
   const auto t0 = std::chrono::steady_clock::now();
   PackingResult res;
   res.set.box = scene.box;
-  res.method = "rsa";
+  res.method = Method::kRsa;
   const int nf = static_cast<int>(scene.families.size());
   Random rng(scene.seed);
   std::vector<Inclusion> pop = draw_population(scene, rng);
@@ -93,7 +93,7 @@ PackingResult pack_rsa(const Scene& scene, const ProgressFn& progress) {
         placed = true;
       }
       if (!placed) {
-        res.status = "target_not_reached";
+        res.status = PackingStatus::kTargetNotReached;
         if (out_of_time) {
           if (progress) progress("rsa: time budget (rsa.max_seconds) spent");
           break;
@@ -115,9 +115,9 @@ PackingResult pack_rsa(const Scene& scene, const ProgressFn& progress) {
       }
     }
   }
-  res.stop_reason = res.status == "ok" ? "target reached"
-                    : out_of_time      ? "time budget"
-                                       : "no room after max_attempts";
+  res.stop_reason = res.status == PackingStatus::kOk ? StopReason::kTargetReached
+                    : out_of_time                    ? StopReason::kTimeBudget
+                                                     : StopReason::kNoRoom;
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;
 }

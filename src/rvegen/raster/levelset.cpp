@@ -141,18 +141,18 @@ LevelSets build_level_sets(const InclusionSet& set, const LevelSetOptions& opt) 
       openvdb::tools::pruneLevelSet(grid->tree());
       LevelSetInfo info;
       info.family = f;
-      info.kind = kind == 0 ? "core" : "interphase";
-      info.name = family_name(f) + "_" + info.kind;
+      info.kind = kind == 0 ? PhaseKind::kCore : PhaseKind::kInterphase;
+      info.name = family_name(f) + "_" + phase_kind_name(info.kind);
       info.phase = f + 1;
       for (const auto& p : phases) {
-        if (kind == 1 && p.family == f && p.kind == "interphase") info.phase = p.label;
+        if (kind == 1 && p.family == f && p.kind == PhaseKind::kInterphase) info.phase = p.label;
       }
       info.inclusions = static_cast<int>(members.size());
       info.active_voxels = static_cast<long long>(grid->activeVoxelCount());
       info.memory_bytes = static_cast<long long>(grid->memUsage());
       grid->setName(info.name);
       grid->insertMeta("family", openvdb::Int32Metadata(f));
-      grid->insertMeta("kind", openvdb::StringMetadata(info.kind));
+      grid->insertMeta("kind", openvdb::StringMetadata(phase_kind_name(info.kind)));
       grid->insertMeta("inclusions", openvdb::Int32Metadata(info.inclusions));
       grid->insertMeta("half_width_voxels",
                        openvdb::FloatMetadata(static_cast<float>(opt.half_width)));

@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "rvegen/model/phases.hpp"
+
 namespace rvegen {
 
 struct LevelSetOptions {
@@ -19,7 +21,7 @@ struct LevelSetOptions {
 /// interphase shells ("<family>_interphase"), periodic images that reach into the box included.
 struct LevelSetInfo {
   std::string name;
-  std::string kind;  // "core" or "interphase"
+  PhaseKind kind = PhaseKind::kCore;  // kCore or kInterphase
   int family = 0;
   int phase = 0;  // label in phase_table(set)
   int inclusions = 0;

@@ -23,32 +23,6 @@ struct Footprint {
 
 }  // namespace
 
-std::vector<Phase> phase_table(const InclusionSet& set) {
-  int nf = static_cast<int>(set.family_names.size());
-  for (const auto& inc : set.inclusions) nf = std::max(nf, inc.family + 1);
-  std::vector<bool> coated(nf, false), debonded(nf, false);
-  for (const auto& inc : set.inclusions) {
-    coated[inc.family] = coated[inc.family] || inc.mod.coated();
-    debonded[inc.family] = debonded[inc.family] || inc.mod.debonded();
-  }
-  auto name_of = [&](int f) {
-    return f < static_cast<int>(set.family_names.size()) ? set.family_names[f]
-                                                         : "family " + std::to_string(f);
-  };
-  std::vector<Phase> out;
-  out.push_back({0, "matrix", "matrix", -1});
-  for (int f = 0; f < nf; ++f) out.push_back({f + 1, name_of(f), "core", f});
-  for (int f = 0; f < nf; ++f) {
-    if (coated[f]) {
-      out.push_back({static_cast<int>(out.size()), name_of(f) + " interphase", "interphase", f});
-    }
-    if (debonded[f]) {
-      out.push_back({static_cast<int>(out.size()), name_of(f) + " void", "void", f});
-    }
-  }
-  return out;
-}
-
 VoxelImage voxel_layout(const InclusionSet& set, const std::array<int, 3>& dims,
                         const VoxelOptions& opt) {
   VoxelImage img;
@@ -96,9 +70,9 @@ long long voxelize_into(const InclusionSet& set, const VoxelImage& img, const Vo
   std::vector<int> shell_label(img.phases.size(), 0), void_label(img.phases.size(), 0);
   std::vector<char> is_core(256, 0);
   for (const auto& p : img.phases) {
-    if (p.kind == "core") is_core[p.label] = 1;
-    if (p.kind == "interphase") shell_label[p.family] = p.label;
-    if (p.kind == "void") void_label[p.family] = p.label;
+    if (p.kind == PhaseKind::kCore) is_core[p.label] = 1;
+    if (p.kind == PhaseKind::kInterphase) shell_label[p.family] = p.label;
+    if (p.kind == PhaseKind::kVoid) void_label[p.family] = p.label;
   }
 
   // Footprints and, for each z plane of the extent, the (inclusion, unwrapped k) that reach it.

@@ -8,21 +8,9 @@
 #include <vector>
 
 #include "rvegen/model/inclusion_set.hpp"
+#include "rvegen/model/phases.hpp"
 
 namespace rvegen {
-
-/// One label of the phase image.
-struct Phase {
-  int label = 0;
-  std::string name;  // "matrix", "<family>", "<family> interphase", "<family> void"
-  std::string kind;  // "matrix", "core", "interphase", "void"
-  int family = -1;   // -1 for the matrix
-};
-
-/// Labels of a set: 0 matrix, 1..F the cores of families 0..F-1, then, family by family, an
-/// interphase label for each family with coated inclusions and a void label for each family
-/// with debonded ones.
-std::vector<Phase> phase_table(const InclusionSet& set);
 
 struct VoxelOptions {
   /// Also compute `fraction` (partial volume of cores per voxel).

@@ -1,0 +1,31 @@
+// The phases of an RVE: the matrix, the cores of each family, and the interphase shells and
+// debonding voids of the families that have them. Voxel labels, level-set grids, the report and
+// the HDF5 file all number phases this way.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "rvegen/model/inclusion_set.hpp"
+
+namespace rvegen {
+
+enum class PhaseKind { kMatrix, kCore, kInterphase, kVoid };
+
+/// The JSON/HDF5 name of a phase kind: "matrix", "core", "interphase", "void".
+const char* phase_kind_name(PhaseKind kind);
+
+/// One label of the phase image.
+struct Phase {
+  int label = 0;
+  std::string name;  // "matrix", "<family>", "<family> interphase", "<family> void"
+  PhaseKind kind = PhaseKind::kMatrix;
+  int family = -1;  // -1 for the matrix
+};
+
+/// Labels of a set: 0 matrix, 1..F the cores of families 0..F-1, then, family by family, an
+/// interphase label for each family with coated inclusions and a void label for each family
+/// with debonded ones.
+std::vector<Phase> phase_table(const InclusionSet& set);
+
+}  // namespace rvegen

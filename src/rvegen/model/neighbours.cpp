@@ -57,34 +57,133 @@ int NeighbourGrid::cell_of(const Vec3& c, int k) const {
   return i;
 }
 
-void NeighbourGrid::insert(int index, const Vec3& center) {
-  const int i = cell_of(center, 0), j = cell_of(center, 1), k = cell_of(center, 2);
-  cells_[(static_cast<size_t>(k) * n_[1] + j) * n_[0] + i].push_back(index);
+size_t NeighbourGrid::cell_index(const Vec3& c) const {
+  return (static_cast<size_t>(cell_of(c, 2)) * n_[1] + cell_of(c, 1)) * n_[0] + cell_of(c, 0);
 }
 
-void NeighbourGrid::for_each_candidate(const Vec3& c, const std::function<void(int)>& f) const {
-  const int ci[3] = {cell_of(c, 0), cell_of(c, 1), cell_of(c, 2)};
+void NeighbourGrid::insert(int index, const Vec3& center) {
+  cells_[cell_index(center)].push_back(index);
+}
+
+void NeighbourGrid::insert_reaching(int index, const Vec3& center, double radius) {
   int lo[3], hi[3];
   for (int k = 0; k < 3; ++k) {
-    if (n_[k] == 1) {
-      lo[k] = hi[k] = 0;
-    } else if (box_.periodic) {
-      lo[k] = ci[k] - 1;
-      hi[k] = ci[k] + 1;
+    lo[k] = static_cast<int>(std::floor((center[k] - radius - box_.origin[k]) / cell_[k]));
+    hi[k] = static_cast<int>(std::floor((center[k] + radius - box_.origin[k]) / cell_[k]));
+    if (box_.periodic) {
+      if (hi[k] - lo[k] + 1 >= n_[k]) {
+        lo[k] = 0;
+        hi[k] = n_[k] - 1;
+      }
     } else {
-      lo[k] = std::max(0, ci[k] - 1);
-      hi[k] = std::min(n_[k] - 1, ci[k] + 1);
+      lo[k] = std::clamp(lo[k], 0, n_[k] - 1);
+      hi[k] = std::clamp(hi[k], 0, n_[k] - 1);
     }
   }
   for (int z = lo[2]; z <= hi[2]; ++z) {
-    const int zz = (z + n_[2]) % n_[2];
+    const int zz = (z % n_[2] + n_[2]) % n_[2];
     for (int y = lo[1]; y <= hi[1]; ++y) {
-      const int yy = (y + n_[1]) % n_[1];
+      const int yy = (y % n_[1] + n_[1]) % n_[1];
       for (int x = lo[0]; x <= hi[0]; ++x) {
-        const int xx = (x + n_[0]) % n_[0];
-        for (int idx : cells_[(static_cast<size_t>(zz) * n_[1] + yy) * n_[0] + xx]) f(idx);
+        const int xx = (x % n_[0] + n_[0]) % n_[0];
+        cells_[(static_cast<size_t>(zz) * n_[1] + yy) * n_[0] + xx].push_back(index);
       }
     }
+  }
+}
+
+void NeighbourGrid::neighbour_range(const Vec3& c, int lo[3], int hi[3]) const {
+  for (int k = 0; k < 3; ++k) {
+    const int ci = cell_of(c, k);
+    if (n_[k] == 1) {
+      lo[k] = hi[k] = 0;
+    } else if (box_.periodic) {
+      lo[k] = ci - 1;
+      hi[k] = ci + 1;
+    } else {
+      lo[k] = std::max(0, ci - 1);
+      hi[k] = std::min(n_[k] - 1, ci + 1);
+    }
+  }
+}
+
+bool NeighbourGrid::nearest_image_suffices() const {
+  if (!box_.periodic) return true;
+  return n_[0] >= 3 && n_[1] >= 3 && n_[2] >= 3;
+}
+
+void for_each_sphere_pair(const Box& box, const std::vector<Vec3>& c, const std::vector<double>& r,
+                          const std::function<void(int, int, const std::array<int, 3>&)>& f,
+                          const std::function<void()>& tick) {
+  const size_t n = c.size();
+  if (n == 0) return;
+  // Spheres up to twice the median radius are "small": the grid's cells are sized for them.
+  std::vector<double> radii(r);
+  std::nth_element(radii.begin(), radii.begin() + radii.size() / 2, radii.end());
+  const double r_cut = 2.0 * radii[radii.size() / 2];
+  std::vector<int> small, large;
+  for (size_t p = 0; p < n; ++p) (r[p] <= r_cut ? small : large).push_back(static_cast<int>(p));
+  if (large.size() > 2000) {
+    // Too many large spheres for the direct large-large pass: one level for all.
+    small.clear();
+    large.clear();
+    for (size_t p = 0; p < n; ++p) small.push_back(static_cast<int>(p));
+  }
+  double r_small = 0.0;
+  for (int p : small) r_small = std::max(r_small, r[p]);
+  NeighbourGrid grid(box, 2.0 * r_small, small.size());
+  for (int p : small) grid.insert(p, c[p]);
+  auto lattice = [&](const Vec3& shift) {
+    std::array<int, 3> k = {0, 0, 0};
+    if (box.periodic) {
+      for (int a = 0; a < 3; ++a) k[a] = static_cast<int>(std::floor(shift[a] / box.size[a] + 0.5));
+    }
+    return k;
+  };
+  auto all_images = [&](int p, int q) {
+    for_each_image(box, c[p], r[p], c[q], r[q], [&](const Vec3& s) {
+      const std::array<int, 3> k = lattice(s);
+      if (p == q && k[0] == 0 && k[1] == 0 && k[2] == 0) return;
+      f(p, q, k);
+    });
+  };
+  const bool nearest = grid.nearest_image_suffices();
+  for (size_t t = 0; t < small.size(); ++t) {
+    if (tick && (t & 1023) == 0) tick();
+    const int p = small[t];
+    grid.for_each_candidate(c[p], [&](int q) {
+      if (q < p) return;
+      if (!nearest) {
+        all_images(p, q);
+        return;
+      }
+      if (q == p) return;  // a small sphere cannot reach its own image (3 cells per axis)
+      // Only the nearest image of q can be within reach: the box is at least 3 reaches wide.
+      Vec3 d = c[q] - c[p];
+      std::array<int, 3> k = {0, 0, 0};
+      if (box.periodic) {
+        for (int a = 0; a < 3; ++a) {
+          const int m = static_cast<int>(std::floor(d[a] / box.size[a] + 0.5));
+          d[a] -= m * box.size[a];
+          k[a] = -m;
+        }
+      }
+      const double rr = r[p] + r[q];
+      if (d.squaredNorm() <= rr * rr) f(p, q, k);
+    });
+  }
+  if (large.empty()) return;
+  // Large spheres: registered in every cell within their radius plus r_small, so a small
+  // sphere that meets one finds it in its own cell.
+  NeighbourGrid reach_grid(box, 2.0 * r_small, small.size());
+  for (int q : large) reach_grid.insert_reaching(q, c[q], r[q] + r_small);
+  for (size_t t = 0; t < small.size(); ++t) {
+    if (tick && (t & 1023) == 0) tick();
+    reach_grid.for_each_in_cell(c[small[t]], [&](int q) { all_images(small[t], q); });
+  }
+  for (size_t u = 0; u < large.size(); ++u) {
+    if (tick) tick();
+    for (size_t v = u; v < large.size(); ++v) all_images(large[u], large[v]);
   }
 }
 

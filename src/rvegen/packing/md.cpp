@@ -151,11 +151,6 @@ class MdPacker {
   double separating_scale(const Body& a, const Body& b, const Vec3& shift, const Vec3& n) const;
 
   BodyMobility mobility_of(const Body& b, const Shape& scaled) const;
-  struct Sub {
-    Vec3 c;
-    double r;
-    int body;
-  };
   struct Key {
     int a, b, kx, ky, kz;
     bool operator<(const Key& o) const {
@@ -166,7 +161,10 @@ class MdPacker {
     }
   };
   static Key make_key(int a, int b, int kx, int ky, int kz);
-  std::vector<Sub> subs_;
+  // Spheres covering every body (centre, radius, body) at the last pair-list build.
+  std::vector<Vec3> sub_c_;
+  std::vector<double> sub_r_;
+  std::vector<int> sub_body_;
   std::vector<Key> keys_;
   std::vector<double> half_skin_;
   void add(int i, const Vec3& move, const Vec3& turn) {
@@ -378,7 +376,9 @@ void MdPacker::build_pairs() {
   for (Body& b : bodies_) wrap(b);
   // Strings of spheres covering each capsule inflated by the body's half skin (relative to its
   // size, so large bodies do not force frequent rebuilds).
-  subs_.clear();
+  sub_c_.clear();
+  sub_r_.clear();
+  sub_body_.clear();
   std::vector<Vec3> seg_p(n), seg_q(n);
   std::vector<double> cap_r(n);
   for (size_t i = 0; i < n; ++i) {
@@ -400,170 +400,21 @@ void MdPacker::build_pairs() {
     const double rs = std::sqrt(rho * rho + 0.25 * spacing * spacing);
     for (int t = 0; t < k; ++t) {
       const double u = k > 1 ? -1.0 + 2.0 * t / (k - 1) : 0.0;
-      subs_.push_back({b.shape.center + u * e, rs, static_cast<int>(i)});
+      sub_c_.push_back(b.shape.center + u * e);
+      sub_r_.push_back(rs);
+      sub_body_.push_back(static_cast<int>(i));
     }
   }
-  // Spheres up to twice the median radius are "small" and sorted into a grid of cells at
-  // least twice that radius; larger ones are registered in every cell they can reach.
-  std::vector<double> radii(subs_.size());
-  for (size_t p = 0; p < subs_.size(); ++p) radii[p] = subs_[p].r;
-  std::nth_element(radii.begin(), radii.begin() + radii.size() / 2, radii.end());
-  double r_cut = 2.0 * radii[radii.size() / 2];
-  std::vector<int> small, large;
-  for (size_t p = 0; p < subs_.size(); ++p) {
-    (subs_[p].r <= r_cut ? small : large).push_back(static_cast<int>(p));
-  }
-  if (large.size() > 2000) {
-    // Too many large spheres for the direct large-large pass: one level for all.
-    r_cut = *std::max_element(radii.begin(), radii.end());
-    small.clear();
-    large.clear();
-    for (size_t p = 0; p < subs_.size(); ++p) small.push_back(static_cast<int>(p));
-  }
+  // Every pair of covering spheres that meet (the broad phase the audit and RSA use too).
   keys_.clear();
-  auto add_min_image = [&](const Sub& p, const Sub& q) {
-    Vec3 d = q.c - p.c;
-    int k[3] = {0, 0, 0};
-    if (box_.periodic) {
-      for (int a = 0; a < 3; ++a) {
-        k[a] = static_cast<int>(std::floor(d[a] / box_.size[a] + 0.5));
-        d[a] -= k[a] * box_.size[a];
-      }
-    }
-    const double rr = p.r + q.r;
-    if (d.squaredNorm() > rr * rr) return;
-    if (p.body == q.body && k[0] == 0 && k[1] == 0 && k[2] == 0) return;
-    keys_.push_back(make_key(p.body, q.body, -k[0], -k[1], -k[2]));
-  };
-  auto add_all_images = [&](const Sub& p, const Sub& q) {
-    for_each_image(box_, p.c, p.r, q.c, q.r, [&](const Vec3& sh) {
-      int k[3] = {0, 0, 0};
-      if (box_.periodic) {
-        for (int a = 0; a < 3; ++a) k[a] = static_cast<int>(std::floor(sh[a] / box_.size[a] + 0.5));
-      }
-      if (p.body == q.body && k[0] == 0 && k[1] == 0 && k[2] == 0) return;
-      keys_.push_back(make_key(p.body, q.body, k[0], k[1], k[2]));
-    });
-  };
-  // Cells at least twice the largest small radius; large spheres reach r_small further.
-  double r_small = 0.0;
-  for (int p : small) r_small = std::max(r_small, subs_[p].r);
-  int nc[3];
-  const double cell = 2.0 * r_small;
-  bool use_grid = true;
-  for (int a = 0; a < 3; ++a) {
-    nc[a] = std::clamp(static_cast<int>(std::floor(box_.size[a] / cell)), 1, 1 << 10);
-  }
-  const double cap = 8.0 * static_cast<double>(subs_.size()) + 64.0;
-  if (static_cast<double>(nc[0]) * nc[1] * nc[2] > cap) {
-    // More cells than spheres: coarsen (cells stay >= 2 r_cut).
-    const double f = std::cbrt(static_cast<double>(nc[0]) * nc[1] * nc[2] / cap);
-    for (int a = 0; a < 3; ++a) nc[a] = std::max(1, static_cast<int>(nc[a] / f));
-  }
-  for (int a = 0; a < 3; ++a) use_grid &= !box_.periodic || nc[a] >= 3;
-  if (!use_grid) {
-    // Small periodic boxes: every pair of spheres with every image that can touch.
-    for (size_t p = 0; p < subs_.size(); ++p) {
-      if ((p & 255) == 0) check_time();
-      for (size_t q = p; q < subs_.size(); ++q) add_all_images(subs_[p], subs_[q]);
-    }
-  } else {
-    const long long ncell = static_cast<long long>(nc[0]) * nc[1] * nc[2];
-    const long long nc01 = static_cast<long long>(nc[0]) * nc[1];
-    auto cell_index = [&](double x, int a) {
-      int i = static_cast<int>(std::floor((x - box_.origin[a]) / box_.size[a] * nc[a]));
-      if (box_.periodic) {
-        i %= nc[a];
-        if (i < 0) i += nc[a];
-      } else {
-        i = std::clamp(i, 0, nc[a] - 1);
-      }
-      return i;
-    };
-    // Counting sort of the small spheres into cells.
-    std::vector<int> start(ncell + 1, 0), cell_id(small.size()), order(small.size());
-    for (size_t t = 0; t < small.size(); ++t) {
-      const Vec3& c = subs_[small[t]].c;
-      cell_id[t] = static_cast<int>(cell_index(c[0], 0) + nc[0] * cell_index(c[1], 1) +
-                                    nc01 * cell_index(c[2], 2));
-      ++start[cell_id[t] + 1];
-    }
-    for (long long c = 0; c < ncell; ++c) start[c + 1] += start[c];
-    {
-      std::vector<int> fill(start.begin(), start.end() - 1);
-      for (size_t t = 0; t < small.size(); ++t) order[fill[cell_id[t]]++] = small[t];
-    }
-    // Every cell and its 26 neighbours. A periodic grid has at least 3 cells per axis here (so
-    // neighbours do not alias); a non-periodic one may have 1 or 2, and then the neighbours
-    // outside the grid are skipped below (once these were not visited at all: a grid of 1 or 2
-    // cells along an axis missed pairs, and overlapping configurations were declared valid).
-    for (size_t t = 0; t < small.size(); ++t) {
-      if ((t & 1023) == 0) check_time();
-      const Sub& sp = subs_[small[t]];
-      const int cx = cell_index(sp.c[0], 0), cy = cell_index(sp.c[1], 1),
-                cz = cell_index(sp.c[2], 2);
-      for (int dz = -1; dz <= 1; ++dz) {
-        for (int dy = -1; dy <= 1; ++dy) {
-          for (int dx = -1; dx <= 1; ++dx) {
-            int x = cx + dx, y = cy + dy, z = cz + dz;
-            if (box_.periodic) {
-              x = (x + nc[0]) % nc[0];
-              y = (y + nc[1]) % nc[1];
-              z = (z + nc[2]) % nc[2];
-            } else if (x < 0 || y < 0 || z < 0 || x >= nc[0] || y >= nc[1] || z >= nc[2]) {
-              continue;
-            }
-            const long long c = x + nc[0] * y + nc01 * z;
-            for (int k = start[c]; k < start[c + 1]; ++k) {
-              if (order[k] > small[t]) add_min_image(sp, subs_[order[k]]);
-            }
-          }
-        }
-      }
-    }
-    if (!large.empty()) {
-      // Large spheres: registered in every cell within their radius plus r_small, so a small
-      // sphere that touches one finds it in its own cell.
-      std::vector<std::vector<int>> reg(ncell);
-      for (int q : large) {
-        const Sub& sq = subs_[q];
-        int lo[3], hi[3];
-        for (int a = 0; a < 3; ++a) {
-          const double w = box_.size[a] / nc[a];
-          lo[a] = static_cast<int>(std::floor((sq.c[a] - sq.r - r_small - box_.origin[a]) / w));
-          hi[a] = static_cast<int>(std::floor((sq.c[a] + sq.r + r_small - box_.origin[a]) / w));
-          if (box_.periodic) {
-            if (hi[a] - lo[a] + 1 >= nc[a]) {
-              lo[a] = 0;
-              hi[a] = nc[a] - 1;
-            }
-          } else {
-            lo[a] = std::clamp(lo[a], 0, nc[a] - 1);
-            hi[a] = std::clamp(hi[a], 0, nc[a] - 1);
-          }
-        }
-        for (int z = lo[2]; z <= hi[2]; ++z) {
-          for (int y = lo[1]; y <= hi[1]; ++y) {
-            for (int x = lo[0]; x <= hi[0]; ++x) {
-              const int xx = (x % nc[0] + nc[0]) % nc[0], yy = (y % nc[1] + nc[1]) % nc[1],
-                        zz = (z % nc[2] + nc[2]) % nc[2];
-              reg[xx + nc[0] * yy + nc01 * zz].push_back(q);
-            }
-          }
-        }
-      }
-      for (size_t t = 0; t < small.size(); ++t) {
-        if ((t & 1023) == 0) check_time();
-        const Sub& sp = subs_[small[t]];
-        const long long c = cell_id[t];
-        for (int q : reg[c]) add_all_images(sp, subs_[q]);
-      }
-      for (size_t u = 0; u < large.size(); ++u) {
-        check_time();
-        for (size_t v = u; v < large.size(); ++v) add_all_images(subs_[large[u]], subs_[large[v]]);
-      }
-    }
-  }
+  for_each_sphere_pair(
+      box_, sub_c_, sub_r_,
+      [&](int p, int q, const std::array<int, 3>& k) {
+        const int a = sub_body_[p], b = sub_body_[q];
+        if (a == b && k[0] == 0 && k[1] == 0 && k[2] == 0) return;
+        keys_.push_back(make_key(a, b, k[0], k[1], k[2]));
+      },
+      [this] { check_time(); });
   check_time();
   std::sort(keys_.begin(), keys_.end());
   keys_.erase(std::unique(keys_.begin(), keys_.end()), keys_.end());

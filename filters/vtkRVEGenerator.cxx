@@ -312,8 +312,8 @@ void vtkRVEGenerator::PrintSelf(ostream& os, vtkIndent indent) {
   };
   os << indent << "SceneFile: " << (this->SceneFile ? this->SceneFile : "(none)") << "\n";
   os << indent << "Seed: " << this->Seed << "\n";
-  os << indent << "Method: " << rvegen::method_name(static_cast<rvegen::Method>(this->Method))
-     << "\n";
+  os << indent << "Method: " << this->Method << " ("
+     << rvegen::method_name(static_cast<rvegen::Method>(this->Method)) << ")\n";
   v3("BoxSize", this->BoxSize);
   os << indent << "Periodic: " << this->Periodic << "\n";
   os << indent << "MinGap: " << this->MinGap << "\n";

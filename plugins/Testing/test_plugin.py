@@ -195,7 +195,7 @@ gen.GetProperty("Method").SetElement(0, 7)
 gen.GetProperty("FibreOrientation").SetElement(0, -2)
 gen.UpdateVTKObjects()
 printed = str(source)
-check("Method: rsa" in printed, "Method 7 not clamped to 1 (rsa)")
+check("Method: 1 (rsa)" in printed, "Method 7 not clamped to 1 (rsa)")
 check("FibreOrientation: 0" in printed, "FibreOrientation -2 not clamped to 0")
 missing = [n for n in gen.ListProperties() if n + ":" not in printed]
 check(not missing, "PrintSelf leaves out %s" % missing)

@@ -1,18 +1,22 @@
 """Loads the RVEGen ParaView plugin for the sample scripts.
 
 The plugin is looked up in $RVEGEN_PLUGIN, then in the install tree samples/quickstart.sh makes
-(install/lib/paraview-5.11/plugins/RVEGen/RVEGen.so), then in build/test-install.
+(install/lib/paraview-<major>.<minor>/plugins/RVEGen/RVEGen.so, for the running ParaView's
+version), then in build/test-install.
 """
 import os
 
+from paraview import servermanager
 from paraview.simple import LoadPlugin
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+_PM = servermanager.vtkSMProxyManager
+SUBDIR = os.path.join("lib", "paraview-%d.%d" % (_PM.GetVersionMajor(), _PM.GetVersionMinor()),
+                      "plugins", "RVEGen", "RVEGen.so")
 CANDIDATES = [
     os.environ.get("RVEGEN_PLUGIN", ""),
-    os.path.join(ROOT, "install", "lib", "paraview-5.11", "plugins", "RVEGen", "RVEGen.so"),
-    os.path.join(ROOT, "build", "test-install", "lib", "paraview-5.11", "plugins", "RVEGen",
-                 "RVEGen.so"),
+    os.path.join(ROOT, "install", SUBDIR),
+    os.path.join(ROOT, "build", "test-install", SUBDIR),
 ]
 
 

@@ -42,7 +42,7 @@ NeighbourGrid::NeighbourGrid(const Box& box, double reach, size_t expected_count
     cell_[k] = box.size[k] / n;
     total *= static_cast<size_t>(n);
   }
-  cells_.resize(total);
+  (void)total;
 }
 
 int NeighbourGrid::cell_of(const Vec3& c, int k) const {
@@ -62,10 +62,12 @@ size_t NeighbourGrid::cell_index(const Vec3& c) const {
 }
 
 void NeighbourGrid::insert(int index, const Vec3& center) {
+  if (cells_.empty()) cells_.resize(cell_count());
   cells_[cell_index(center)].push_back(index);
 }
 
 void NeighbourGrid::insert_reaching(int index, const Vec3& center, double radius) {
+  if (cells_.empty()) cells_.resize(cell_count());
   int lo[3], hi[3];
   for (int k = 0; k < 3; ++k) {
     lo[k] = static_cast<int>(std::floor((center[k] - radius - box_.origin[k]) / cell_[k]));
@@ -112,11 +114,12 @@ bool NeighbourGrid::nearest_image_suffices() const {
   return n_[0] >= 3 && n_[1] >= 3 && n_[2] >= 3;
 }
 
-void for_each_sphere_pair(const Box& box, const std::vector<Vec3>& c, const std::vector<double>& r,
-                          const std::function<void(int, int, const std::array<int, 3>&)>& f,
-                          const std::function<void()>& tick) {
+std::vector<SpherePair> sphere_pairs(const Box& box, const std::vector<Vec3>& c,
+                                     const std::vector<double>& r,
+                                     const std::function<void()>& tick) {
   const size_t n = c.size();
-  if (n == 0) return;
+  std::vector<SpherePair> out;
+  if (n == 0) return out;
   // Spheres up to twice the median radius are "small": the grid's cells are sized for them.
   std::vector<double> radii(r);
   std::nth_element(radii.begin(), radii.begin() + radii.size() / 2, radii.end());
@@ -131,8 +134,18 @@ void for_each_sphere_pair(const Box& box, const std::vector<Vec3>& c, const std:
   }
   double r_small = 0.0;
   for (int p : small) r_small = std::max(r_small, r[p]);
+  // The grid's cells, filled by a counting sort (the spheres are all known: no per-cell lists).
   NeighbourGrid grid(box, 2.0 * r_small, small.size());
-  for (int p : small) grid.insert(p, c[p]);
+  std::vector<int> start(grid.cell_count() + 1, 0), cell_of(small.size()), order(small.size());
+  for (size_t t = 0; t < small.size(); ++t) {
+    cell_of[t] = static_cast<int>(grid.cell_index(c[small[t]]));
+    ++start[cell_of[t] + 1];
+  }
+  for (size_t k = 0; k + 1 < start.size(); ++k) start[k + 1] += start[k];
+  {
+    std::vector<int> fill(start.begin(), start.end() - 1);
+    for (size_t t = 0; t < small.size(); ++t) order[fill[cell_of[t]]++] = small[t];
+  }
   auto lattice = [&](const Vec3& shift) {
     std::array<int, 3> k = {0, 0, 0};
     if (box.periodic) {
@@ -144,35 +157,38 @@ void for_each_sphere_pair(const Box& box, const std::vector<Vec3>& c, const std:
     for_each_image(box, c[p], r[p], c[q], r[q], [&](const Vec3& s) {
       const std::array<int, 3> k = lattice(s);
       if (p == q && k[0] == 0 && k[1] == 0 && k[2] == 0) return;
-      f(p, q, k);
+      out.push_back({p, q, k});
     });
   };
   const bool nearest = grid.nearest_image_suffices();
+  auto candidate = [&](int p, int q) {
+    if (q < p) return;
+    if (!nearest) {
+      all_images(p, q);
+      return;
+    }
+    if (q == p) return;  // a small sphere cannot reach its own image (3 cells per axis)
+    // Only the nearest image of q can be within reach: the box is at least 3 reaches wide.
+    Vec3 d = c[q] - c[p];
+    std::array<int, 3> k = {0, 0, 0};
+    if (box.periodic) {
+      for (int a = 0; a < 3; ++a) {
+        const int m = static_cast<int>(std::floor(d[a] / box.size[a] + 0.5));
+        d[a] -= m * box.size[a];
+        k[a] = -m;
+      }
+    }
+    const double rr = r[p] + r[q];
+    if (d.squaredNorm() <= rr * rr) out.push_back({p, q, k});
+  };
   for (size_t t = 0; t < small.size(); ++t) {
     if (tick && (t & 1023) == 0) tick();
     const int p = small[t];
-    grid.for_each_candidate(c[p], [&](int q) {
-      if (q < p) return;
-      if (!nearest) {
-        all_images(p, q);
-        return;
-      }
-      if (q == p) return;  // a small sphere cannot reach its own image (3 cells per axis)
-      // Only the nearest image of q can be within reach: the box is at least 3 reaches wide.
-      Vec3 d = c[q] - c[p];
-      std::array<int, 3> k = {0, 0, 0};
-      if (box.periodic) {
-        for (int a = 0; a < 3; ++a) {
-          const int m = static_cast<int>(std::floor(d[a] / box.size[a] + 0.5));
-          d[a] -= m * box.size[a];
-          k[a] = -m;
-        }
-      }
-      const double rr = r[p] + r[q];
-      if (d.squaredNorm() <= rr * rr) f(p, q, k);
+    grid.for_each_neighbour_cell(c[p], [&](size_t cell) {
+      for (int u = start[cell]; u < start[cell + 1]; ++u) candidate(p, order[u]);
     });
   }
-  if (large.empty()) return;
+  if (large.empty()) return out;
   // Large spheres: registered in every cell within their radius plus r_small, so a small
   // sphere that meets one finds it in its own cell.
   NeighbourGrid reach_grid(box, 2.0 * r_small, small.size());
@@ -185,6 +201,7 @@ void for_each_sphere_pair(const Box& box, const std::vector<Vec3>& c, const std:
     if (tick) tick();
     for (size_t v = u; v < large.size(); ++v) all_images(large[u], large[v]);
   }
+  return out;
 }
 
 }  // namespace rvegen

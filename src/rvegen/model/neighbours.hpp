@@ -1,5 +1,5 @@
 // The broad phase: which inclusions (and which of their periodic images) may meet. One grid
-// serves the packers (RSA by queries, MD by for_each_sphere_pair over the spheres that cover its
+// serves the packers (RSA by queries, MD by sphere_pairs over the spheres that cover its
 // bodies), the audit and the statistics.
 #pragma once
 
@@ -33,6 +33,23 @@ class NeighbourGrid {
   /// (index, cell) entry is visited at most once.
   template <class F>
   void for_each_candidate(const Vec3& c, F&& f) const {
+    if (cells_.empty()) return;
+    for_each_neighbour_cell(c, [&](size_t cell) {
+      for (int idx : cells_[cell]) f(idx);
+    });
+  }
+  /// Calls f(index) for every index stored in the cell of c (see insert_reaching).
+  template <class F>
+  void for_each_in_cell(const Vec3& c, F&& f) const {
+    if (cells_.empty()) return;
+    for (int idx : cells_[cell_index(c)]) f(idx);
+  }
+  /// The cells: their number, the cell of a point, and f(cell) for the cell of c and its
+  /// neighbours (each cell once). For callers that keep their own per-cell storage.
+  size_t cell_count() const { return static_cast<size_t>(n_[0]) * n_[1] * n_[2]; }
+  size_t cell_index(const Vec3& c) const;
+  template <class F>
+  void for_each_neighbour_cell(const Vec3& c, F&& f) const {
     int lo[3], hi[3];
     neighbour_range(c, lo, hi);
     for (int z = lo[2]; z <= hi[2]; ++z) {
@@ -40,16 +57,10 @@ class NeighbourGrid {
       for (int y = lo[1]; y <= hi[1]; ++y) {
         const int yy = (y + n_[1]) % n_[1];
         for (int x = lo[0]; x <= hi[0]; ++x) {
-          const int xx = (x + n_[0]) % n_[0];
-          for (int idx : cells_[(static_cast<size_t>(zz) * n_[1] + yy) * n_[0] + xx]) f(idx);
+          f((static_cast<size_t>(zz) * n_[1] + yy) * n_[0] + (x + n_[0]) % n_[0]);
         }
       }
     }
-  }
-  /// Calls f(index) for every index stored in the cell of c (see insert_reaching).
-  template <class F>
-  void for_each_in_cell(const Vec3& c, F&& f) const {
-    for (int idx : cells_[cell_index(c)]) f(idx);
   }
   /// True when a candidate's nearest periodic image is the only one within `reach`: every
   /// periodic axis has at least 3 cells (so the box is at least 3 reaches wide).
@@ -57,24 +68,29 @@ class NeighbourGrid {
 
  private:
   int cell_of(const Vec3& c, int axis) const;
-  size_t cell_index(const Vec3& c) const;
   void neighbour_range(const Vec3& c, int lo[3], int hi[3]) const;
   Box box_;
   int n_[3];
   double cell_[3];
-  std::vector<std::vector<int>> cells_;
+  std::vector<std::vector<int>> cells_;  // allocated at the first insert
+};
+
+/// Sphere j, translated by the lattice vector (k[0] size[0], k[1] size[1], k[2] size[2]),
+/// intersects sphere i.
+struct SpherePair {
+  int i, j;
+  std::array<int, 3> k;
 };
 
 /// Every intersecting pair of spheres (centre c[i], radius r[i]) of a box, periodic images
-/// included: calls f(i, j, k) when sphere j translated by the lattice vector
-/// (k[0] size[0], k[1] size[1], k[2] size[2]) intersects sphere i. Each pair of distinct spheres
+/// included. Each pair of distinct spheres
 /// and image is reported once (as (i, j, k) or (j, i, -k)); a sphere meeting its own image k
 /// is reported as k and as -k. Small spheres go through a NeighbourGrid by queries; spheres of
 /// more than twice the median radius are registered in every cell they reach, so one large
 /// sphere does not coarsen the grid for all. `tick` (optional) is called every 1024 spheres (a
 /// time budget may throw from it).
-void for_each_sphere_pair(const Box& box, const std::vector<Vec3>& c, const std::vector<double>& r,
-                          const std::function<void(int, int, const std::array<int, 3>&)>& f,
-                          const std::function<void()>& tick = nullptr);
+std::vector<SpherePair> sphere_pairs(const Box& box, const std::vector<Vec3>& c,
+                                     const std::vector<double>& r,
+                                     const std::function<void()>& tick = nullptr);
 
 }  // namespace rvegen

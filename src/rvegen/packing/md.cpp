@@ -407,14 +407,11 @@ void MdPacker::build_pairs() {
   }
   // Every pair of covering spheres that meet (the broad phase the audit and RSA use too).
   keys_.clear();
-  for_each_sphere_pair(
-      box_, sub_c_, sub_r_,
-      [&](int p, int q, const std::array<int, 3>& k) {
-        const int a = sub_body_[p], b = sub_body_[q];
-        if (a == b && k[0] == 0 && k[1] == 0 && k[2] == 0) return;
-        keys_.push_back(make_key(a, b, k[0], k[1], k[2]));
-      },
-      [this] { check_time(); });
+  for (const SpherePair& sp : sphere_pairs(box_, sub_c_, sub_r_, [this] { check_time(); })) {
+    const int a = sub_body_[sp.i], b = sub_body_[sp.j];
+    if (a == b && sp.k[0] == 0 && sp.k[1] == 0 && sp.k[2] == 0) continue;
+    keys_.push_back(make_key(a, b, sp.k[0], sp.k[1], sp.k[2]));
+  }
   check_time();
   std::sort(keys_.begin(), keys_.end());
   keys_.erase(std::unique(keys_.begin(), keys_.end()), keys_.end());

@@ -82,7 +82,9 @@ TEST(Neighbours, SpherePairsMatchBruteForceOverAllImages) {
       r[i] = i < cs.large ? cs.r_large : cs.r_small * (0.5 + rng.uniform());
     }
     std::map<PairKey, int> seen;
-    for (const SpherePair& p : sphere_pairs(box, c, r)) ++seen[canonical(p.i, p.j, p.k)];
+    std::vector<SpherePair> pairs;
+    sphere_pairs(box, c, r, &pairs);
+    for (const SpherePair& p : pairs) ++seen[canonical(p.i, p.j, p.k)];
     const double rmax = std::max(cs.r_large, 1.5 * cs.r_small);
     const int range = static_cast<int>(std::ceil(2.0 * rmax / box.size.minCoeff())) + 1;
     const std::set<PairKey> expected = brute_force(box, c, r, range);

@@ -31,4 +31,7 @@ struct ConvexQuery {
 /// `need_distance`: when false, stops as soon as a separating plane is found.
 ConvexQuery convex_query(const Shape& a, const Shape& b, double tolerance, bool need_distance);
 
+/// Squared distance between the segments [p1, q1] and [p2, q2] (either may be a point).
+double segment_distance2(const Vec3& p1, const Vec3& q1, const Vec3& p2, const Vec3& q2);
+
 }  // namespace rvegen

@@ -114,12 +114,12 @@ bool NeighbourGrid::nearest_image_suffices() const {
   return n_[0] >= 3 && n_[1] >= 3 && n_[2] >= 3;
 }
 
-std::vector<SpherePair> sphere_pairs(const Box& box, const std::vector<Vec3>& c,
-                                     const std::vector<double>& r,
-                                     const std::function<void()>& tick) {
+void sphere_pairs(const Box& box, const std::vector<Vec3>& c, const std::vector<double>& r,
+                  std::vector<SpherePair>* pairs, const std::function<void()>& tick) {
   const size_t n = c.size();
-  std::vector<SpherePair> out;
-  if (n == 0) return out;
+  std::vector<SpherePair>& out = *pairs;
+  out.clear();
+  if (n == 0) return;
   // Spheres up to twice the median radius are "small": the grid's cells are sized for them.
   std::vector<double> radii(r);
   std::nth_element(radii.begin(), radii.begin() + radii.size() / 2, radii.end());
@@ -135,7 +135,7 @@ std::vector<SpherePair> sphere_pairs(const Box& box, const std::vector<Vec3>& c,
   double r_small = 0.0;
   for (int p : small) r_small = std::max(r_small, r[p]);
   // The grid's cells, filled by a counting sort (the spheres are all known: no per-cell lists).
-  NeighbourGrid grid(box, 2.0 * r_small, small.size());
+  NeighbourGrid grid(box, 2.0 * r_small, 4 * small.size());
   std::vector<int> start(grid.cell_count() + 1, 0), cell_of(small.size()), order(small.size());
   for (size_t t = 0; t < small.size(); ++t) {
     cell_of[t] = static_cast<int>(grid.cell_index(c[small[t]]));
@@ -188,10 +188,10 @@ std::vector<SpherePair> sphere_pairs(const Box& box, const std::vector<Vec3>& c,
       for (int u = start[cell]; u < start[cell + 1]; ++u) candidate(p, order[u]);
     });
   }
-  if (large.empty()) return out;
+  if (large.empty()) return;
   // Large spheres: registered in every cell within their radius plus r_small, so a small
   // sphere that meets one finds it in its own cell.
-  NeighbourGrid reach_grid(box, 2.0 * r_small, small.size());
+  NeighbourGrid reach_grid(box, 2.0 * r_small, 4 * small.size());
   for (int q : large) reach_grid.insert_reaching(q, c[q], r[q] + r_small);
   for (size_t t = 0; t < small.size(); ++t) {
     if (tick && (t & 1023) == 0) tick();
@@ -201,7 +201,6 @@ std::vector<SpherePair> sphere_pairs(const Box& box, const std::vector<Vec3>& c,
     if (tick) tick();
     for (size_t v = u; v < large.size(); ++v) all_images(large[u], large[v]);
   }
-  return out;
 }
 
 }  // namespace rvegen

@@ -83,14 +83,13 @@ struct SpherePair {
 };
 
 /// Every intersecting pair of spheres (centre c[i], radius r[i]) of a box, periodic images
-/// included. Each pair of distinct spheres
+/// included, into *out (cleared first; its capacity is reused). Each pair of distinct spheres
 /// and image is reported once (as (i, j, k) or (j, i, -k)); a sphere meeting its own image k
 /// is reported as k and as -k. Small spheres go through a NeighbourGrid by queries; spheres of
 /// more than twice the median radius are registered in every cell they reach, so one large
 /// sphere does not coarsen the grid for all. `tick` (optional) is called every 1024 spheres (a
 /// time budget may throw from it).
-std::vector<SpherePair> sphere_pairs(const Box& box, const std::vector<Vec3>& c,
-                                     const std::vector<double>& r,
-                                     const std::function<void()>& tick = nullptr);
+void sphere_pairs(const Box& box, const std::vector<Vec3>& c, const std::vector<double>& r,
+                  std::vector<SpherePair>* out, const std::function<void()>& tick = nullptr);
 
 }  // namespace rvegen

@@ -1,0 +1,167 @@
+#include "rvegen/packing/md_bodies.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+
+#include "rvegen/model/body.hpp"
+
+namespace rvegen::md {
+
+namespace {
+constexpr double kStartFraction = 0.25;  // volume fraction of the initial force scale
+}  // namespace
+
+Shape Body::at_scale(double s) const {
+  if (!radial) return shape.scaled(s + pad);
+  Shape out = shape;
+  out.radius = shape.radius * s + half_gap;
+  if (half_gap > 0.0) out.half_axis = shape.half_axis * (1.0 + half_gap / cap_half);
+  return out;
+}
+
+void Body::support_line(const Vec3& n, double* alpha, double* beta) const {
+  if (radial) {
+    // Cylinder: half length |n.u| + radius sqrt(1 - (n.u)^2), radius s r + half_gap.
+    const double c = std::min(1.0, std::abs(n.dot(shape.half_axis)) / cap_half);
+    const double sn = std::sqrt(std::max(0.0, 1.0 - c * c));
+    *alpha = (cap_half + half_gap) * c + half_gap * sn;
+    *beta = shape.radius * sn;
+    return;
+  }
+  // Scaled about the centre: h_s(n) = (s + pad) h_1(n).
+  const double h = shape.support_value(n) - n.dot(shape.center);
+  *alpha = pad * h;
+  *beta = h;
+}
+
+BodyMobility Body::mobility(const Shape& scaled) const {
+  switch (turn) {
+    case Turn::kNone:
+      return body_mobility(scaled, false, Vec3::Zero());
+    case Turn::kFree:
+      return body_mobility(scaled, true, Vec3::Zero());
+    case Turn::kAboutAxis:
+      return body_mobility(scaled, true, turn_axis);
+  }
+  return body_mobility(scaled, false, Vec3::Zero());
+}
+
+double separating_scale(const Body& a, const Body& b, const Vec3& shift, const Vec3& n) {
+  double alpha_a, beta_a, alpha_b, beta_b;
+  a.support_line(n, &alpha_a, &beta_a);
+  b.support_line(-n, &alpha_b, &beta_b);
+  const double room = n.dot(b.shape.center + shift - a.shape.center) - alpha_a - alpha_b;
+  if (beta_a + beta_b <= 1e-300) return room >= 0.0 ? 1e300 : 0.0;  // holds at every scale
+  return room / (beta_a + beta_b);
+}
+
+Turn turn_mode(const OrientationLaw& law, MdSettings::Rotation rotation, Vec3* axis) {
+  switch (rotation) {
+    case MdSettings::Rotation::kFixed:
+      return Turn::kNone;
+    case MdSettings::Rotation::kFree:
+      if (law.kind == OrientationLaw::Kind::kAligned) return Turn::kNone;
+      if (law.kind == OrientationLaw::Kind::kPlanar) {
+        *axis = law.axis;
+        return Turn::kAboutAxis;
+      }
+      return Turn::kFree;
+    case MdSettings::Rotation::kKeepTensor:
+      break;
+  }
+  // Directions the law never takes (eigenvalue 0 of its tensor) stay out of reach: turning is
+  // free, about the one null direction (planar), or none (aligned).
+  const Eigen::SelfAdjointEigenSolver<Mat3> es(law.tensor());
+  int zeros = 0;
+  for (int k = 0; k < 3; ++k) zeros += es.eigenvalues()[k] <= 1e-12 ? 1 : 0;
+  if (zeros >= 2) return Turn::kNone;
+  if (zeros == 1) {
+    *axis = es.eigenvectors().col(0);
+    return Turn::kAboutAxis;
+  }
+  return Turn::kFree;
+}
+
+void wrap(const Box& box, Body* b) {
+  if (!box.periodic) return;
+  for (int a = 0; a < 3; ++a) {
+    const double t = (b->shape.center[a] - box.origin[a]) / box.size[a];
+    b->shape.center[a] -= std::floor(t) * box.size[a];
+  }
+}
+
+Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, Random& rng) {
+  Bodies out;
+  std::vector<Body>& bodies = out.all;
+  const Box& box = spec.box;
+  bodies.resize(pop.size());
+  double total = 0.0, crowding = 0.0, radial = 0.0;
+  for (size_t i = 0; i < pop.size(); ++i) {
+    Body& b = bodies[i];
+    b.shape = envelope(pop[i]);  // modified inclusions are packed by their envelopes
+    b.family = pop[i].family;
+    b.volume = b.shape.volume();
+    b.bound = b.shape.bounding_radius();
+    b.pad = spec.min_gap / (2.0 * b.shape.min_size());
+    total += b.volume;
+    // crowding: elongated bodies cross about 2 a phi others at volume fraction phi (a: half
+    // length over radius), spheres touch about 6 phi: the start is weighed by it.
+    const OrientationLaw& law = spec.families[b.family].orientation;
+    switch (b.shape.kind) {
+      case ShapeKind::Sphere:
+        b.cap_radius = b.shape.radius;
+        break;
+      case ShapeKind::Cylinder:
+        b.cap_half = b.shape.half_axis.norm();
+        b.cap_radius = b.shape.radius;
+        break;
+      case ShapeKind::Ellipsoid: {
+        // Capsule around the longest axis with the middle semi-axis as radius.
+        Vec3 s = b.shape.semi_axes;
+        std::sort(s.data(), s.data() + 3);
+        b.cap_half = s[2];
+        b.cap_radius = s[1];
+        break;
+      }
+    }
+    if (b.shape.kind != ShapeKind::Sphere) {
+      out.oriented.push_back(static_cast<int>(i));
+      b.turn = turn_mode(law, spec.md.rotation, &b.turn_axis);
+      if (b.turn != Turn::kNone && spec.md.rotation == MdSettings::Rotation::kKeepTensor) {
+        out.held[b.family].push_back(static_cast<int>(i));
+      }
+      const Eigen::SelfAdjointEigenSolver<Mat3> es(law.tensor());
+      if (b.turn == Turn::kNone && b.shape.kind == ShapeKind::Cylinder && !pop[i].mod.any() &&
+          es.eigenvalues()[1] <= 1e-12 && b.shape.half_axis.norm() >= 2.0 * b.shape.radius &&
+          (!box.periodic ||
+           2.0 * (b.shape.half_axis.norm() + 0.5 * spec.min_gap) < box.size.minCoeff())) {
+        // (a fibre at least as long as the periodic box could meet its own image end to end
+        // at every radius: it grows in length too)
+        b.radial = true;
+        b.half_gap = 0.5 * spec.min_gap;
+        b.pad = 0.0;
+      }
+    }
+    // Start where few bodies touch: volume fraction kStartFraction for bodies growing in every
+    // direction, weighed by crossings (see crowding) ...
+    if (b.radial) {
+      radial += b.volume;  // ... and for aligned fibres, whose volume grows as s^2
+    } else {
+      crowding += b.volume * std::max(1.0, b.bound / b.shape.min_size() / 3.0);
+    }
+    // Random centre: anywhere in a periodic box, inside (as far as the scale allows) otherwise.
+    for (int a = 0; a < 3; ++a) b.shape.center[a] = box.origin[a] + box.size[a] * rng.uniform();
+  }
+  double elongation = 0.0;
+  for (const Body& b : bodies) elongation += b.volume * b.bound / b.shape.min_size();
+  elongation /= std::max(total, 1e-300);
+  out.patience = std::llround(spec.md.patience * std::clamp(elongation / 6.7, 1.0, 6.0));
+  const double vf = crowding / box.volume();
+  out.start_scale = std::min(1.0, std::cbrt(kStartFraction / std::max(vf, 1e-12)));
+  if (radial > 0.0)
+    out.start_scale = std::min(out.start_scale, std::sqrt(kStartFraction * box.volume() / radial));
+  return out;
+}
+
+}  // namespace rvegen::md

@@ -1,0 +1,71 @@
+// Molecular-dynamics packing, part 1: the bodies. How each drawn inclusion is packed (its
+// envelope, growth, bounding capsule, how it may turn) and its shape at a growth scale s.
+// md.cpp describes the scheme.
+#pragma once
+
+#include <map>
+#include <vector>
+
+#include "rvegen/model/scene.hpp"
+#include "rvegen/packing/contacts.hpp"
+
+namespace rvegen::md {
+
+enum class Turn { kNone, kFree, kAboutAxis };
+
+struct Body {
+  Shape shape;  // current centre and orientation, sizes at scale 1
+  int family = 0;
+  double pad = 0.0;       // gap / (2 min_size)
+  double volume = 0.0;    // at scale 1
+  double bound = 0.0;     // bounding radius at scale 1
+  double cap_half = 0.0;  // bounding capsule at scale 1: half length along `axis`, radius
+  double cap_radius = 0.0;
+  // Aligned fibres (plain cylinders at least twice as long as wide that never turn) grow in
+  // radius only, at full length: growing in length, they would butt end to end in columns that
+  // wrap around a periodic box and jam at any density. Their force shape is radius
+  // s r + half_gap and half length h + half_gap, and `pad` is 0.
+  bool radial = false;
+  double half_gap = 0.0;
+  Turn turn = Turn::kNone;
+  Vec3 turn_axis = Vec3::UnitZ();
+
+  /// The scale the forces act at when the packer's outer scale is s_out.
+  double force_scale(double s_out) const { return s_out + pad; }
+  /// The shape the body is tested with at growth s (at its current centre and orientation).
+  Shape at_scale(double s) const;
+  /// Its bounding capsule at growth s: half length and radius.
+  double cap_half_at(double s) const { return radial ? cap_half + half_gap : cap_half * (s + pad); }
+  double cap_radius_at(double s) const {
+    return radial ? cap_radius * s + half_gap : cap_radius * (s + pad);
+  }
+  /// Support value of the body at growth s along unit n, about its centre: alpha + s beta.
+  void support_line(const Vec3& n, double* alpha, double* beta) const;
+  /// Translational and rotational mobility of the body's shape `scaled` (how it may turn).
+  BodyMobility mobility(const Shape& scaled) const;
+};
+
+/// Largest scale s at which the plane through the contact with normal n separates a
+/// (scale s + pad_a) from b (scale s + pad_b, at its centre + shift).
+double separating_scale(const Body& a, const Body& b, const Vec3& shift, const Vec3& n);
+
+/// How bodies of a family with law `law` may turn under md.rotation (`axis`: the one axis
+/// they may turn about, for kAboutAxis).
+Turn turn_mode(const OrientationLaw& law, MdSettings::Rotation rotation, Vec3* axis);
+
+/// Moves the centre into a periodic box (no-op otherwise).
+void wrap(const Box& box, Body* b);
+
+/// The bodies of a drawn population, at random centres, and what the packer starts from.
+struct Bodies {
+  std::vector<Body> all;
+  std::vector<int> oriented;             // bodies that are not spheres
+  std::map<int, std::vector<int>> held;  // md.rotation keep_tensor: family -> bodies that turn
+  double start_scale = 1.0;              // where few bodies touch (see make_bodies)
+  // Steps over which a stalled valid scale halves the pressure: md.patience, times the mean
+  // elongation / 6.7 (at most 6) of the bodies, as long bodies rearrange more slowly.
+  long long patience = 100;
+};
+Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, Random& rng);
+
+}  // namespace rvegen::md

@@ -1,0 +1,147 @@
+#include "rvegen/packing/md_contacts.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "rvegen/geometry/convex.hpp"
+
+namespace rvegen::md {
+
+namespace {
+constexpr double kRelaxation = 1.0;  // scale of the summed contact impulses
+}  // namespace
+
+double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& oriented,
+                    const std::vector<PairEntry>& pairs, const Box& box, double s_out,
+                    ContactSums* sums, const std::function<void()>& tick) {
+  const size_t n = bodies.size();
+  std::vector<Vec3>&move = sums->move, &turn = sums->turn, &axis = sums->axis;
+  move.resize(n);
+  turn.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    move[i].setZero();
+    turn[i].setZero();
+  }
+  auto add = [&](int i, const Vec3& dx, const Vec3& dw) {
+    move[i] += dx;
+    turn[i] += dw;
+  };
+  axis.resize(n);
+  for (int i : oriented) axis[i] = principal_axis(bodies[i].shape);  // spheres have none
+  double s_in = s_out;
+  double& max_overlap = sums->max_overlap;
+  max_overlap = 0.0;
+  size_t visited = 0;
+  for (const PairEntry& e : pairs) {
+    if ((++visited & 4095) == 0 && tick) tick();
+    const Body &ba = bodies[e.a], &bb = bodies[e.b];
+    const double fa = ba.force_scale(s_out), fb = bb.force_scale(s_out);
+    if (ba.shape.kind == ShapeKind::Sphere && bb.shape.kind == ShapeKind::Sphere) {
+      // Sphere pairs in closed form: intersect_sphere_sphere's test without its tolerance (any
+      // overlap pushes; validity comes from s_in, not from this decision), and without a square
+      // root for the many listed pairs that are apart.
+      const double ra = ba.shape.radius, rb = bb.shape.radius;
+      const Vec3 d = bb.shape.center + e.shift - ba.shape.center;
+      const double rr = fa * ra + fb * rb, d2 = d.squaredNorm();
+      if (d2 >= rr * rr) continue;
+      const double dist = std::sqrt(d2), depth = rr - dist;
+      const Vec3 nrm = dist > 0.0 ? Vec3(d / dist) : Vec3::UnitX();
+      max_overlap = std::max(max_overlap, depth / std::min(fa * ra, fb * rb));
+      s_in = std::min(s_in, (dist - ba.pad * ra - bb.pad * rb) / (ra + rb));
+      const Vec3 J = (kRelaxation * depth / (1.0 / ba.volume + 1.0 / bb.volume)) * nrm;
+      move[e.a] -= J / ba.volume;
+      move[e.b] += J / bb.volume;
+      continue;
+    }
+    if (ba.radial && bb.radial && std::abs(axis[e.a].dot(axis[e.b])) >= 1.0 - 1e-12) {
+      // Parallel fibres in closed form: they overlap exactly when their axial ranges do and
+      // their axes are nearer than the sum of the radii; the push is sideways only, so aligned
+      // fibres never butt end to end in columns.
+      const Vec3& u = axis[e.a];
+      const Vec3 d = bb.shape.center + e.shift - ba.shape.center;
+      const double along = std::abs(d.dot(u));
+      if (along >= ba.cap_half_at(s_out) + bb.cap_half_at(s_out)) continue;
+      const Vec3 side = d - d.dot(u) * u;
+      const double dist = side.norm(), ra = ba.shape.radius, rb = bb.shape.radius;
+      const double reach = ba.cap_radius_at(s_out) + bb.cap_radius_at(s_out);
+      if (dist >= reach) continue;
+      const double depth = reach - dist;
+      const Vec3 nrm = dist > 0.0 ? Vec3(side / dist) : any_orthogonal(u);
+      max_overlap = std::max(max_overlap, depth / (s_out * std::min(ra, rb)));
+      s_in = std::min(s_in, (dist - ba.half_gap - bb.half_gap) / (ra + rb));
+      const Vec3 J = (kRelaxation * depth / (1.0 / ba.volume + 1.0 / bb.volume)) * nrm;
+      move[e.a] -= J / ba.volume;
+      move[e.b] += J / bb.volume;
+      continue;
+    }
+    {
+      // Bounding spheres, then capsules: most listed pairs of long bodies are apart.
+      const Vec3 cb = bb.shape.center + e.shift;
+      const double rr = ba.cap_radius_at(s_out) + bb.cap_radius_at(s_out);
+      const double ha = ba.cap_half_at(s_out), hb = bb.cap_half_at(s_out);
+      const double reach = rr + ha + hb;
+      if ((cb - ba.shape.center).squaredNorm() >= reach * reach) continue;
+      const Vec3 ea = axis[e.a] * ha, eb = axis[e.b] * hb;
+      if (segment_distance2(ba.shape.center - ea, ba.shape.center + ea, cb - eb, cb + eb) >=
+          rr * rr) {
+        continue;
+      }
+    }
+    const Shape A = ba.at_scale(s_out);
+    const Shape B = bb.at_scale(s_out).translated(e.shift);
+    const Contact c = intersect(A, B);
+    if (!c.overlap) continue;
+    max_overlap = std::max(max_overlap, c.depth / std::min(A.min_size(), B.min_size()));
+    s_in = std::min(s_in, separating_scale(ba, bb, e.shift, c.normal));
+    // An inclusion against its own periodic image (e.a == e.b) only turns: the two moves
+    // cancel.
+    const ContactResponse r =
+        contact_response(A.center, ba.mobility(A), B.center, bb.mobility(B), c, kRelaxation);
+    add(e.a, r.move_a, r.turn_a);
+    add(e.b, r.move_b, r.turn_b);
+  }
+  if (!box.periodic) {
+    // Walls: contacts push the shape at the force scale back inside; the valid scale is the
+    // largest at which the (unpadded) shape is inside.
+    for (size_t i = 0; i < n; ++i) {
+      const Body& b = bodies[i];
+      Vec3 half, lo, hi;
+      b.shape.scaled(1.0).translated(-b.shape.center).aabb(&lo, &half);  // half extents
+      const Shape cur = b.at_scale(s_out);
+      cur.aabb(&lo, &hi);
+      for (int a = 0; a < 3; ++a) {
+        const double c = b.shape.center[a], w0 = box.origin[a], w1 = w0 + box.size[a];
+        // Half extent along axis a at growth s: al + s be (unpadded).
+        double al = 0.0, be = half[a];
+        if (b.radial) {
+          const double u = std::min(1.0, std::abs(b.shape.half_axis[a]) / b.cap_half);
+          al = b.cap_half * u;
+          be = b.shape.radius * std::sqrt(std::max(0.0, 1.0 - u * u));
+        }
+        const double room = std::min(c - w0, w1 - c) - al;
+        s_in = std::min(s_in, be > 0.0 ? room / be : (room >= 0.0 ? 1e300 : 0.0));
+        const double below = w0 - lo[a], above = hi[a] - w1;
+        for (int side = 0; side < 2; ++side) {
+          const double depth = side == 0 ? below : above;
+          if (!(depth > 0.0)) continue;
+          Vec3 nrm = Vec3::Zero();
+          nrm[a] = side == 0 ? 1.0 : -1.0;  // into the box
+          const Vec3 p = cur.support(-nrm);
+          max_overlap = std::max(max_overlap, depth / cur.min_size());
+          // The wall is an immovable body beyond the face (normal from the inclusion to it).
+          Contact c;
+          c.overlap = true;
+          c.depth = depth;
+          c.normal = -nrm;
+          c.point = p;
+          const ContactResponse r =
+              contact_response(cur.center, b.mobility(cur), p, BodyMobility{}, c, 1.0);
+          add(static_cast<int>(i), r.move_a, r.turn_a);
+        }
+      }
+    }
+  }
+  return std::max(0.0, s_in);
+}
+
+}  // namespace rvegen::md

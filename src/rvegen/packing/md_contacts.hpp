@@ -1,0 +1,30 @@
+// Molecular-dynamics packing, part 3: the contacts of one step. Every listed pair that overlaps
+// at the force scale (exact pair tests, geometry/pair) gets the response of contacts.hpp; closed
+// boxes add a contact with each wall. The pass also certifies the scale at which the current
+// configuration is valid.
+#pragma once
+
+#include <functional>
+#include <vector>
+
+#include "rvegen/packing/md_neighbours.hpp"
+
+namespace rvegen::md {
+
+/// What the contacts of one step do, summed per body.
+struct ContactSums {
+  std::vector<Vec3> move, turn;  // displacements and rotation vectors
+  double max_overlap = 0.0;      // largest overlap depth relative to the smaller body
+  std::vector<Vec3> axis;        // principal axis of every oriented body this step
+};
+
+/// Tests every listed pair (and, in a closed box, every body against the walls) at the force
+/// scale s_out, sums each contact's response into *sums, and returns a scale (>= 0, at most
+/// s_out) at which the current configuration is valid: pairs that do not overlap at s_out are
+/// valid below it, the others below the scale at which the plane of their contact normal
+/// separates them. `tick` is called every 4096 pairs.
+double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& oriented,
+                    const std::vector<PairEntry>& pairs, const Box& box, double s_out,
+                    ContactSums* sums, const std::function<void()>& tick);
+
+}  // namespace rvegen::md

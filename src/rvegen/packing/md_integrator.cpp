@@ -1,0 +1,63 @@
+#include "rvegen/packing/md_integrator.hpp"
+
+#include <Eigen/Geometry>
+#include <cmath>
+
+#include "rvegen/model/orientation.hpp"
+
+namespace rvegen::md {
+
+namespace {
+constexpr double kMomentum = 0.9;  // fraction of the last step's motion kept (damping 0.1)
+constexpr double kMaxTurn = 0.2;   // radians per step
+}  // namespace
+
+Integrator::Integrator(size_t bodies) : vel_(bodies, Vec3::Zero()), omega_(bodies, Vec3::Zero()) {}
+
+void Integrator::step(const ContactSums& sums, std::vector<Body>* bodies, VerletList* list) {
+  for (size_t i = 0; i < bodies->size(); ++i) {
+    Body& b = (*bodies)[i];
+    vel_[i] = kMomentum * vel_[i] + sums.move[i];
+    b.shape.center += vel_[i];
+    if (b.turn != Turn::kNone) {
+      omega_[i] = kMomentum * omega_[i] + sums.turn[i];
+      double ang = omega_[i].norm();
+      if (ang > kMaxTurn) {
+        omega_[i] *= kMaxTurn / ang;
+        ang = kMaxTurn;
+      }
+      if (ang > 0.0) {
+        const Mat3 R = Eigen::AngleAxisd(ang, omega_[i] / ang).toRotationMatrix();
+        if (b.shape.kind == ShapeKind::Cylinder) {
+          const double len = b.shape.half_axis.norm();
+          b.shape.half_axis = (R * b.shape.half_axis).normalized() * len;
+        } else {
+          const Mat3 Q = R * b.shape.rotation;
+          // Re-orthonormalise (Gram-Schmidt) so rounding does not accumulate.
+          const Vec3 c0 = Q.col(0).normalized();
+          const Vec3 c1 = (Q.col(1) - c0.dot(Q.col(1)) * c0).normalized();
+          b.shape.rotation.col(0) = c0;
+          b.shape.rotation.col(1) = c1;
+          b.shape.rotation.col(2) = c0.cross(c1);
+        }
+        list->turned(static_cast<int>(i), ang);
+      }
+    }
+  }
+}
+
+void hold_tensors(const PackingSpec& spec, const std::map<int, std::vector<int>>& held,
+                  std::vector<Body>* bodies, VerletList* list) {
+  for (const auto& [family, members] : held) {
+    std::vector<Vec3> dirs(members.size());
+    for (size_t k = 0; k < members.size(); ++k) dirs[k] = law_axis((*bodies)[members[k]].shape);
+    if (!match_orientation_tensor(&dirs, spec.families[family].orientation.tensor(), 1e-10)) {
+      continue;
+    }
+    for (size_t k = 0; k < members.size(); ++k) {
+      list->turned(members[k], set_law_axis(&(*bodies)[members[k]].shape, dirs[k]));
+    }
+  }
+}
+
+}  // namespace rvegen::md

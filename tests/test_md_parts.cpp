@@ -1,0 +1,154 @@
+// The parts of the molecular-dynamics packer, one at a time: bodies, Verlet list, contact pass,
+// integrator.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <set>
+#include <tuple>
+
+#include "rvegen/io/scene_json.hpp"
+#include "rvegen/model/neighbours.hpp"
+#include "rvegen/packing/md_integrator.hpp"
+
+namespace rvegen {
+namespace {
+
+using md::Body;
+
+// Bodies of a scene at their random starting centres.
+md::Bodies bodies_of(const std::string& json) {
+  const Scene scene = parse_scene(json);
+  Random rng(scene.seed);
+  const std::vector<Inclusion> pop = draw_population(scene, rng);
+  return md::make_bodies(scene, pop, rng);
+}
+
+const char* kMixed = R"({"box":{"size":[1,1,1],"periodic":true},"seed":5,"families":[
+  {"shape":"sphere","radius":0.04,"count":150},
+  {"shape":"cylinder","radius":0.012,"aspect_ratio":16,"count":150},
+  {"shape":"ellipsoid","semi_axes":[0.08,0.03,0.02],"count":100}]})";
+
+// Every pair of bodies that overlaps at scale s (exact test, all periodic images).
+std::set<std::tuple<int, int, int, int, int>> overlapping(const std::vector<Body>& b,
+                                                          const Box& box, double s) {
+  std::set<std::tuple<int, int, int, int, int>> out;
+  for (size_t i = 0; i < b.size(); ++i) {
+    const Shape A = b[i].at_scale(s);
+    for (size_t j = i; j < b.size(); ++j) {
+      const Shape B = b[j].at_scale(s);
+      for_each_image(box, A.center, A.bounding_radius(), B.center, B.bounding_radius(),
+                     [&](const Vec3& sh) {
+                       if (i == j && sh.isZero()) return;
+                       if (!intersect(A, B.translated(sh)).overlap) return;
+                       const int kx = static_cast<int>(std::lround(sh[0] / box.size[0])),
+                                 ky = static_cast<int>(std::lround(sh[1] / box.size[1])),
+                                 kz = static_cast<int>(std::lround(sh[2] / box.size[2]));
+                       out.insert({static_cast<int>(i), static_cast<int>(j), kx, ky, kz});
+                     });
+    }
+  }
+  return out;
+}
+
+TEST(MdParts, VerletListHoldsEveryOverlapUntilItIsStale) {
+  md::Bodies bodies = bodies_of(kMixed);
+  const Box box = parse_scene(kMixed).box;
+  std::vector<Body>& b = bodies.all;
+  const double s = 0.9;
+  md::VerletList list;
+  EXPECT_TRUE(list.stale(b, s));
+  list.build(&b, box, s, nullptr);
+  EXPECT_FALSE(list.stale(b, s));
+  Random rng(11);
+  int checked = 0;
+  size_t overlaps = 0;
+  for (int round = 0; round < 40; ++round) {
+    // Small random moves and turns, as long as the list says it still holds.
+    std::vector<Body> moved = b;
+    for (size_t i = 0; i < moved.size(); ++i) {
+      Vec3 d(rng.uniform() - 0.5, rng.uniform() - 0.5, rng.uniform() - 0.5);
+      moved[i].shape.center += 0.004 * d;
+    }
+    if (list.stale(moved, s)) break;
+    b = moved;
+    std::set<std::tuple<int, int, int, int, int>> listed;
+    for (const md::PairEntry& e : list.pairs()) {
+      const int kx = static_cast<int>(std::lround(e.shift[0] / box.size[0])),
+                ky = static_cast<int>(std::lround(e.shift[1] / box.size[1])),
+                kz = static_cast<int>(std::lround(e.shift[2] / box.size[2]));
+      listed.insert({e.a, e.b, kx, ky, kz});
+      if (e.a == e.b) listed.insert({e.a, e.b, -kx, -ky, -kz});
+    }
+    const auto over = overlapping(b, box, s);
+    overlaps += over.size();
+    for (const auto& p : over) {
+      EXPECT_TRUE(listed.count(p)) << "round " << round << ": pair " << std::get<0>(p) << ", "
+                                   << std::get<1>(p) << " overlaps and is not listed";
+    }
+    ++checked;
+  }
+  EXPECT_GE(checked, 2);
+  EXPECT_GT(overlaps, 20u);  // random centres: many overlapping pairs to find
+  // A large move makes it stale.
+  b[3].shape.center += Vec3(0.2, 0, 0);
+  EXPECT_TRUE(list.stale(b, s));
+}
+
+TEST(MdParts, ContactPassCertifiesTheTouchingScale) {
+  // Two spheres of radius 0.1 at distance 0.15: they touch at scale 0.75; in a closed box, a
+  // third one pokes out of the wall at x = 0.
+  const char* json = R"({"box":{"size":[1,1,1],"periodic":false},"seed":1,"families":[
+    {"shape":"sphere","radius":0.1,"count":3}]})";
+  md::Bodies bodies = bodies_of(json);
+  std::vector<Body>& b = bodies.all;
+  b[0].shape.center = Vec3(0.4, 0.5, 0.5);
+  b[1].shape.center = Vec3(0.55, 0.5, 0.5);
+  b[2].shape.center = Vec3(0.05, 0.2, 0.2);
+  const Box box = parse_scene(json).box;
+  md::VerletList list;
+  list.build(&b, box, 1.0, nullptr);
+  md::ContactSums sums;
+  const double s_in = md::contact_pass(b, bodies.oriented, list.pairs(), box, 1.0, &sums, nullptr);
+  EXPECT_NEAR(s_in, 0.5, 1e-12);    // the wall: sphere 2 is inside up to radius 0.05
+  EXPECT_LT(sums.move[0][0], 0.0);  // pushed apart along x
+  EXPECT_GT(sums.move[1][0], 0.0);
+  EXPECT_NEAR(sums.move[0][0], -sums.move[1][0], 1e-15);
+  EXPECT_GT(sums.move[2][0], 0.0);  // pushed back into the box
+  EXPECT_NEAR(sums.max_overlap, 0.05 / 0.1, 1e-12);
+  // Without the wall's sphere, the pair alone: valid up to their touching scale.
+  b[2].shape.center = Vec3(0.5, 0.8, 0.8);
+  list.build(&b, box, 1.0, nullptr);
+  EXPECT_NEAR(md::contact_pass(b, bodies.oriented, list.pairs(), box, 1.0, &sums, nullptr), 0.75,
+              1e-12);
+}
+
+TEST(MdParts, IntegratorKeepsMomentumAndCapsTurns) {
+  md::Bodies bodies = bodies_of(R"({"box":{"size":[1,1,1]},"seed":2,"families":[
+    {"shape":"cylinder","radius":0.02,"aspect_ratio":5,"count":1,
+     "orientation":{"law":"isotropic"}}]})");
+  std::vector<Body>& b = bodies.all;
+  ASSERT_EQ(b[0].turn, md::Turn::kFree);
+  md::VerletList list;
+  list.build(&b, Box{}, 1.0, nullptr);
+  md::Integrator integrator(1);
+  md::ContactSums sums;
+  sums.move = {Vec3(0.01, 0, 0)};
+  sums.turn = {Vec3(0, 0, 1.0)};  // far above the cap per step
+  const Vec3 c0 = b[0].shape.center, a0 = b[0].shape.half_axis;
+  integrator.step(sums, &b, &list);
+  EXPECT_NEAR((b[0].shape.center - c0)[0], 0.01, 1e-15);
+  // Turned by the cap (0.2 rad a step) about z, not by the full 1 rad asked.
+  const Vec3 expected = Eigen::AngleAxisd(0.2, Vec3::UnitZ()) * a0;
+  EXPECT_LT((b[0].shape.half_axis - expected).norm(), 1e-12 * a0.norm());
+  EXPECT_NEAR(b[0].shape.half_axis.norm(), a0.norm(), 1e-14);  // length kept
+  // No new contact: the body coasts at 0.9 of its last step.
+  sums.move = {Vec3::Zero()};
+  sums.turn = {Vec3::Zero()};
+  const Vec3 c1 = b[0].shape.center;
+  integrator.step(sums, &b, &list);
+  EXPECT_NEAR((b[0].shape.center - c1)[0], 0.009, 1e-15);
+}
+
+}  // namespace
+}  // namespace rvegen

@@ -28,7 +28,6 @@ OrientationLaw parse_orientation(const Json& j, const std::string& p) {
     law.kind = OrientationLaw::Kind::kVonMisesFisher;
     law.axis = unit("axis");
     law.kappa = number(require(j, "kappa", p), p + ".kappa");
-    if (law.kappa < 0.0 || law.kappa > 1e6) fail(p + ".kappa", "must be in [0, 1e6]");
   } else if (name == "planar") {
     only_keys(j, {"law", "normal"}, p);
     law.kind = OrientationLaw::Kind::kPlanar;
@@ -67,14 +66,11 @@ SizeLaw parse_size(const Json& j, const std::string& p) {
     law.kind = SizeLaw::Kind::kUniform;
     law.p1 = positive(require(j, "min", p), p + ".min");
     law.p2 = positive(require(j, "max", p), p + ".max");
-    if (!(law.p2 >= law.p1)) fail(p + ".max", "must be >= min");
   } else if (name == "normal" || name == "lognormal") {
     only_keys(j, {"law", "mean", "std"}, p);
     law.kind = name == "normal" ? SizeLaw::Kind::kNormal : SizeLaw::Kind::kLognormal;
     law.p1 = positive(require(j, "mean", p), p + ".mean");
     law.p2 = number(require(j, "std", p), p + ".std");
-    if (!(law.p2 >= 0.0)) fail(p + ".std", "must be >= 0");
-    if (law.p2 > 10.0 * law.p1) fail(p + ".std", "must be at most 10 x mean");
   } else if (name == "weibull") {
     only_keys(j, {"law", "shape", "scale"}, p);
     law.kind = SizeLaw::Kind::kWeibull;
@@ -136,7 +132,6 @@ Family parse_family(const Json& j, const std::string& p, double box_volume) {
   if (!has_vf && !has_n) fail(p, "give \"volume_fraction\", \"count\" or both");
   if (has_vf) {
     f.volume_fraction = positive(j["volume_fraction"], p + ".volume_fraction");
-    if (f.volume_fraction >= 1.0) fail(p + ".volume_fraction", "must be below 1");
   }
   if (has_n) {
     const double n = number(j["count"], p + ".count");
@@ -243,7 +238,6 @@ Scene parse_scene(const std::string& text) {
   }
   if (root.contains("min_gap")) {
     s.min_gap = number(root["min_gap"], "min_gap");
-    if (s.min_gap < 0.0) fail("min_gap", "must be >= 0");
   }
   if (root.contains("md")) {
     const Json& m = root["md"];
@@ -262,7 +256,6 @@ Scene parse_scene(const std::string& text) {
     }
     if (m.contains("pressure")) {
       s.md.pressure = positive(m["pressure"], "md.pressure");
-      if (s.md.pressure > 1.0) fail("md.pressure", "must be in (0, 1]");
     }
     if (m.contains("patience")) {
       const double n = number(m["patience"], "md.patience");
@@ -328,8 +321,6 @@ Scene parse_scene(const std::string& text) {
       s.levelset_voxel_size = positive(l["voxel_size"], "levelsets.voxel_size");
     if (l.contains("half_width")) {
       s.levelset_half_width = positive(l["half_width"], "levelsets.half_width");
-      if (s.levelset_half_width < 1.0 || s.levelset_half_width > 20.0)
-        fail("levelsets.half_width", "must be in [1, 20] voxels");
     }
   }
   if (root.contains("surfaces")) {

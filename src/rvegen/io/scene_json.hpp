@@ -7,7 +7,9 @@
 
 namespace rvegen {
 
-/// Parses and validates a scene (see README for the schema). Throws InputError naming the key.
+/// Reads a scene (see README for the schema): known keys, JSON types, integers that fit; every
+/// range and cross-field rule is then validate_scene's, the one place that checks a scene however
+/// it was built. Throws InputError naming the key.
 Scene parse_scene(const std::string& json_text);
 /// JSON text of a scene (what parse_scene reads).
 std::string scene_to_json(const Scene& scene);

@@ -1,0 +1,242 @@
+// validate_scene: every field and cross-field rule of a scene, however it was built.
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "rvegen/model/body.hpp"
+#include "rvegen/model/scene.hpp"
+
+namespace rvegen {
+
+namespace {
+
+[[noreturn]] void fail(const std::string& path, const std::string& what) {
+  throw InputError(path + ": " + what);
+}
+
+void check_size_law(const SizeLaw& law, const std::string& p) {
+  auto finite_positive = [](double v) { return std::isfinite(v) && v > 0.0; };
+  switch (law.kind) {
+    case SizeLaw::Kind::kFixed:
+      if (!finite_positive(law.p1)) fail(p, "must be positive and finite");
+      break;
+    case SizeLaw::Kind::kUniform:
+      if (!finite_positive(law.p1)) fail(p + ".min", "must be positive and finite");
+      if (!finite_positive(law.p2) || law.p2 < law.p1) fail(p + ".max", "must be >= min");
+      break;
+    case SizeLaw::Kind::kNormal:
+    case SizeLaw::Kind::kLognormal:
+      if (!finite_positive(law.p1)) fail(p + ".mean", "must be positive and finite");
+      if (!(law.p2 >= 0.0 && law.p2 <= 10.0 * law.p1))
+        fail(p + ".std", "must be in [0, 10 x mean]");
+      break;
+    case SizeLaw::Kind::kWeibull:
+      if (!(law.p1 >= 0.1 && law.p1 <= 100.0)) fail(p + ".shape", "must be in [0.1, 100]");
+      if (!finite_positive(law.p2)) fail(p + ".scale", "must be positive and finite");
+      break;
+  }
+}
+
+void check_orientation(const OrientationLaw& law, const std::string& p) {
+  if (law.kind == OrientationLaw::Kind::kTensor) {
+    const Mat3& a = law.a2;
+    const std::string q = p + ".a2";
+    if (!a.allFinite()) fail(q, "must be finite");
+    if ((a - a.transpose()).cwiseAbs().maxCoeff() > 1e-6) {
+      fail(q, "must be symmetric (a_ij = a_ji to 1e-6)");
+    }
+    char buf[160];
+    if (std::abs(a.trace() - 1.0) > 1e-6) {
+      std::snprintf(buf, sizeof buf, "must have trace 1 (to 1e-6), has %.9g", a.trace());
+      fail(q, buf);
+    }
+    const double low =
+        Eigen::SelfAdjointEigenSolver<Mat3>(0.5 * (a + a.transpose())).eigenvalues().minCoeff();
+    if (low < -1e-9) {
+      std::snprintf(buf, sizeof buf,
+                    "must be positive semi-definite, has the eigenvalue %.6g (an orientation "
+                    "tensor <p p^T> has none below 0)",
+                    low);
+      fail(q, buf);
+    }
+    return;
+  }
+  const char* key = law.kind == OrientationLaw::Kind::kPlanar ? ".normal" : ".axis";
+  if (!law.axis.allFinite() || std::abs(law.axis.norm() - 1.0) > 1e-9) {
+    fail(p + key, "must be a unit vector");
+  }
+  if (!(law.kappa >= 0.0 && law.kappa <= 1e6)) fail(p + ".kappa", "must be in [0, 1e6]");
+}
+
+// Smallest size of a mean-size inclusion of the family (radius, half length, semi-axis).
+double mean_smallest_size(const Family& f) {
+  switch (f.shape) {
+    case ShapeKind::Sphere:
+      return f.radius.mean();
+    case ShapeKind::Cylinder:
+      return std::min(f.radius.mean(), f.radius.mean() * f.aspect_ratio.mean());
+    case ShapeKind::Ellipsoid:
+      return std::min({f.semi_axes[0].mean(), f.semi_axes[1].mean(), f.semi_axes[2].mean()});
+  }
+  return 0.0;
+}
+
+}  // namespace
+
+void validate_scene(const Scene& s) {
+  check_box(s.box, "box");
+  if (s.families.empty()) fail("families", "at least one family is needed");
+  if (!(s.min_gap >= 0.0) || !std::isfinite(s.min_gap)) fail("min_gap", "must be >= 0");
+  if (s.method != Method::kMd && s.method != Method::kRsa) {
+    fail("method", "unknown method " + std::to_string(static_cast<int>(s.method)) + " (md, rsa)");
+  }
+  if (s.rsa_max_attempts < 1 || s.rsa_max_attempts > 1000000000)
+    fail("rsa.max_attempts", "must be an integer in [1, 1e9]");
+  if (!(s.rsa_max_seconds > 0.0 && s.rsa_max_seconds <= 1e7))
+    fail("rsa.max_seconds", "must be in (0, 1e7]");
+  if (s.md.max_steps < 1 || s.md.max_steps > 1000000000000LL)
+    fail("md.max_steps", "must be an integer in [1, 1e12]");
+  if (!(s.md.max_seconds > 0.0 && s.md.max_seconds <= 1e7))
+    fail("md.max_seconds", "must be in (0, 1e7]");
+  if (!(s.md.pressure > 0.0 && s.md.pressure <= 1.0)) fail("md.pressure", "must be in (0, 1]");
+  if (s.md.patience < 1 || s.md.patience > 10000000)
+    fail("md.patience", "must be an integer in [1, 1e7]");
+  if (s.subsamples < 1 || s.subsamples > 16)
+    fail("voxels.subsamples", "must be an integer in [1, 16]");
+  if (!(s.levelset_half_width >= 1.0 && s.levelset_half_width <= 20.0))
+    fail("levelsets.half_width", "must be in [1, 20] voxels");
+  for (int k = 0; k < 3; ++k) {
+    if (s.resolution[k] < 1 || s.resolution[k] > 4096) {
+      fail("voxels.resolution[" + std::to_string(k) + "]", "must be an integer in [1, 4096]");
+    }
+  }
+  const double box_min = s.box.size.minCoeff();
+  if (!(s.levelset_voxel_size >= 0.0) || !std::isfinite(s.levelset_voxel_size))
+    fail("levelsets.voxel_size", "must be positive");
+  if (s.levelset_voxel_size > box_min / 16.0)
+    fail("levelsets.voxel_size", "too large: at most 1/16 of the smallest box size");
+  if (s.levelset_voxel_size > 0.0 && s.box.size.maxCoeff() / s.levelset_voxel_size > 8192) {
+    fail("levelsets.voxel_size", "too small: more than 8192 voxels along the box");
+  }
+  if (s.min_gap >= box_min) fail("min_gap", "must be smaller than the box");
+  // Phase labels are 8-bit (0 matrix, a core per family, an interphase per coated family and
+  // a void per debonded family).
+  size_t phases = 1 + s.families.size();
+  for (const Family& f : s.families) {
+    phases += (f.modifiers.coating > 0.0 ? 1 : 0) + (f.modifiers.debond_gap > 0.0 ? 1 : 0);
+  }
+  if (phases > 256) {
+    fail("families", "too many phases (" + std::to_string(phases) +
+                         ": the matrix, one per family, one per coating and per debonding); at "
+                         "most 256");
+  }
+  for (size_t i = 0; i < s.families.size(); ++i) {
+    const Family& f = s.families[i];
+    const std::string p = "families[" + std::to_string(i) + "]";
+    switch (f.shape) {
+      case ShapeKind::Sphere:
+        check_size_law(f.radius, p + ".radius");
+        break;
+      case ShapeKind::Cylinder:
+        check_size_law(f.radius, p + ".radius");
+        check_size_law(f.aspect_ratio, p + ".aspect_ratio");
+        break;
+      case ShapeKind::Ellipsoid:
+        for (int k = 0; k < 3; ++k)
+          check_size_law(f.semi_axes[k], p + ".semi_axes[" + std::to_string(k) + "]");
+        break;
+    }
+    check_orientation(f.orientation, p + ".orientation");
+    if (f.count < 0 && !(f.volume_fraction > 0.0 && f.volume_fraction < 1.0))
+      fail(p + ".volume_fraction", "must be in (0, 1)");
+    if (f.count > 100000000) fail(p + ".count", "must be an integer in [0, 1e8]");
+    const double small = mean_smallest_size(f);
+    if (!(small >= 1e-6 * s.box.size.maxCoeff())) {
+      char buf[160];
+      std::snprintf(buf, sizeof buf,
+                    "inclusions smaller than 1e-6 of the box are not supported (mean smallest "
+                    "size %.3g)",
+                    small);
+      fail(p, buf);
+    }
+  }
+  double count = 0.0;
+  for (size_t i = 0; i < s.families.size(); ++i) {
+    const Family& f = s.families[i];
+    const std::string p = "families[" + std::to_string(i) + "]";
+    // Modifiers: which shapes take them, ranges, combinations.
+    const FamilyModifiers& m = f.modifiers;
+    auto finite_at_least_0 = [](double v) { return std::isfinite(v) && v >= 0.0; };
+    if (!finite_at_least_0(m.coating)) fail(p + ".coating.thickness", "must be >= 0");
+    if (!finite_at_least_0(m.wave_amplitude)) fail(p + ".waviness.amplitude", "must be >= 0");
+    if (m.wave_amplitude > 0.0) {
+      if (f.shape != ShapeKind::Cylinder)
+        fail(p + ".waviness", "waviness applies to cylinders only");
+      if (!(m.wave_length > 0.0) || !std::isfinite(m.wave_length))
+        fail(p + ".waviness.wavelength", "must be positive");
+    }
+    if (!(m.deform_amplitude >= 0.0 && m.deform_amplitude <= 0.5))
+      fail(p + ".deformation.amplitude", "must be in (0, 0.5]");
+    if (m.deform_amplitude > 0.0) {
+      if (f.shape == ShapeKind::Cylinder)
+        fail(p + ".deformation", "deformation applies to spheres and ellipsoids only");
+      if (!(m.smoothness >= 0.1 && m.smoothness <= 10.0))
+        fail(p + ".deformation.smoothness", "must be in [0.1, 10]");
+    }
+    if (!finite_at_least_0(m.debond_gap)) fail(p + ".debonding.gap", "must be positive");
+    if (!(m.debond_fraction >= 0.0 && m.debond_fraction <= 1.0))
+      fail(p + ".debonding.fraction", "must be in (0, 1]");
+    if ((m.debond_gap > 0.0) != (m.debond_fraction > 0.0))
+      fail(p + ".debonding", "give both a fraction and a gap");
+    if (m.debond_gap > 0.0 && f.shape != ShapeKind::Sphere)
+      fail(p + ".debonding", "debonding applies to spheres only");
+    if (m.coating > 0.0 && m.deform_amplitude > 0.0)
+      fail(p, "coating and deformation together are not supported");
+    if (m.coating > 0.0 && m.debond_gap > 0.0)
+      fail(p, "coating and debonding together are not supported");
+    if (m.deform_amplitude > 0.0 && m.debond_gap > 0.0)
+      fail(p, "deformation and debonding together are not supported");
+    if (f.max_min_width() + 2.0 * s.min_gap >= box_min) {
+      fail(p, "inclusion does not fit in the box (smallest width " +
+                  std::to_string(f.max_min_width()) + " >= smallest box size " +
+                  std::to_string(box_min) + ")");
+    }
+    if (!s.box.periodic && 2.0 * f.max_bounding_radius() >= box_min) {
+      // A non-periodic box must hold every inclusion whatever its orientation.
+      fail(p, "inclusion does not fit in the non-periodic box (largest length " +
+                  std::to_string(2.0 * f.max_bounding_radius()) + " >= smallest box size " +
+                  std::to_string(box_min) + ")");
+    }
+    const double n = s.expected_count(static_cast<int>(i));
+    if (f.volume_fraction >= 0.0 && f.count < 0 && n < 0.5) {
+      fail(p + ".volume_fraction", "too small for a single inclusion in this box");
+    }
+    count += n;
+  }
+  if (count > 2e7) fail("families", "more than 2e7 inclusions asked for");
+  const double total = s.expected_volume_fraction(), limit = max_packable_fraction(s);
+  if (total > limit) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf,
+                  "total volume fraction %.4f exceeds %.4f, the densest packing these shapes allow",
+                  total, limit);
+    fail("families", buf);
+  }
+  // Modified inclusions are packed by their envelopes (core + shell, waves, bumps, voids).
+  double packed = 0.0;
+  for (size_t f = 0; f < s.families.size(); ++f) {
+    packed += s.expected_count(static_cast<int>(f)) * s.families[f].mean_volume() *
+              s.families[f].envelope_ratio() / s.box.volume();
+  }
+  if (packed > limit) {
+    char buf[200];
+    std::snprintf(buf, sizeof buf,
+                  "the envelopes of the inclusions (with coatings, waves, deformations, voids) "
+                  "would fill %.4f of the box, above %.4f, the densest packing these shapes allow",
+                  packed, limit);
+    fail("families", buf);
+  }
+}
+
+}  // namespace rvegen

@@ -144,7 +144,7 @@ bool Shape::contains(const Vec3& x) const {
 }
 
 void Shape::aabb(Vec3* lo, Vec3* hi) const {
-  Vec3 e;
+  Vec3 e = Vec3::Zero();
   switch (kind) {
     case ShapeKind::Sphere:
       e.setConstant(radius);
@@ -193,6 +193,28 @@ Vec3 principal_axis(const Shape& s) {
     }
   }
   return Vec3::Zero();
+}
+
+double ellipsoid_distance(const Shape& e, const Vec3& x) {
+  const Vec3 y = e.rotation.transpose() * (x - e.center);
+  const Vec3& a = e.semi_axes;
+  if (y.cwiseQuotient(a).squaredNorm() <= 1.0) return 0.0;
+  // The closest point is z_i = a_i^2 y_i / (s + a_i^2) with s > 0 the root of
+  // F(s) = sum (a_i y_i / (s + a_i^2))^2 - 1, decreasing in s (bisection, then exact point).
+  auto F = [&](double s) {
+    double sum = 0.0;
+    for (int i = 0; i < 3; ++i) sum += std::pow(a[i] * y[i] / (s + a[i] * a[i]), 2);
+    return sum - 1.0;
+  };
+  double lo = 0.0, hi = a.maxCoeff() * y.norm() + a.maxCoeff() * a.maxCoeff();
+  for (int it = 0; it < 200 && hi - lo > 1e-15 * (hi + 1e-300); ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (F(mid) > 0.0 ? lo : hi) = mid;
+  }
+  const double s = 0.5 * (lo + hi);
+  Vec3 z;
+  for (int i = 0; i < 3; ++i) z[i] = a[i] * a[i] * y[i] / (s + a[i] * a[i]);
+  return (y - z).norm();
 }
 
 }  // namespace rvegen

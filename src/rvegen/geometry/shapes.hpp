@@ -71,4 +71,7 @@ Vec3 any_orthogonal(const Vec3& u);
 /// zero for spheres.
 Vec3 principal_axis(const Shape& s);
 
+/// Exact Euclidean distance from x to an ellipsoid (0 inside).
+double ellipsoid_distance(const Shape& e, const Vec3& x);
+
 }  // namespace rvegen

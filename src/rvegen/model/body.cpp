@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "rvegen/geometry/quadrature.hpp"
+
 namespace rvegen {
 namespace {
 
@@ -66,48 +68,7 @@ double gap_to_level(double lo, double hi, double level) {
   return 0.0;
 }
 
-// Integral over the unit sphere of f(n), by Gauss-Legendre in cos(theta) and the trapezoid
-// rule in phi (spectrally accurate for smooth f).
-template <class F>
-double sphere_integral(int n_theta, F f) {
-  std::vector<double> x, w;
-  gauss_legendre(n_theta, &x, &w);
-  const int n_phi = 2 * n_theta;
-  double sum = 0.0;
-  for (int i = 0; i < n_theta; ++i) {
-    const double st = std::sqrt(std::max(0.0, 1.0 - x[i] * x[i]));
-    for (int j = 0; j < n_phi; ++j) {
-      const double ph = 2.0 * M_PI * (j + 0.5) / n_phi;
-      sum += w[i] * f(Vec3(st * std::cos(ph), st * std::sin(ph), x[i]));
-    }
-  }
-  return sum * 2.0 * M_PI / n_phi;
-}
-
 }  // namespace
-
-void gauss_legendre(int n, std::vector<double>* x, std::vector<double>* w) {
-  x->assign(n, 0.0);
-  w->assign(n, 0.0);
-  for (int i = 0; i < (n + 1) / 2; ++i) {
-    double z = std::cos(M_PI * (i + 0.75) / (n + 0.5)), dp = 1.0;
-    for (int it = 0; it < 100; ++it) {
-      double p0 = 1.0, p1 = z;
-      for (int k = 2; k <= n; ++k) {
-        const double p2 = ((2.0 * k - 1.0) * z * p1 - (k - 1.0) * p0) / k;
-        p0 = p1;
-        p1 = p2;
-      }
-      dp = n * (z * p1 - p0) / (z * z - 1.0);
-      const double dz = p1 / dp;
-      z -= dz;
-      if (std::abs(dz) < 1e-15) break;
-    }
-    (*x)[i] = -z;
-    (*x)[n - 1 - i] = z;
-    (*w)[i] = (*w)[n - 1 - i] = 2.0 / ((1.0 - z * z) * dp * dp);
-  }
-}
 
 double deformation_field(const Modifiers& m, const Vec3& n) {
   double g = 0.0;
@@ -137,28 +98,6 @@ Vec3 wave_offset(const Inclusion& inc, double s) {
   if (!m.wavy()) return Vec3::Zero();
   const FibreFrame f = fibre_frame(inc);
   return m.wave_amplitude * std::sin(2.0 * M_PI * s / m.wave_length + m.wave_phase) * f.v;
-}
-
-double ellipsoid_distance(const Shape& e, const Vec3& x) {
-  const Vec3 y = e.rotation.transpose() * (x - e.center);
-  const Vec3& a = e.semi_axes;
-  if (y.cwiseQuotient(a).squaredNorm() <= 1.0) return 0.0;
-  // The closest point is z_i = a_i^2 y_i / (s + a_i^2) with s > 0 the root of
-  // F(s) = sum (a_i y_i / (s + a_i^2))^2 - 1, decreasing in s (bisection, then exact point).
-  auto F = [&](double s) {
-    double sum = 0.0;
-    for (int i = 0; i < 3; ++i) sum += std::pow(a[i] * y[i] / (s + a[i] * a[i]), 2);
-    return sum - 1.0;
-  };
-  double lo = 0.0, hi = a.maxCoeff() * y.norm() + a.maxCoeff() * a.maxCoeff();
-  for (int it = 0; it < 200 && hi - lo > 1e-15 * (hi + 1e-300); ++it) {
-    const double mid = 0.5 * (lo + hi);
-    (F(mid) > 0.0 ? lo : hi) = mid;
-  }
-  const double s = 0.5 * (lo + hi);
-  Vec3 z;
-  for (int i = 0; i < 3; ++i) z[i] = a[i] * a[i] * y[i] / (s + a[i] * a[i]);
-  return (y - z).norm();
 }
 
 Shape envelope(const Inclusion& inc) {

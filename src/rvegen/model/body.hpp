@@ -95,10 +95,4 @@ double deformation_volume_scale(const Modifiers& m);
 /// Lateral displacement of a wavy fibre's cross-section at axial coordinate s (world vector).
 Vec3 wave_offset(const Inclusion& inc, double s);
 
-/// Exact Euclidean distance from x to an ellipsoid (0 inside).
-double ellipsoid_distance(const Shape& e, const Vec3& x);
-
-/// Nodes and weights of the n-point Gauss-Legendre rule on [-1, 1].
-void gauss_legendre(int n, std::vector<double>* x, std::vector<double>* w);
-
 }  // namespace rvegen

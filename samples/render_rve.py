@@ -5,14 +5,13 @@ usage: pvpython --force-offscreen-rendering samples/render_rve.py RVE_DIR [OUT.p
 import os
 import sys
 
-from paraview.simple import XMLImageDataReader, XMLPolyDataReader
+from paraview.simple import XMLImageDataReader
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from rve_view import save_rve_picture  # noqa: E402
+from rve_view import save_rve_dir_picture  # noqa: E402
 
 rve = sys.argv[1]
 out = sys.argv[2] if len(sys.argv) > 2 else os.path.join(rve, "rve.png")
-surfaces = XMLPolyDataReader(FileName=[os.path.join(rve, "inclusions.vtp")])
 voxels = XMLImageDataReader(FileName=[os.path.join(rve, "voxels.vti")])
-save_rve_picture(surfaces, voxels, out, 800)
+save_rve_dir_picture(rve, voxels, out, 800)
 print("wrote", out)

@@ -21,7 +21,7 @@ from paraview.simple import (AssignViewToLayout, ColorBy, CreateLayout, GetColor
 
 here = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, here)
-from rve_view import save_rve_picture, white_view  # noqa: E402
+from rve_view import save_rve_dir_picture, white_view  # noqa: E402
 
 rve, out = sys.argv[1], sys.argv[2]
 size = int(sys.argv[3]) if len(sys.argv) > 3 else 600
@@ -29,13 +29,12 @@ os.makedirs(out, exist_ok=True)
 with open(os.path.join(rve, "report.json")) as f:
     report = json.load(f)
 phases = report["phases"]
-surfaces = XMLPolyDataReader(FileName=[os.path.join(rve, "inclusions.vtp")])
 voxels = XMLImageDataReader(FileName=[os.path.join(rve, "voxels.vti")])
 voxels.UpdatePipeline()
 bounds = voxels.GetDataInformation().GetBounds()
 centre = [0.5 * (bounds[2 * a] + bounds[2 * a + 1]) for a in range(3)]
 
-save_rve_picture(surfaces, voxels, os.path.join(out, "inclusions_3d.png"), size)
+save_rve_dir_picture(rve, voxels, os.path.join(out, "inclusions_3d.png"), size)
 
 # Phase colours: matrix light grey, cores in distinct dark colours, interphases bright yellow,
 # voids black (the highlight of Figure 5 uses the same table with the cores toned down).

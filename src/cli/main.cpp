@@ -42,7 +42,9 @@ const char* kUsage =
     "usage:\n"
     "  rvegen generate [SCENE.json] [-o DIR] [--quiet] [--max-memory SIZE]\n"
     "      Packs the scene (the built-in default scene when none is given) and writes, in DIR\n"
-    "      (default ./rve): inclusions.json (the inclusion list), inclusions.vtp (surfaces),\n"
+    "      (default ./rve), as the scene's \"outputs\" ask: inclusions.json (the inclusion\n"
+    "      list), inclusions.vtp (points for glyphs), surfaces.vtp (meshes: of modified\n"
+    "      inclusions, or of all with \"mesh\"),\n"
     "      voxels.vti (phase, inclusion_id, fraction), rve.h5 + rve.xdmf (voxels, inclusion\n"
     "      table, metadata), material.vtk (AMITEX_FFTP material map), report.json and, when\n"
     "      inclusions are wavy, deformed or coated, levelsets.vdb. DIR is replaced as a whole:\n"
@@ -161,17 +163,33 @@ int cmd_generate(const std::vector<std::string>& args) {
         progress(buf);
       }
     };
+    const rvegen::Outputs& want = scene.outputs;
     std::string inclusions;
-    timed("write inclusions.json", [&] {
-      inclusions = rvegen::write_inclusions_json(result.set);
-      out.write("inclusions.json", inclusions);
-    });
-    timed("surfaces", [&] {
-      rvegen::MeshOptions mopt;
-      mopt.clip_to_box = scene.clip_surfaces;
-      const rvegen::SurfaceMesh mesh = rvegen::tessellate(result.set, mopt);
-      out.write("inclusions.vtp", rvegen::vtp_bytes(mesh, inclusions));
-    });
+    if (want.inclusions) {
+      timed("write inclusions.json", [&] {
+        inclusions = rvegen::write_inclusions_json(result.set);
+        out.write("inclusions.json", inclusions);
+      });
+      timed("write inclusions.vtp",
+            [&] { out.write("inclusions.vtp", rvegen::points_vtp_bytes(result.set, inclusions)); });
+    }
+    // Surfaces: of every inclusion when the mesh is asked for; otherwise of the wavy, deformed,
+    // coated and debonded ones only (their shape is not a glyph), when there are any.
+    rvegen::InclusionSet meshed;
+    meshed.box = result.set.box;
+    meshed.family_names = result.set.family_names;
+    for (const rvegen::Inclusion& inc : result.set.inclusions) {
+      if (want.mesh || inc.mod.any()) meshed.inclusions.push_back(inc);
+    }
+    if (!meshed.inclusions.empty()) {
+      timed("surfaces", [&] {
+        rvegen::MeshOptions mopt;
+        mopt.clip_to_box = scene.clip_surfaces;
+        const rvegen::SurfaceMesh mesh = rvegen::tessellate(meshed, mopt);
+        out.write("surfaces.vtp", rvegen::vtp_bytes(mesh, inclusions));
+      });
+    }
+    meshed = rvegen::InclusionSet{};
     inclusions.clear();
     inclusions.shrink_to_fit();
     rvegen::LevelSets levelsets;
@@ -181,38 +199,49 @@ int cmd_generate(const std::vector<std::string>& args) {
                     need.band_voxels);
       progress(buf);
     }
-    timed("level sets", [&] {
-      rvegen::LevelSetOptions lopt;
-      lopt.voxel_size = scene.levelset_voxel_size;
-      lopt.half_width = scene.levelset_half_width;
-      levelsets = rvegen::build_level_sets(result.set, lopt);
-      if (!levelsets.empty()) out.write("levelsets.vdb", rvegen::vdb_bytes(levelsets, result.set));
-      levelsets.data.reset();  // the report keeps the grid summaries only
-    });
+    if (want.levelsets)
+      timed("level sets", [&] {
+        rvegen::LevelSetOptions lopt;
+        lopt.voxel_size = scene.levelset_voxel_size;
+        lopt.half_width = scene.levelset_half_width;
+        levelsets = rvegen::build_level_sets(result.set, lopt);
+        if (!levelsets.empty())
+          out.write("levelsets.vdb", rvegen::vdb_bytes(levelsets, result.set));
+        levelsets.data.reset();  // the report keeps the grid summaries only
+      });
     rvegen::VoxelImage image;
-    timed("voxels", [&] {
-      rvegen::VoxelOptions vopt;
-      vopt.partial_volume = scene.partial_volume;
-      vopt.subsamples = scene.subsamples;
-      image = rvegen::voxelize(result.set, scene.resolution, vopt);
-    });
-    timed("write voxels.vti", [&] {
-      out.write_with("voxels.vti", [&](std::FILE* f) { rvegen::write_vti(image, f); });
-    });
-    timed("write material.vtk", [&] {
-      out.write_with("material.vtk", [&](std::FILE* f) { rvegen::write_material_vtk(image, f); });
-      out.write("rve.xdmf", rvegen::xdmf_text(image, "rve.h5"));
-    });
+    if (want.image()) {
+      timed("voxels", [&] {
+        rvegen::VoxelOptions vopt;
+        vopt.partial_volume = scene.partial_volume;
+        vopt.subsamples = scene.subsamples;
+        image = rvegen::voxelize(result.set, scene.resolution, vopt);
+      });
+    }
+    if (want.voxels) {
+      timed("write voxels.vti", [&] {
+        out.write_with("voxels.vti", [&](std::FILE* f) { rvegen::write_vti(image, f); });
+      });
+    }
+    if (want.amitex) {
+      timed("write material.vtk", [&] {
+        out.write_with("material.vtk", [&](std::FILE* f) { rvegen::write_material_vtk(image, f); });
+      });
+    }
     auto report_now = [&] {
       timings.total_seconds = seconds_since(t0);
       timings.peak_memory_mb = peak_memory_mb();
-      return rvegen::report_json(scene, result, &image, timings, &levelsets);
+      return rvegen::report_json(scene, result, want.image() ? &image : nullptr, timings,
+                                 &levelsets);
     };
     // rve.h5 carries the report as it stood before rve.h5 itself was written.
-    timed("write rve.h5", [&] {
-      rvegen::write_hdf5(out.staged_path("rve.h5"), image, result.set, rvegen::scene_to_json(scene),
-                         report_now());
-    });
+    if (want.h5) {
+      timed("write rve.h5", [&] {
+        out.write("rve.xdmf", rvegen::xdmf_text(image, "rve.h5"));
+        rvegen::write_hdf5(out.staged_path("rve.h5"), image, result.set,
+                           rvegen::scene_to_json(scene), report_now());
+      });
+    }
     out.write("report.json", report_now());
     out.commit();
     const auto vf =

@@ -78,6 +78,19 @@ bad nan_value "{$BOX,\"families\":[{\"shape\":\"sphere\",\"radius\":NaN,\"count\
 bad impossible_fraction "{$BOX,\"families\":[{\"shape\":\"sphere\",\"radius\":0.05,\"volume_fraction\":0.75}]}" "exceeds"
 bad box_too_small "{\"box\":{\"size\":[0.1,1,1]},\"families\":[{\"shape\":\"sphere\",\"radius\":0.06,\"count\":1}]}" "does not fit"
 bad missing_size "{$BOX,\"families\":[{\"shape\":\"cylinder\",\"radius\":0.02,\"count\":1}]}" "aspect_ratio"
+bad unknown_output "{$BOX,\"families\":[{\"shape\":\"sphere\",\"radius\":0.1,\"count\":1}],\"outputs\":[\"inclusions\",\"stl\"]}" "outputs\[1\]"
+
+# Every output has a switch: exactly the files asked for (and report.json) are written; the
+# tessellated mesh (surfaces.vtp) only when asked for, or for modified inclusions.
+echo "{$BOX,\"families\":[{\"shape\":\"sphere\",\"radius\":0.1,\"count\":5}],\"outputs\":[\"inclusions\"]}" >"$WORK/only_inclusions.json"
+expect_rc 0 "$RVEGEN" generate -q "$WORK/only_inclusions.json" -o "$WORK/out_only_inclusions"
+[ "$(ls "$WORK/out_only_inclusions" | tr '\n' ' ')" = "inclusions.json inclusions.vtp report.json " ] \
+  || fail "outputs [inclusions] wrote: $(ls "$WORK/out_only_inclusions" | tr '\n' ' ')"
+echo "{$BOX,\"families\":[{\"shape\":\"sphere\",\"radius\":0.1,\"count\":5}],\"outputs\":[\"amitex\",\"mesh\"]}" >"$WORK/amitex_mesh.json"
+expect_rc 0 "$RVEGEN" generate -q "$WORK/amitex_mesh.json" -o "$WORK/out_amitex_mesh"
+[ "$(ls "$WORK/out_amitex_mesh" | tr '\n' ' ')" = "material.vtk report.json surfaces.vtp " ] \
+  || fail "outputs [amitex, mesh] wrote: $(ls "$WORK/out_amitex_mesh" | tr '\n' ' ')"
+[ -e "$WORK/default/surfaces.vtp" ] && fail "surfaces.vtp written for plain inclusions without mesh"
 expect_rc 2 "$RVEGEN" generate -q "$WORK/does_not_exist.json" -o "$WORK/out_missing"
 expect_rc 2 "$RVEGEN" frobnicate
 

@@ -215,7 +215,7 @@ Scene parse_scene(const std::string& text) {
   if (!root.is_object()) fail("(root)", "expected an object");
   only_keys(root,
             {"box", "seed", "method", "min_gap", "families", "voxels", "levelsets", "surfaces",
-             "md", "rsa"},
+             "md", "rsa", "outputs"},
             "");
   Scene s;
   s.box = box(require(root, "box", ""), "box");
@@ -325,8 +325,36 @@ Scene parse_scene(const std::string& text) {
   }
   if (root.contains("surfaces")) {
     const Json& m = root["surfaces"];
-    only_keys(m, {"clip"}, "surfaces");
+    only_keys(m, {"clip", "mesh"}, "surfaces");
     if (m.contains("clip")) s.clip_surfaces = boolean(m["clip"], "surfaces.clip");
+    if (m.contains("mesh")) s.outputs.mesh = boolean(m["mesh"], "surfaces.mesh");
+  }
+  if (root.contains("outputs")) {
+    // The files to write: exactly the names listed (report.json always).
+    const Json& o = root["outputs"];
+    if (!o.is_array()) fail("outputs", "expected an array of output names");
+    const bool mesh = s.outputs.mesh;
+    s.outputs = Outputs{false, false, false, false, false, mesh};
+    for (size_t k = 0; k < o.size(); ++k) {
+      const std::string q = "outputs[" + std::to_string(k) + "]";
+      const std::string name = string(o[k], q);
+      if (name == "inclusions") {
+        s.outputs.inclusions = true;
+      } else if (name == "voxels") {
+        s.outputs.voxels = true;
+      } else if (name == "h5") {
+        s.outputs.h5 = true;
+      } else if (name == "amitex") {
+        s.outputs.amitex = true;
+      } else if (name == "levelsets") {
+        s.outputs.levelsets = true;
+      } else if (name == "mesh") {
+        s.outputs.mesh = true;
+      } else {
+        fail(q,
+             "unknown output \"" + name + "\" (inclusions, voxels, h5, amitex, levelsets, mesh)");
+      }
+    }
   }
   validate_scene(s);
   return s;
@@ -436,6 +464,19 @@ std::string scene_to_json(const Scene& s) {
   root["levelsets"] = {{"half_width", s.levelset_half_width}};
   if (s.levelset_voxel_size > 0.0) root["levelsets"]["voxel_size"] = s.levelset_voxel_size;
   root["surfaces"] = {{"clip", s.clip_surfaces}};
+  if (!(s.outputs == Outputs{})) {
+    OJson names = OJson::array();
+    const Outputs& o = s.outputs;
+    for (const auto& [on, name] : {std::pair<bool, const char*>{o.inclusions, "inclusions"},
+                                   {o.voxels, "voxels"},
+                                   {o.h5, "h5"},
+                                   {o.amitex, "amitex"},
+                                   {o.levelsets, "levelsets"},
+                                   {o.mesh, "mesh"}}) {
+      if (on) names.push_back(name);
+    }
+    root["outputs"] = names;
+  }
   return root.dump(2) + "\n";
 }
 

@@ -94,8 +94,25 @@ struct PackingSpec {
   double expected_volume_fraction() const;
 };
 
+/// Which files a run writes (JSON "outputs": a list of the names below). report.json always.
+struct Outputs {
+  bool inclusions = true;  // "inclusions": inclusions.json and inclusions.vtp (points, glyphs)
+  bool voxels = true;      // "voxels": voxels.vti
+  bool h5 = true;          // "h5": rve.h5 and rve.xdmf
+  bool amitex = true;      // "amitex": material.vtk
+  bool levelsets = true;   // "levelsets": levelsets.vdb (wavy, deformed and coated inclusions)
+  bool mesh = false;       // "mesh": surfaces.vtp of every inclusion (else of the modified ones)
+  bool operator==(const Outputs& o) const {
+    return inclusions == o.inclusions && voxels == o.voxels && h5 == o.h5 && amitex == o.amitex &&
+           levelsets == o.levelsets && mesh == o.mesh;
+  }
+  /// A voxel image is computed when one of its files is asked for.
+  bool image() const { return voxels || h5 || amitex; }
+};
+
 /// What only the representations of a packed set depend on.
 struct OutputSpec {
+  Outputs outputs;
   std::array<int, 3> resolution = {64, 64, 64};
   /// Voxel image: partial volumes ("fraction") and the subsamples per axis of boundary voxels.
   bool partial_volume = true;

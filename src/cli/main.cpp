@@ -228,11 +228,13 @@ int cmd_generate(const std::vector<std::string>& args) {
         out.write_with("material.vtk", [&](std::FILE* f) { rvegen::write_material_vtk(image, f); });
       });
     }
+    rvegen::ReportStatistics stats;
+    timed("statistics", [&] { stats = rvegen::report_statistics(scene, result); });
     auto report_now = [&] {
       timings.total_seconds = seconds_since(t0);
       timings.peak_memory_mb = peak_memory_mb();
       return rvegen::report_json(scene, result, want.image() ? &image : nullptr, timings,
-                                 &levelsets);
+                                 &levelsets, &stats);
     };
     // rve.h5 carries the report as it stood before rve.h5 itself was written.
     if (want.h5) {

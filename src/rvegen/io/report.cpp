@@ -37,9 +37,36 @@ std::vector<double> phase_volume_fractions(const InclusionSet& set,
   return exact;
 }
 
+ReportStatistics report_statistics(const Scene& scene, const PackingResult& r) {
+  ReportStatistics out;
+  const int nf = static_cast<int>(scene.families.size());
+  out.radial.resize(nf);
+  for (int f = 0; f < nf; ++f) {
+    if (scene.families[f].shape != ShapeKind::Sphere) continue;
+    // g(r) of the centres over five mean diameters (at most half the box).
+    double mean_d = 0.0;
+    int n = 0;
+    for (const auto& inc : r.set.inclusions) {
+      if (inc.family == f) {
+        mean_d += 2.0 * inc.shape.radius;
+        ++n;
+      }
+    }
+    if (n > 1) out.radial[f] = radial_distribution(r.set, f, 50, 5.0 * mean_d / n);
+  }
+  out.nearest = nearest_neighbour_distances(r.set);
+  return out;
+}
+
 std::string report_json(const Scene& scene, const PackingResult& r, const VoxelImage* image,
-                        const RunTimings& timings, const LevelSets* levelsets) {
+                        const RunTimings& timings, const LevelSets* levelsets,
+                        const ReportStatistics* stats) {
   using OJson = nlohmann::ordered_json;
+  ReportStatistics own;
+  if (!stats) {
+    own = report_statistics(scene, r);
+    stats = &own;
+  }
   const int nf = static_cast<int>(scene.families.size());
   const std::vector<double> vf = family_volume_fractions(r.set, nf);
   std::vector<double> voxel_vf(nf, 0.0);
@@ -77,20 +104,9 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
       for (int k = 0; k < 3; ++k) trows.push_back({t(k, 0), t(k, 1), t(k, 2)});
       j["target_orientation_tensor"] = trows;
       if (r.placed_count[f] > 0) j["orientation_tensor_error"] = (a - t).cwiseAbs().maxCoeff();
-    } else {
-      // g(r) of the centres over five mean diameters (at most half the box).
-      double mean_d = 0.0;
-      int n = 0;
-      for (const auto& inc : r.set.inclusions) {
-        if (inc.family == f) {
-          mean_d += 2.0 * inc.shape.radius;
-          ++n;
-        }
-      }
-      if (n > 1) {
-        const RadialDistribution g = radial_distribution(r.set, f, 50, 5.0 * mean_d / n);
-        j["radial_distribution"] = {{"r", g.r}, {"g", g.g}};
-      }
+    } else if (!stats->radial[f].r.empty()) {
+      const RadialDistribution& g = stats->radial[f];
+      j["radial_distribution"] = {{"r", g.r}, {"g", g.g}};
     }
     fams.push_back(j);
     total += vf[f];
@@ -125,7 +141,7 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
         "shells_may_touch: interphase volume fractions are the sum of the shells, an upper bound "
         "(merged shells count once in the image)";
   }
-  const Summary nn = nearest_neighbour_distances(r.set);
+  const Summary& nn = stats->nearest;
   if (nn.n > 0) {
     root["nearest_neighbour_distance"] = {
         {"mean", nn.mean}, {"std", nn.std}, {"min", nn.min}, {"max", nn.max}};

@@ -5,6 +5,7 @@
 #include <utility>
 #include <vector>
 
+#include "rvegen/model/stats.hpp"
 #include "rvegen/packing/packing.hpp"
 #include "rvegen/raster/levelset.hpp"
 #include "rvegen/raster/voxelize.hpp"
@@ -27,9 +28,19 @@ struct RunTimings {
   double peak_memory_mb = 0.0;  // 0: not measured
 };
 
+/// The statistics of a packed set the report gives (the costly part of a report): g(r) of each
+/// sphere family's centres over five mean diameters (empty for other families) and the nearest-
+/// neighbour distances.
+struct ReportStatistics {
+  std::vector<RadialDistribution> radial;  // per family
+  Summary nearest;
+};
+ReportStatistics report_statistics(const Scene& scene, const PackingResult& result);
+
 /// report.json text. `image` may be null (then no voxel statistics), `levelsets` too (then no
-/// level-set section).
+/// level-set section); `stats` null: computed here (pass them when writing several reports).
 std::string report_json(const Scene& scene, const PackingResult& result, const VoxelImage* image,
-                        const RunTimings& timings, const LevelSets* levelsets = nullptr);
+                        const RunTimings& timings, const LevelSets* levelsets = nullptr,
+                        const ReportStatistics* stats = nullptr);
 
 }  // namespace rvegen

@@ -90,7 +90,7 @@ RadialDistribution radial_distribution(const InclusionSet& set, int family, int 
   for (size_t i = 0; i < c.size(); ++i) grid.insert(static_cast<int>(i), c[i]);
   // Every centre is a reference up to kReferences of them; above, an evenly spread subset
   // (every k-th), each with all its neighbours: g(r) keeps its meaning at a bounded cost.
-  constexpr size_t kReferences = 5000;
+  constexpr size_t kReferences = 2000;
   const size_t step = (c.size() + kReferences - 1) / kReferences;
   size_t references = 0;
   for (size_t i = 0; i < c.size(); i += step) {

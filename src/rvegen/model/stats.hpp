@@ -28,8 +28,8 @@ struct RadialDistribution {
 
 /// Radial distribution function g(r) of the centres of `family` (pairs within the family,
 /// minimum-image distances) on `bins` bins over (0, r_max]; r_max is capped at half the
-/// smallest periodic box size. g -> 1 for an uncorrelated (ideal gas) arrangement. Above 5,000
-/// centres, an evenly spread subset of 5,000 serves as references (each with all neighbours).
+/// smallest periodic box size. g -> 1 for an uncorrelated (ideal gas) arrangement. Above 2,000
+/// centres, an evenly spread subset of 2,000 serves as references (each with all neighbours).
 RadialDistribution radial_distribution(const InclusionSet& set, int family, int bins, double r_max);
 
 }  // namespace rvegen

@@ -130,7 +130,7 @@ Inclusion place_like(const Inclusion& drawn, const Shape& packed, double scale) 
   return out;
 }
 
-BodyQuery::BodyQuery(const Inclusion& inc) : inc_(inc), m_(inc.mod), s_(inc.shape) {
+BodyQuery::BodyQuery(const Inclusion& inc) : m_(inc.mod), s_(inc.shape) {
   c_ = s_.center;
   switch (s_.kind) {
     case ShapeKind::Sphere:

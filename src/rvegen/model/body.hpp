@@ -62,7 +62,6 @@ class BodyQuery {
  private:
   double cylinder_sdf(const Vec3& x) const;  // in the sheared frame of a wavy fibre
   double cone_distance(const Vec3& d, double rho) const;
-  const Inclusion& inc_;
   const Modifiers& m_;
   const Shape& s_;
   Vec3 c_;

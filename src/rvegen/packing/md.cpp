@@ -79,10 +79,10 @@ class MdPacker {
   std::vector<Shape> best_oriented_;
   std::chrono::steady_clock::time_point t0_, last_progress_;
   // The time budget holds inside a step too (a pair-list build of a crowded scene can take
-  // longer than the budget): long loops call tick, which throws OutOfTime.
+  // longer than the budget): long loops call tick_, which throws OutOfTime.
   struct OutOfTime {};
   std::chrono::steady_clock::time_point deadline_;
-  const std::function<void()> tick = [this] {
+  const std::function<void()> tick_ = [this] {
     if (std::chrono::steady_clock::now() > deadline_) throw OutOfTime{};
   };
 };
@@ -150,8 +150,8 @@ PackingResult MdPacker::run() {
   while (!bodies.empty()) {
     double s_in = 0.0;
     try {
-      if (list_.stale(bodies, s_out_)) list_.build(&bodies, box_, s_out_, tick);
-      s_in = contact_pass(bodies, bodies_.oriented, list_.pairs(), box_, s_out_, &sums_, tick);
+      if (list_.stale(bodies, s_out_)) list_.build(&bodies, box_, s_out_, tick_);
+      s_in = contact_pass(bodies, bodies_.oriented, list_.pairs(), box_, s_out_, &sums_, tick_);
     } catch (const OutOfTime&) {
       why = StopReason::kTimeBudget;
       break;

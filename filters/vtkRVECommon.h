@@ -8,16 +8,19 @@
 
 #include "rvegen/io/inclusions_json.hpp"
 #include "rvegen/model/inclusion_set.hpp"
+#include "rvegen/raster/glyphs.hpp"
 #include "rvegen/raster/mesh.hpp"
 #include "rvegen/raster/voxelize.hpp"
 #include "vtkCellArray.h"
 #include "vtkCellData.h"
 #include "vtkDataObject.h"
+#include "vtkDoubleArray.h"
 #include "vtkFieldData.h"
 #include "vtkFloatArray.h"
 #include "vtkImageData.h"
 #include "vtkIntArray.h"
 #include "vtkNew.h"
+#include "vtkPointData.h"
 #include "vtkPoints.h"
 #include "vtkPolyData.h"
 #include "vtkStringArray.h"
@@ -61,6 +64,57 @@ inline void RVEPolyDataFromMesh(const rvegen::SurfaceMesh& mesh, vtkPolyData* ou
   for (size_t t = 0; t < mesh.axis.size(); ++t) axis->SetTypedTuple(t, mesh.axis[t].data());
   out->GetCellData()->AddArray(axis);
   out->GetCellData()->SetActiveScalars("family");
+}
+
+// Copies glyph points (rvegen::glyph_points) into a vtkPolyData: one vertex per point, point
+// data as inclusions.vtp (see rvegen/raster/glyphs.hpp).
+inline void RVEPolyDataFromGlyphs(const rvegen::GlyphPoints& g, vtkPolyData* out) {
+  const vtkIdType n = static_cast<vtkIdType>(g.size());
+  vtkNew<vtkDoubleArray> xyz;
+  xyz->SetNumberOfComponents(3);
+  xyz->SetNumberOfTuples(n);
+  std::copy(g.points.begin(), g.points.end(), xyz->GetPointer(0));
+  vtkNew<vtkPoints> points;
+  points->SetData(xyz);
+  vtkNew<vtkTypeInt64Array> offsets, connectivity;
+  offsets->SetNumberOfValues(n + 1);
+  connectivity->SetNumberOfValues(n);
+  for (vtkIdType i = 0; i <= n; ++i) offsets->SetValue(i, i);
+  for (vtkIdType i = 0; i < n; ++i) connectivity->SetValue(i, i);
+  vtkNew<vtkCellArray> verts;
+  verts->SetData(offsets, connectivity);
+  out->SetPoints(points);
+  out->SetVerts(verts);
+  vtkPointData* pd = out->GetPointData();
+  auto int_array = [&](const char* name, const std::vector<int32_t>& v) {
+    vtkNew<vtkIntArray> a;
+    a->SetName(name);
+    a->SetNumberOfValues(n);
+    std::copy(v.begin(), v.end(), a->GetPointer(0));
+    pd->AddArray(a);
+  };
+  auto double_array = [&](const char* name, int components, const std::vector<double>& v) {
+    vtkNew<vtkDoubleArray> a;
+    a->SetName(name);
+    a->SetNumberOfComponents(components);
+    a->SetNumberOfTuples(n);
+    std::copy(v.begin(), v.end(), a->GetPointer(0));
+    pd->AddArray(a);
+  };
+  int_array("inclusion_id", g.inclusion_id);
+  int_array("family", g.family);
+  int_array("shape", g.shape);
+  int_array("phase", g.phase);
+  int_array("image", g.image);
+  int_array("modified", g.modified);
+  double_array("radius", 1, g.radius);
+  double_array("half_axis", 3, g.half_axis);
+  double_array("semi_axes", 3, g.semi_axes);
+  double_array("orientation", 4, g.orientation);
+  double_array("direction", 3, g.direction);
+  double_array("scale", 3, g.scale);
+  pd->SetActiveScalars("family");
+  pd->SetActiveVectors("scale");
 }
 
 /// Voxelizes `set` straight into the arrays of `out` (no copy): cell data phase, inclusion_id,

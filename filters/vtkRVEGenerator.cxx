@@ -9,6 +9,7 @@
 #include "rvegen/io/writers.hpp"
 #include "rvegen/model/scene.hpp"
 #include "rvegen/packing/packing.hpp"
+#include "rvegen/raster/glyphs.hpp"
 #include "rvegen/raster/levelset.hpp"
 #include "rvegen/raster/mesh.hpp"
 #include "rvegen/raster/voxelize.hpp"
@@ -41,7 +42,7 @@ struct vtkRVEGenerator::Cache {
 
 vtkRVEGenerator::vtkRVEGenerator() {
   this->SetNumberOfInputPorts(0);
-  this->SetNumberOfOutputPorts(3);
+  this->SetNumberOfOutputPorts(4);
   const rvegen::Scene d = rvegen::default_scene();
   this->Seed = static_cast<int>(d.seed);
   for (int a = 0; a < 3; ++a) {
@@ -59,6 +60,7 @@ vtkRVEGenerator::vtkRVEGenerator() {
   this->EllipsoidVolumeFraction = d.families[2].volume_fraction;
   this->SceneFile = nullptr;
   this->ClipSurfaces = d.clip_surfaces;
+  this->Mesh = d.outputs.mesh;
   this->Method = static_cast<int>(d.method);
   this->SphereRadiusStd = 0.0;
   this->SphereCount = -1;
@@ -167,6 +169,7 @@ rvegen::Scene SceneFromProperties(const vtkRVEGenerator* g) {
   s.families = kept;
   for (int a = 0; a < 3; ++a) s.resolution[a] = self->GetResolution()[a];
   s.clip_surfaces = self->GetClipSurfaces();
+  s.outputs.mesh = self->GetMesh();
   s.partial_volume = self->GetPartialVolume();
   s.levelset_voxel_size = self->GetLevelSetVoxelSize();
   return s;
@@ -221,7 +224,6 @@ vtkTypeBool vtkRVEGenerator::ProcessRequest(vtkInformation* request, vtkInformat
 
 int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
                                  vtkInformationVector* outVec) {
-  vtkPolyData* surfaces = vtkPolyData::GetData(outVec, 0);
   vtkImageData* image = vtkImageData::GetData(outVec, 1);
   rvegen::Scene scene;
   try {
@@ -265,15 +267,28 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
   status->InsertNextValue(rvegen::status_name(result.status));
 
   if (wanted(0)) {
-    rvegen::MeshOptions mopt;
-    mopt.clip_to_box = scene.clip_surfaces;
-    RVEPolyDataFromMesh(rvegen::tessellate(result.set, mopt), surfaces);
-    surfaces->GetFieldData()->AddArray(status);
-    vtkNew<vtkStringArray> inclusions;  // for the RVE filters
+    // One vertex per inclusion (and periodic image) with glyph attributes; the inclusion list
+    // in field data for the RVE filters.
+    vtkPolyData* points = vtkPolyData::GetData(outVec, 0);
+    RVEPolyDataFromGlyphs(rvegen::glyph_points(result.set), points);
+    points->GetFieldData()->AddArray(status);
+    vtkNew<vtkStringArray> inclusions;
     inclusions->SetName("rvegen_inclusions");
     inclusions->InsertNextValue(rvegen::write_inclusions_json(result.set));
-    surfaces->GetFieldData()->AddArray(inclusions);
+    points->GetFieldData()->AddArray(inclusions);
     ++this->PortExecutions[0];
+  }
+
+  if (wanted(3)) {
+    // The tessellated surfaces: of every inclusion with Mesh, otherwise of the modified ones.
+    rvegen::MeshOptions mopt;
+    mopt.clip_to_box = scene.clip_surfaces;
+    vtkPolyData* surfaces = vtkPolyData::GetData(outVec, 3);
+    RVEPolyDataFromMesh(
+        rvegen::tessellate(rvegen::meshed_inclusions(result.set, scene.outputs.mesh), mopt),
+        surfaces);
+    surfaces->GetFieldData()->AddArray(status);
+    ++this->PortExecutions[3];
   }
 
   if (wanted(1)) {
@@ -352,8 +367,11 @@ void vtkRVEGenerator::PrintSelf(ostream& os, vtkIndent indent) {
   v3("Resolution", this->Resolution);
   os << indent << "PartialVolume: " << this->PartialVolume << "\n";
   os << indent << "ClipSurfaces: " << this->ClipSurfaces << "\n";
+  os << indent << "Mesh: " << this->Mesh << "\n";
   os << indent << "LevelSetVoxelSize: " << this->LevelSetVoxelSize << "\n";
   os << indent << "Threads: " << this->Threads << "\n";
-  v3("PortExecutions", this->PortExecutions);
+  os << indent << "PortExecutions:";
+  for (int e : this->PortExecutions) os << " " << e;
+  os << "\n";
   os << indent << "Status: " << this->Status << "\n";
 }

@@ -53,6 +53,13 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   vtkSetMacro(EllipsoidVolumeFraction, double);
   vtkGetMacro(EllipsoidVolumeFraction, double);
 
+  /// Surfaces output (port 3): the tessellated mesh of every inclusion when on; otherwise of the
+  /// wavy, deformed, coated and debonded ones only (the Inclusions output draws the others as
+  /// glyphs).
+  vtkSetMacro(Mesh, bool);
+  vtkGetMacro(Mesh, bool);
+  vtkBooleanMacro(Mesh, bool);
+
   /// Cut the surfaces of periodic images at the box faces.
   vtkSetMacro(ClipSurfaces, bool);
   vtkGetMacro(ClipSurfaces, bool);
@@ -132,7 +139,7 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   /// "ok" or "target_not_reached" after an update (empty before, "invalid" on bad input).
   const char* GetStatus() const { return this->Status.c_str(); }
   /// How many times each output port has been computed (shows that ports are lazy).
-  vtkGetVector3Macro(PortExecutions, int);
+  vtkGetVectorMacro(PortExecutions, int, 4);
 
  protected:
   vtkRVEGenerator();
@@ -160,6 +167,7 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   int Resolution[3];
   char* SceneFile;
   bool ClipSurfaces;
+  bool Mesh;
   int Method;
   double SphereRadiusStd;
   int SphereCount;
@@ -187,7 +195,7 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   double FibreAxis[3];
   double FibreOrientationTensor[6];
   double EllipsoidAxis[3];
-  int PortExecutions[3] = {0, 0, 0};
+  int PortExecutions[4] = {0, 0, 0, 0};
 
  private:
   vtkRVEGenerator(const vtkRVEGenerator&) = delete;

@@ -21,23 +21,47 @@ def white_view():
     return view
 
 
-def save_rve_picture(surfaces, box_source, out_png, size):
-    """Renders `surfaces` (polydata with cell array `family`) and the outline of `box_source`
-    (the voxel image) to `out_png`, `size` pixels square."""
+def save_rve_picture(inclusions, box_source, out_png, size, surfaces=None, glyphs=True):
+    """Renders `inclusions` (points with glyph attributes: the RVE Generator's Inclusions output
+    or inclusions.vtp) as glyphs, the surfaces of `surfaces` when given (the generator's Surfaces
+    output: the modified inclusions, or all with Mesh), and the outline of `box_source` (the
+    voxel image) to `out_png`, `size` pixels square, coloured by family. Without `glyphs`, the
+    surfaces alone (to compare glyphs with the mesh)."""
     view = white_view()
     view.ViewSize = [size, size]
-    disp = Show(surfaces, view)
-    ColorBy(disp, ("CELLS", "family"))
-    GetColorTransferFunction("family").ApplyPreset("Rainbow Uniform", True)
-    disp.RescaleTransferFunctionToDataRange(False, True)
+    shown = show_glyph_inclusions(inclusions, view) if glyphs else []
+    if surfaces is not None:
+        disp = Show(surfaces, view)
+        ColorBy(disp, ("CELLS", "family"))
+        shown.append(disp)
+    family_colours(shown, inclusions)
     outline = Show(Outline(Input=box_source), view)
     outline.DiffuseColor = [0, 0, 0]
     view.CameraPosition = [2.6, 2.0, 1.8]
     view.CameraFocalPoint = [0.5, 0.5, 0.5]
     view.CameraViewUp = [0, 0, 1]
-    view.ResetCamera()
+    # Framed by the box and a margin of a tenth of it for the periodic images: the glyphs'
+    # bounds are conservative (each point padded by the largest glyph) and would zoom out.
+    box_source.UpdatePipeline()
+    b = box_source.GetDataInformation().GetBounds()
+    pad = [0.1 * (b[2 * a + 1] - b[2 * a]) for a in range(3)]
+    view.ResetCamera(*[b[k] + (pad[k // 2] if k % 2 else -pad[k // 2]) for k in range(6)])
+    _DisableFirstRenderCameraReset()
     Render(view)
     SaveScreenshot(out_png, view, ImageResolution=[size, size])
+
+
+def family_colours(shown, inclusions):
+    """One "family" colour map over the representations `shown`, spanning the families of
+    `inclusions` (points with a "family" point array)."""
+    lut = GetColorTransferFunction("family")
+    lut.ApplyPreset("Rainbow Uniform", True)
+    for d in shown:
+        d.LookupTable = lut
+    inclusions.UpdatePipeline()
+    arr = inclusions.PointData.GetArray("family")
+    lo, hi = arr.GetRange() if arr is not None else (0.0, 0.0)
+    lut.RescaleTransferFunction(lo, max(hi, lo + 1e-9))
 
 
 def show_glyphs(points, view, glyph, shapes, resolution=32):
@@ -68,6 +92,20 @@ def show_glyphs(points, view, glyph, shapes, resolution=32):
     return disp
 
 
+def show_glyph_inclusions(points, view):
+    """Shows the plain inclusions of `points` (the RVE Generator's Inclusions output, or
+    inclusions.vtp) as glyphs: spheres and ellipsoids as sphere glyphs, cylinders as cylinder
+    glyphs. Returns the representations."""
+    points.UpdatePipeline()
+    arr = points.PointData.GetArray("shape")
+    lo, hi = arr.GetRange() if arr is not None else (0, -1)
+    shown = []
+    for glyph, shape in (("Sphere", 0), ("Cylinder", 1), ("Sphere", 2)):
+        if lo <= shape <= hi:
+            shown.append(show_glyphs(points, view, glyph, [shape, shape]))
+    return shown
+
+
 def show_inclusions(rve_dir, view, glyphs_only=False):
     """Shows an RVE directory's inclusions: glyphs from inclusions.vtp for the plain ones, and the
     surfaces of surfaces.vtp (wavy, deformed, coated, debonded, or all with "mesh") when
@@ -77,11 +115,7 @@ def show_inclusions(rve_dir, view, glyphs_only=False):
     points.UpdatePipeline()
     surfaces_path = os.path.join(rve_dir, "surfaces.vtp")
     has_mesh = os.path.exists(surfaces_path) and not glyphs_only
-    shape = points.PointData["shape"].GetRange() if points.PointData.GetArray("shape") else (0, -1)
-    if shape[0] <= 2 and shape[1] >= 0:
-        shown.append(show_glyphs(points, view, "Sphere", [0, 0]))
-        shown.append(show_glyphs(points, view, "Sphere", [2, 2]))
-        shown.append(show_glyphs(points, view, "Cylinder", [1, 1]))
+    shown += show_glyph_inclusions(points, view)
     if has_mesh:
         surfaces = XMLPolyDataReader(FileName=[surfaces_path])
         disp = Show(surfaces, view)
@@ -102,17 +136,7 @@ def save_rve_dir_picture(rve_dir, box_source, out_png, size, draw="all", reset_c
         shown = [disp]
     else:
         shown = show_inclusions(rve_dir, view, glyphs_only=draw == "glyphs")
-    lut = GetColorTransferFunction("family")
-    lut.ApplyPreset("Rainbow Uniform", True)
-    lo, hi = 0.0, 0.0
-    for d in shown:
-        d.LookupTable = lut
-    families = XMLPolyDataReader(FileName=[os.path.join(rve_dir, "inclusions.vtp")])
-    families.UpdatePipeline()
-    arr = families.PointData.GetArray("family")
-    if arr is not None:
-        lo, hi = arr.GetRange()
-    lut.RescaleTransferFunction(lo, max(hi, lo + 1e-9))
+    family_colours(shown, XMLPolyDataReader(FileName=[os.path.join(rve_dir, "inclusions.vtp")]))
     outline = Show(Outline(Input=box_source), view)
     outline.DiffuseColor = [0, 0, 0]
     view.CameraPosition = [2.6, 2.0, 1.8]

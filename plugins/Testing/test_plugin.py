@@ -1,8 +1,8 @@
 """pvpython test of the installed ParaView plugin.
 
-Loads the plugin, creates RVEGenerator(), updates both output ports, checks them against the
-command-line tool's files for the same (default) scene, renders the inclusions headless and
-compares the picture with a committed baseline.
+Loads the plugin, creates RVEGenerator(), updates its output ports, checks them against the
+command-line tool's files for the same (default) scene, renders the inclusions headless (as
+glyphs) and compares the picture with a committed baseline.
 
 usage: pvpython --force-offscreen-rendering test_plugin.py PLUGIN.so CLI_OUTPUT_DIR BASELINE.png OUT.png
 """
@@ -37,7 +37,7 @@ gen.UpdatePipeline()
 
 # Port 1: the voxel image, identical to the command line's voxels.vti for the same scene.
 image = servermanager.Fetch(gen, idx=1)
-surfaces = servermanager.Fetch(gen, idx=0)
+points = servermanager.Fetch(gen, idx=0)
 check(image.GetNumberOfCells() == 64 ** 3, "voxel port has %d cells" % image.GetNumberOfCells())
 reader = vtkXMLImageDataReader()
 reader.SetFileName(cli_dir + "/voxels.vti")
@@ -68,16 +68,52 @@ if xdmf is not None:
             check(diff == 0, "rve.xdmf %s differs from voxels.vti in %d voxels" % (name, diff))
     Delete(xdmf)
 
-# Port 0: surfaces with the inclusion ids of inclusions.json.
+# Port 0: the inclusions as glyph points, the same points and arrays as the command line's
+# inclusions.vtp (one vertex per inclusion and periodic image reaching into the box).
 with open(cli_dir + "/inclusions.json") as f:
     n_inclusions = len(json.load(f)["inclusions"])
-ids = surfaces.GetCellData().GetArray("inclusion_id")
-check(ids is not None and surfaces.GetNumberOfCells() > 0, "surface port is empty")
-if ids is not None:
+cli_points = XMLPolyDataReader(FileName=[cli_dir + "/inclusions.vtp"])
+cli_points.UpdatePipeline()
+cli_pts = servermanager.Fetch(cli_points)
+check(points.GetNumberOfPoints() == cli_pts.GetNumberOfPoints() > n_inclusions,
+      "inclusions port has %d points, inclusions.vtp %d (%d inclusions)"
+      % (points.GetNumberOfPoints(), cli_pts.GetNumberOfPoints(), n_inclusions))
+check(points.GetNumberOfVerts() == points.GetNumberOfPoints(), "one vertex per point")
+check(points.GetNumberOfPolys() == 0, "the inclusions port holds no mesh by default")
+for name in ("inclusion_id", "family", "shape", "phase", "image", "modified", "radius", "half_axis",
+             "semi_axes", "orientation", "direction", "scale"):
+    a = points.GetPointData().GetArray(name)
+    b = cli_pts.GetPointData().GetArray(name)
+    check(a is not None and b is not None, "point array %s missing" % name)
+    if a is not None and b is not None:
+        worst = max((abs(a.GetComponent(i, c) - b.GetComponent(i, c))
+                     for i in range(a.GetNumberOfTuples()) for c in range(a.GetNumberOfComponents())),
+                    default=0.0)
+        check(a.GetNumberOfComponents() == b.GetNumberOfComponents() and worst == 0.0,
+              "point array %s differs from inclusions.vtp by %g" % (name, worst))
+if points.GetPointData().GetArray("inclusion_id") is not None:
+    ids = points.GetPointData().GetArray("inclusion_id")
     seen = {int(ids.GetValue(i)) for i in range(ids.GetNumberOfTuples())}
-    check(seen == set(range(n_inclusions)), "surface ids do not match inclusions.json")
-for name in ("family", "shape"):
-    check(surfaces.GetCellData().GetArray(name) is not None, "surface array %s missing" % name)
+    check(seen == set(range(n_inclusions)), "point ids do not match inclusions.json")
+# Port 3: the tessellated surfaces, empty for the default scene (no modified inclusion) unless
+# Mesh is on; then every inclusion is meshed.
+check(servermanager.Fetch(gen, idx=3).GetNumberOfCells() == 0, "surfaces port not empty by default")
+gen.Mesh = 1
+mesh = servermanager.Fetch(gen, idx=3)
+mesh_ids = mesh.GetCellData().GetArray("inclusion_id")
+check(mesh_ids is not None and mesh.GetNumberOfPolys() > 100 * n_inclusions,
+      "Mesh on: %d triangles" % mesh.GetNumberOfPolys())
+if mesh_ids is not None:
+    seen = {int(mesh_ids.GetValue(i)) for i in range(mesh_ids.GetNumberOfTuples())}
+    check(seen == set(range(n_inclusions)), "mesh ids do not match inclusions.json")
+for name in ("family", "shape", "phase", "axis"):
+    check(mesh.GetCellData().GetArray(name) is not None, "surface array %s missing" % name)
+gen.Mesh = 0
+# Port 0 shows as 3D glyphs without extra steps.
+glyph_view = CreateView("RenderView")
+check(Show(OutputPort(gen, 0), glyph_view).Representation == "3D Glyphs",
+      "inclusions port not shown as 3D glyphs")
+Delete(glyph_view)
 
 # Partial volumes: the mean of `fraction` is the inclusions' volume fraction (35 % here).
 frac = image.GetCellData().GetArray("fraction")
@@ -97,10 +133,10 @@ def port_runs(proxy):
 
 
 runs = port_runs(lazy)
-check(runs == [1, 0, 0], "asking port 0 computed ports %s" % (runs,))
+check(runs == [1, 0, 0, 0], "asking port 0 computed ports %s" % (runs,))
 servermanager.Fetch(lazy, idx=1)
 runs = port_runs(lazy)
-check(runs == [1, 1, 0], "asking port 1 then computed ports %s" % (runs,))
+check(runs == [1, 1, 0, 0], "asking port 1 then computed ports %s" % (runs,))
 lset = servermanager.Fetch(lazy, idx=2)
 check(lset.GetNumberOfCells() == 0, "default scene (straight inclusions) has level-set surfaces")
 Delete(lazy)
@@ -170,6 +206,12 @@ names = servermanager.Fetch(props, idx=1).GetFieldData().GetAbstractArray("phase
 check(names is not None and names.GetNumberOfValues() == 5 and names.GetValue(4) == "spheres interphase",
       "phase names with a coating")
 check(servermanager.Fetch(props, idx=2).GetNumberOfCells() > 1000, "coated spheres: no level-set surfaces")
+# Without Mesh the Surfaces port holds the modified (here coated) inclusions alone: the spheres.
+coated_mesh = servermanager.Fetch(props, idx=3)
+fam = coated_mesh.GetCellData().GetArray("family")
+check(fam is not None and coated_mesh.GetNumberOfCells() > 0
+      and fam.GetRange() == (0.0, 0.0), "coated spheres: surfaces port families %s"
+      % (fam.GetRange() if fam is not None else None,))
 # The orientation tensor law from the panel: the fibres' A2 is the one given.
 props.FibreOrientation = 4
 props.FibreOrientationTensor = [0.6, 0.3, 0.1, 0.1, 0.0, 0.0]
@@ -232,11 +274,19 @@ check(Show(OutputPort(gen, 1), slice_view).Representation == "Slice", "voxel por
 Delete(slice_view)
 
 # Headless picture, compared with the baseline.
-save_rve_picture(OutputPort(gen, 0), OutputPort(gen, 1), out_png, 400)
+save_rve_picture(OutputPort(gen, 0), OutputPort(gen, 1), out_png, 400, surfaces=OutputPort(gen, 3))
 
 err = image_error(out_png, baseline)
 print("image difference (thresholded):", err)
 check(err <= 10.0, "picture differs from baseline %s (error %.1f)" % (baseline, err))
+# The same RVE drawn from its tessellated mesh (Mesh on, glyphs off) looks the same.
+gen.Mesh = 1
+mesh_png = out_png.replace(".png", "_mesh.png")
+save_rve_picture(OutputPort(gen, 0), OutputPort(gen, 1), mesh_png, 400, surfaces=OutputPort(gen, 3),
+                 glyphs=False)
+err = image_error(out_png, mesh_png)
+print("glyphs against mesh (thresholded):", err)
+check(err <= 10.0, "glyph picture differs from the mesh picture (error %.1f)" % err)
 
 if failures:
     print("%d failure(s)" % len(failures))

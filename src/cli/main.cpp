@@ -22,6 +22,7 @@
 #include "rvegen/model/scene.hpp"
 #include "rvegen/packing/audit.hpp"
 #include "rvegen/packing/packing.hpp"
+#include "rvegen/raster/glyphs.hpp"
 #include "rvegen/raster/levelset.hpp"
 #include "rvegen/raster/mesh.hpp"
 #include "rvegen/raster/voxelize.hpp"
@@ -175,12 +176,7 @@ int cmd_generate(const std::vector<std::string>& args) {
     }
     // Surfaces: of every inclusion when the mesh is asked for; otherwise of the wavy, deformed,
     // coated and debonded ones only (their shape is not a glyph), when there are any.
-    rvegen::InclusionSet meshed;
-    meshed.box = result.set.box;
-    meshed.family_names = result.set.family_names;
-    for (const rvegen::Inclusion& inc : result.set.inclusions) {
-      if (want.mesh || inc.mod.any()) meshed.inclusions.push_back(inc);
-    }
+    rvegen::InclusionSet meshed = rvegen::meshed_inclusions(result.set, want.mesh);
     if (!meshed.inclusions.empty()) {
       timed("surfaces", [&] {
         rvegen::MeshOptions mopt;

@@ -5,7 +5,6 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include <Eigen/Geometry>
 #include <algorithm>
 #include <cerrno>
 #include <cstdio>
@@ -226,83 +225,24 @@ std::string vtp_bytes(const SurfaceMesh& m, const std::string& inclusions_json) 
 }
 
 std::string points_vtp_bytes(const InclusionSet& set, const std::string& inclusions_json) {
-  std::vector<double> pts, radius, half_axis, semi_axes, orientation, direction, scale;
-  std::vector<int32_t> id, family, shape, phase, image, modified;
-  const Box& box = set.box;
-  for (const Inclusion& inc : set.inclusions) {
-    const Shape& sh = inc.shape;
-    // Glyph frame -> world: a unit sphere glyph (radius 0.5) or a cylinder glyph along y
-    // (height 1, radius 0.5) scaled by `scale`, then turned by `orientation`.
-    Mat3 R = Mat3::Identity();
-    Vec3 sc = Vec3::Zero(), dir = Vec3::UnitZ();
-    switch (sh.kind) {
-      case ShapeKind::Sphere:
-        sc = Vec3::Constant(2.0 * sh.radius);
-        break;
-      case ShapeKind::Cylinder: {
-        const double h = sh.half_axis.norm();
-        dir = sh.half_axis / h;
-        R.col(1) = dir;
-        R.col(0) = any_orthogonal(dir);
-        R.col(2) = R.col(0).cross(R.col(1));
-        sc = Vec3(2.0 * sh.radius, 2.0 * h, 2.0 * sh.radius);
-        break;
-      }
-      case ShapeKind::Ellipsoid:
-        R = sh.rotation;
-        if (R.determinant() < 0.0) R.col(2) = -R.col(2);
-        dir = R.col(0);
-        sc = 2.0 * sh.semi_axes;
-        break;
-    }
-    const Eigen::Quaterniond q(R);
-    // The inclusion, and its periodic images whose bounding box reaches into the box.
-    Vec3 lo, hi;
-    sh.aabb(&lo, &hi);
-    const int m = box.periodic ? 1 : 0;
-    for (int kz = -m; kz <= m; ++kz) {
-      for (int ky = -m; ky <= m; ++ky) {
-        for (int kx = -m; kx <= m; ++kx) {
-          const Vec3 shift(kx * box.size[0], ky * box.size[1], kz * box.size[2]);
-          const bool self = kx == 0 && ky == 0 && kz == 0;
-          if (!self && ((hi + shift).array() <= box.origin.array()).any()) continue;
-          if (!self && ((lo + shift).array() >= (box.origin + box.size).array()).any()) continue;
-          const Vec3 c = sh.center + shift;
-          pts.insert(pts.end(), {c[0], c[1], c[2]});
-          id.push_back(inc.id);
-          family.push_back(inc.family);
-          shape.push_back(static_cast<int32_t>(sh.kind));
-          phase.push_back(inc.family + 1);
-          image.push_back(self ? 0 : 1);
-          modified.push_back(inc.mod.any() ? 1 : 0);
-          radius.push_back(sh.kind == ShapeKind::Ellipsoid ? 0.0 : sh.radius);
-          const Vec3 ha = sh.kind == ShapeKind::Cylinder ? sh.half_axis : Vec3::Zero();
-          const Vec3 sa = sh.kind == ShapeKind::Ellipsoid ? sh.semi_axes : Vec3::Zero();
-          half_axis.insert(half_axis.end(), {ha[0], ha[1], ha[2]});
-          semi_axes.insert(semi_axes.end(), {sa[0], sa[1], sa[2]});
-          orientation.insert(orientation.end(), {q.w(), q.x(), q.y(), q.z()});
-          direction.insert(direction.end(), {dir[0], dir[1], dir[2]});
-          scale.insert(scale.end(), {sc[0], sc[1], sc[2]});
-        }
-      }
-    }
-  }
-  const size_t n = id.size();
+  const GlyphPoints g = glyph_points(set);
+  const size_t n = g.size();
   std::vector<int64_t> conn(n), offs(n);
   for (size_t i = 0; i < n; ++i) {
     conn[i] = static_cast<int64_t>(i);
     offs[i] = static_cast<int64_t>(i + 1);
   }
   Appended app;
-  const size_t o_pts = app.add(pts.data(), pts.size());
+  const size_t o_pts = app.add(g.points.data(), g.points.size());
   const size_t o_conn = app.add(conn.data(), conn.size());
   const size_t o_offs = app.add(offs.data(), offs.size());
-  const size_t o_id = app.add(id.data(), n), o_fam = app.add(family.data(), n),
-               o_shape = app.add(shape.data(), n), o_phase = app.add(phase.data(), n),
-               o_image = app.add(image.data(), n), o_mod = app.add(modified.data(), n),
-               o_r = app.add(radius.data(), n), o_ha = app.add(half_axis.data(), 3 * n),
-               o_sa = app.add(semi_axes.data(), 3 * n), o_q = app.add(orientation.data(), 4 * n),
-               o_dir = app.add(direction.data(), 3 * n), o_sc = app.add(scale.data(), 3 * n);
+  const size_t o_id = app.add(g.inclusion_id.data(), n), o_fam = app.add(g.family.data(), n),
+               o_shape = app.add(g.shape.data(), n), o_phase = app.add(g.phase.data(), n),
+               o_image = app.add(g.image.data(), n), o_mod = app.add(g.modified.data(), n),
+               o_r = app.add(g.radius.data(), n), o_ha = app.add(g.half_axis.data(), 3 * n),
+               o_sa = app.add(g.semi_axes.data(), 3 * n),
+               o_q = app.add(g.orientation.data(), 4 * n),
+               o_dir = app.add(g.direction.data(), 3 * n), o_sc = app.add(g.scale.data(), 3 * n);
   std::ostringstream s;
   s << header("PolyData") << "  <PolyData>\n";
   field_data_inclusions(s, inclusions_json);

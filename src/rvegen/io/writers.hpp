@@ -11,6 +11,7 @@
 
 #include "rvegen/io/inclusions_json.hpp"
 #include "rvegen/model/inclusion_set.hpp"
+#include "rvegen/raster/glyphs.hpp"
 #include "rvegen/raster/mesh.hpp"
 #include "rvegen/raster/voxelize.hpp"
 

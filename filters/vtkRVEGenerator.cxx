@@ -2,7 +2,10 @@
 
 #include <tbb/task_arena.h>
 
+#include <algorithm>
+#include <cmath>
 #include <exception>
+#include <memory>
 
 #include "rvegen/io/inclusions_json.hpp"
 #include "rvegen/io/scene_json.hpp"
@@ -23,10 +26,12 @@
 #include "vtkInformation.h"
 #include "vtkInformationVector.h"
 #include "vtkIntArray.h"
+#include "vtkMultiProcessController.h"
 #include "vtkNew.h"
 #include "vtkObjectFactory.h"
 #include "vtkPoints.h"
 #include "vtkPolyData.h"
+#include "vtkProcessModule.h"
 #include "vtkRVECommon.h"
 #include "vtkStreamingDemandDrivenPipeline.h"
 #include "vtkStringArray.h"
@@ -175,6 +180,27 @@ rvegen::Scene SceneFromProperties(const vtkRVEGenerator* g) {
   return s;
 }
 
+// The inclusions of the piece that `info` asks for (UPDATE_PIECE_NUMBER of
+// UPDATE_NUMBER_OF_PIECES): those whose centre lies in the piece's slab of the box along z
+// (centres outside the box go to the nearest slab). Every inclusion is in exactly one piece.
+rvegen::InclusionSet PieceOf(const rvegen::InclusionSet& set, vtkInformation* info) {
+  using SDDP = vtkStreamingDemandDrivenPipeline;
+  const int pieces =
+      info->Has(SDDP::UPDATE_NUMBER_OF_PIECES()) ? info->Get(SDDP::UPDATE_NUMBER_OF_PIECES()) : 1;
+  const int piece =
+      info->Has(SDDP::UPDATE_PIECE_NUMBER()) ? info->Get(SDDP::UPDATE_PIECE_NUMBER()) : 0;
+  if (pieces <= 1) return set;
+  rvegen::InclusionSet out;
+  out.box = set.box;
+  out.family_names = set.family_names;
+  for (const rvegen::Inclusion& inc : set.inclusions) {
+    const double t = (inc.shape.center[2] - set.box.origin[2]) / set.box.size[2];
+    const int slab = std::min(pieces - 1, std::max(0, static_cast<int>(std::floor(t * pieces))));
+    if (slab == piece) out.inclusions.push_back(inc);
+  }
+  return out;
+}
+
 }  // namespace
 
 int vtkRVEGenerator::RequestInformation(vtkInformation*, vtkInformationVector**,
@@ -198,6 +224,10 @@ int vtkRVEGenerator::RequestInformation(vtkInformation*, vtkInformationVector**,
   info->Set(vtkStreamingDemandDrivenPipeline::WHOLE_EXTENT(), extent, 6);
   // The image is computed for whatever extent is asked (under MPI each rank its own slab).
   info->Set(vtkAlgorithm::CAN_PRODUCE_SUB_EXTENT(), 1);
+  // The polydata ports give each piece its own inclusions (PieceOf).
+  for (int port : {0, 2, 3}) {
+    outVec->GetInformationObject(port)->Set(vtkAlgorithm::CAN_HANDLE_PIECE_REQUEST(), 1);
+  }
   info->Set(vtkDataObject::SPACING(), spacing, 3);
   info->Set(vtkDataObject::ORIGIN(), origin, 3);
   return 1;
@@ -241,15 +271,60 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
   // Output settings do not change the packing: the cache is keyed by the packing part alone.
   const std::string key = rvegen::packing_to_json(scene);
   if (!this->Cached || this->Cached->key != key) {
-    try {
-      // generate() audits the packed RVE exactly; an RVE that fails is never shown.
-      this->Cached.reset(new Cache{key, rvegen::generate(scene)});
-    } catch (const std::exception& e) {
-      this->Cached.reset();
+    // generate() audits the packed RVE exactly; an RVE that fails is never shown. Under MPI,
+    // rank 0 packs and broadcasts the inclusion list (every rank asks for the same scene at
+    // once: the pipeline runs on all of them).
+    this->Cached.reset();
+    std::string error;
+    std::unique_ptr<Cache> cache(new Cache{key, {}});
+    // Only where every rank runs the pipeline in step (pvbatch --symmetric): otherwise (pvbatch
+    // driven from rank 0, the GUI's server) a collective here could wait for ranks that are
+    // not executing, so each rank packs the same RVE itself (same seed, same result).
+    vtkMultiProcessController* mpc = vtkMultiProcessController::GetGlobalController();
+    const bool in_step =
+        vtkProcessModule::GetProcessModule() && vtkProcessModule::GetSymmetricMPIMode();
+    const int ranks = mpc && in_step ? mpc->GetNumberOfProcesses() : 1;
+    const int rank = ranks > 1 ? mpc->GetLocalProcessId() : 0;
+    int packed_here = 0;
+    if (rank == 0) {
+      try {
+        cache->result = rvegen::generate(scene);
+        packed_here = 1;
+      } catch (const std::exception& e) {
+        error = e.what();
+      }
+    }
+    if (ranks > 1) {
+      // ok flag and status, then the inclusion list (or the error) as JSON text.
+      int head[2] = {error.empty() ? 1 : 0, static_cast<int>(cache->result.status)};
+      mpc->Broadcast(head, 2, 0);
+      std::string text = rank != 0        ? std::string()
+                         : !error.empty() ? error
+                                          : rvegen::write_inclusions_json(cache->result.set);
+      long long length = static_cast<long long>(text.size());
+      mpc->Broadcast(&length, 1, 0);
+      text.resize(static_cast<size_t>(length));
+      if (length > 0) mpc->Broadcast(&text[0], length, 0);
+      if (rank != 0) {
+        if (head[0]) {
+          cache->result.set = rvegen::read_inclusions_json(text);
+          cache->result.status = static_cast<rvegen::PackingStatus>(head[1]);
+        } else {
+          error = text;
+        }
+      }
+      int total = 0;
+      mpc->AllReduce(&packed_here, &total, 1, vtkCommunicator::SUM_OP);
+      this->PackingRuns += total;
+    } else {
+      this->PackingRuns += packed_here;
+    }
+    if (!error.empty()) {
       this->Status = "error";
-      vtkErrorMacro(<< e.what());
+      vtkErrorMacro(<< error);
       return 0;
     }
+    this->Cached = std::move(cache);
   }
   const rvegen::PackingResult& result = this->Cached->result;
   this->Status = rvegen::status_name(result.status);
@@ -267,10 +342,11 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
   status->InsertNextValue(rvegen::status_name(result.status));
 
   if (wanted(0)) {
-    // One vertex per inclusion (and periodic image) with glyph attributes; the inclusion list
-    // in field data for the RVE filters.
+    // One vertex per inclusion (and periodic image) with glyph attributes, for the inclusions
+    // of this piece; the whole inclusion list in field data for the RVE filters.
     vtkPolyData* points = vtkPolyData::GetData(outVec, 0);
-    RVEPolyDataFromGlyphs(rvegen::glyph_points(result.set), points);
+    RVEPolyDataFromGlyphs(
+        rvegen::glyph_points(PieceOf(result.set, outVec->GetInformationObject(0))), points);
     points->GetFieldData()->AddArray(status);
     vtkNew<vtkStringArray> inclusions;
     inclusions->SetName("rvegen_inclusions");
@@ -280,13 +356,14 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
   }
 
   if (wanted(3)) {
-    // The tessellated surfaces: of every inclusion with Mesh, otherwise of the modified ones.
+    // The tessellated surfaces of this piece's inclusions: of every inclusion with Mesh,
+    // otherwise of the modified ones.
     rvegen::MeshOptions mopt;
     mopt.clip_to_box = scene.clip_surfaces;
     vtkPolyData* surfaces = vtkPolyData::GetData(outVec, 3);
+    const rvegen::InclusionSet piece = PieceOf(result.set, outVec->GetInformationObject(3));
     RVEPolyDataFromMesh(
-        rvegen::tessellate(rvegen::meshed_inclusions(result.set, scene.outputs.mesh), mopt),
-        surfaces);
+        rvegen::tessellate(rvegen::meshed_inclusions(piece, scene.outputs.mesh), mopt), surfaces);
     surfaces->GetFieldData()->AddArray(status);
     ++this->PortExecutions[3];
   }
@@ -313,8 +390,16 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
     rvegen::LevelSetOptions lopt;
     lopt.voxel_size = scene.levelset_voxel_size;
     lopt.half_width = scene.levelset_half_width;
-    const rvegen::LevelSets ls = rvegen::build_level_sets(result.set, lopt);
-    RVEPolyDataFromMesh(rvegen::level_set_surfaces(ls), vtkPolyData::GetData(outVec, 2));
+    // Shells of neighbours may merge, so the level sets are not split by inclusion: piece 0
+    // computes them all, the other pieces are empty.
+    vtkInformation* lsInfo = outVec->GetInformationObject(2);
+    const int piece = lsInfo->Has(vtkStreamingDemandDrivenPipeline::UPDATE_PIECE_NUMBER())
+                          ? lsInfo->Get(vtkStreamingDemandDrivenPipeline::UPDATE_PIECE_NUMBER())
+                          : 0;
+    if (piece == 0) {
+      const rvegen::LevelSets ls = rvegen::build_level_sets(result.set, lopt);
+      RVEPolyDataFromMesh(rvegen::level_set_surfaces(ls), vtkPolyData::GetData(outVec, 2));
+    }
     ++this->PortExecutions[2];
   }
   return 1;
@@ -370,6 +455,7 @@ void vtkRVEGenerator::PrintSelf(ostream& os, vtkIndent indent) {
   os << indent << "Mesh: " << this->Mesh << "\n";
   os << indent << "LevelSetVoxelSize: " << this->LevelSetVoxelSize << "\n";
   os << indent << "Threads: " << this->Threads << "\n";
+  os << indent << "PackingRuns: " << this->PackingRuns << "\n";
   os << indent << "PortExecutions:";
   for (int e : this->PortExecutions) os << " " << e;
   os << "\n";

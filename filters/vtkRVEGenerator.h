@@ -140,6 +140,9 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   const char* GetStatus() const { return this->Status.c_str(); }
   /// How many times each output port has been computed (shows that ports are lazy).
   vtkGetVectorMacro(PortExecutions, int, 4);
+  /// How many times the RVE has been packed, summed over all MPI ranks (under MPI rank 0 packs
+  /// and broadcasts the inclusion list: one packing per scene, whatever the number of ranks).
+  vtkGetMacro(PackingRuns, int);
 
  protected:
   vtkRVEGenerator();
@@ -196,6 +199,7 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   double FibreOrientationTensor[6];
   double EllipsoidAxis[3];
   int PortExecutions[4] = {0, 0, 0, 0};
+  int PackingRuns = 0;
 
  private:
   vtkRVEGenerator(const vtkRVEGenerator&) = delete;

@@ -137,6 +137,12 @@ check(runs == [1, 0, 0, 0], "asking port 0 computed ports %s" % (runs,))
 servermanager.Fetch(lazy, idx=1)
 runs = port_runs(lazy)
 check(runs == [1, 1, 0, 0], "asking port 1 then computed ports %s" % (runs,))
+check(lazy.GetProperty("PackingRuns").GetElement(0) == 1, "two ports packed %d times"
+      % lazy.GetProperty("PackingRuns").GetElement(0))
+lazy.Resolution = [16, 16, 16]
+servermanager.Fetch(lazy, idx=1)
+lazy.UpdatePropertyInformation()
+check(lazy.GetProperty("PackingRuns").GetElement(0) == 1, "a new resolution packed again")
 lset = servermanager.Fetch(lazy, idx=2)
 check(lset.GetNumberOfCells() == 0, "default scene (straight inclusions) has level-set surfaces")
 Delete(lazy)

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <exception>
 #include <memory>
+#include <utility>
 
 #include "rvegen/io/inclusions_json.hpp"
 #include "rvegen/io/scene_json.hpp"
@@ -180,15 +181,19 @@ rvegen::Scene SceneFromProperties(const vtkRVEGenerator* g) {
   return s;
 }
 
-// The inclusions of the piece that `info` asks for (UPDATE_PIECE_NUMBER of
-// UPDATE_NUMBER_OF_PIECES): those whose centre lies in the piece's slab of the box along z
-// (centres outside the box go to the nearest slab). Every inclusion is in exactly one piece.
-rvegen::InclusionSet PieceOf(const rvegen::InclusionSet& set, vtkInformation* info) {
+// The piece a port is asked for: {piece, number of pieces} ({0, 1} when none is set).
+std::pair<int, int> RequestedPiece(vtkInformation* info) {
   using SDDP = vtkStreamingDemandDrivenPipeline;
-  const int pieces =
-      info->Has(SDDP::UPDATE_NUMBER_OF_PIECES()) ? info->Get(SDDP::UPDATE_NUMBER_OF_PIECES()) : 1;
-  const int piece =
-      info->Has(SDDP::UPDATE_PIECE_NUMBER()) ? info->Get(SDDP::UPDATE_PIECE_NUMBER()) : 0;
+  return {
+      info->Has(SDDP::UPDATE_PIECE_NUMBER()) ? info->Get(SDDP::UPDATE_PIECE_NUMBER()) : 0,
+      info->Has(SDDP::UPDATE_NUMBER_OF_PIECES()) ? info->Get(SDDP::UPDATE_NUMBER_OF_PIECES()) : 1};
+}
+
+// The inclusions of the piece that `info` asks for: those whose centre lies in the piece's slab
+// of the box along z (centres outside the box go to the nearest slab). Every inclusion is in
+// exactly one piece.
+rvegen::InclusionSet PieceOf(const rvegen::InclusionSet& set, vtkInformation* info) {
+  const auto [piece, pieces] = RequestedPiece(info);
   if (pieces <= 1) return set;
   rvegen::InclusionSet out;
   out.box = set.box;
@@ -271,15 +276,14 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
   // Output settings do not change the packing: the cache is keyed by the packing part alone.
   const std::string key = rvegen::packing_to_json(scene);
   if (!this->Cached || this->Cached->key != key) {
-    // generate() audits the packed RVE exactly; an RVE that fails is never shown. Under MPI,
-    // rank 0 packs and broadcasts the inclusion list (every rank asks for the same scene at
-    // once: the pipeline runs on all of them).
+    // generate() audits the packed RVE exactly; an RVE that fails is never shown. Where every
+    // rank runs the pipeline in step (pvbatch --symmetric), rank 0 packs and broadcasts the
+    // inclusion list. Otherwise (pvbatch driven from rank 0, a ParaView server) a collective
+    // here would wait for ranks that are not executing, so each rank packs the same RVE itself
+    // (same seed, same result).
     this->Cached.reset();
     std::string error;
     std::unique_ptr<Cache> cache(new Cache{key, {}});
-    // Only where every rank runs the pipeline in step (pvbatch --symmetric): otherwise (pvbatch
-    // driven from rank 0, the GUI's server) a collective here could wait for ranks that are
-    // not executing, so each rank packs the same RVE itself (same seed, same result).
     vtkMultiProcessController* mpc = vtkMultiProcessController::GetGlobalController();
     const bool in_step =
         vtkProcessModule::GetProcessModule() && vtkProcessModule::GetSymmetricMPIMode();
@@ -392,11 +396,7 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
     lopt.half_width = scene.levelset_half_width;
     // Shells of neighbours may merge, so the level sets are not split by inclusion: piece 0
     // computes them all, the other pieces are empty.
-    vtkInformation* lsInfo = outVec->GetInformationObject(2);
-    const int piece = lsInfo->Has(vtkStreamingDemandDrivenPipeline::UPDATE_PIECE_NUMBER())
-                          ? lsInfo->Get(vtkStreamingDemandDrivenPipeline::UPDATE_PIECE_NUMBER())
-                          : 0;
-    if (piece == 0) {
+    if (RequestedPiece(outVec->GetInformationObject(2)).first == 0) {
       const rvegen::LevelSets ls = rvegen::build_level_sets(result.set, lopt);
       RVEPolyDataFromMesh(rvegen::level_set_surfaces(ls), vtkPolyData::GetData(outVec, 2));
     }

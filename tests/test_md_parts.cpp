@@ -10,6 +10,7 @@
 #include "rvegen/io/scene_json.hpp"
 #include "rvegen/model/neighbours.hpp"
 #include "rvegen/packing/md_integrator.hpp"
+#include "rvegen/packing/packing.hpp"
 
 namespace rvegen {
 namespace {
@@ -148,6 +149,48 @@ TEST(MdParts, IntegratorKeepsMomentumAndCapsTurns) {
   const Vec3 c1 = b[0].shape.center;
   integrator.step(sums, &b, &list);
   EXPECT_NEAR((b[0].shape.center - c1)[0], 0.009, 1e-15);
+}
+
+TEST(MdParts, SpaceOrderKeepsEveryBodyAndPutsNeighboursTogether) {
+  const md::Bodies before = bodies_of(kMixed);
+  md::Bodies after = before;
+  const Box box = parse_scene(kMixed).box;
+  const std::vector<int> drawn = md::order_in_space(box, &after);
+  ASSERT_EQ(drawn.size(), before.all.size());
+  std::set<int> seen(drawn.begin(), drawn.end());
+  EXPECT_EQ(seen.size(), drawn.size());  // a permutation
+  double step_before = 0.0, step_after = 0.0;
+  for (size_t k = 0; k < drawn.size(); ++k) {
+    EXPECT_EQ(after.all[k].shape.center, before.all[drawn[k]].shape.center);
+    EXPECT_EQ(after.all[k].family, before.all[drawn[k]].family);
+    if (k > 0) {
+      step_before += (before.all[k].shape.center - before.all[k - 1].shape.center).norm();
+      step_after += (after.all[k].shape.center - after.all[k - 1].shape.center).norm();
+    }
+  }
+  // Consecutive bodies are close along the curve: far closer than in the drawn (random) order.
+  EXPECT_LT(step_after, 0.4 * step_before);
+  // The index lists follow their bodies.
+  ASSERT_EQ(after.oriented.size(), before.oriented.size());
+  for (int k : after.oriented) EXPECT_NE(after.all[k].shape.kind, ShapeKind::Sphere);
+}
+
+// Above md::kSpaceOrderFrom bodies the packer works in space order, and writes the inclusions in
+// the order drawn all the same: inclusion j has the size drawn j-th.
+TEST(MdParts, LargePackingWritesInclusionsInDrawnOrder) {
+  const std::string json = R"({"box":{"size":[1,1,1]},"seed":3,"families":[
+    {"shape":"sphere","radius":{"law":"lognormal","mean":0.008,"std":0.002},"count":33000}]})";
+  const Scene scene = parse_scene(json);
+  Random rng(scene.seed);
+  const std::vector<Inclusion> pop = draw_population(scene, rng);
+  ASSERT_GE(pop.size(), md::kSpaceOrderFrom);
+  const PackingResult res = generate(scene);
+  ASSERT_EQ(res.status, PackingStatus::kOk);
+  ASSERT_EQ(res.set.inclusions.size(), pop.size());
+  for (size_t j = 0; j < pop.size(); ++j) {
+    ASSERT_EQ(res.set.inclusions[j].id, static_cast<int>(j));
+    ASSERT_EQ(res.set.inclusions[j].shape.radius, pop[j].shape.radius) << j;
+  }
 }
 
 }  // namespace

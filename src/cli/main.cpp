@@ -171,8 +171,10 @@ int cmd_generate(const std::vector<std::string>& args) {
         inclusions = rvegen::write_inclusions_json(result.set);
         out.write("inclusions.json", inclusions);
       });
-      timed("write inclusions.vtp",
-            [&] { out.write("inclusions.vtp", rvegen::points_vtp_bytes(result.set, inclusions)); });
+      timed("write inclusions.vtp", [&] {
+        out.write_with("inclusions.vtp",
+                       [&](std::FILE* f) { rvegen::write_points_vtp(result.set, inclusions, f); });
+      });
     }
     // Surfaces: of every inclusion when the mesh is asked for; otherwise of the wavy, deformed,
     // coated and debonded ones only (their shape is not a glyph), when there are any.
@@ -182,7 +184,8 @@ int cmd_generate(const std::vector<std::string>& args) {
         rvegen::MeshOptions mopt;
         mopt.clip_to_box = scene.clip_surfaces;
         const rvegen::SurfaceMesh mesh = rvegen::tessellate(meshed, mopt);
-        out.write("surfaces.vtp", rvegen::vtp_bytes(mesh, inclusions));
+        out.write_with("surfaces.vtp",
+                       [&](std::FILE* f) { rvegen::write_surfaces_vtp(mesh, inclusions, f); });
       });
     }
     meshed = rvegen::InclusionSet{};

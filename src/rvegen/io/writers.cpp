@@ -17,23 +17,6 @@
 namespace rvegen {
 namespace {
 
-// Appended raw data: each array is a UInt64 byte count followed by the bytes.
-class Appended {
- public:
-  template <class T>
-  size_t add(const T* data, size_t n) {
-    const size_t offset = buf_.size();
-    const uint64_t bytes = n * sizeof(T);
-    buf_.append(reinterpret_cast<const char*>(&bytes), sizeof bytes);
-    buf_.append(reinterpret_cast<const char*>(data), bytes);
-    return offset;
-  }
-  const std::string& bytes() const { return buf_; }
-
- private:
-  std::string buf_;
-};
-
 std::string header(const char* type) {
   return std::string("<?xml version=\"1.0\"?>\n<VTKFile type=\"") + type +
          "\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n";
@@ -45,11 +28,6 @@ std::string array_tag(const char* vtk_type, const char* name, int components, si
   if (components > 1) s << " NumberOfComponents=\"" << components << "\"";
   s << " format=\"appended\" offset=\"" << offset << "\"/>\n";
   return s.str();
-}
-
-std::string footer(const Appended& app) {
-  return "  <AppendedData encoding=\"raw\">\n   _" + app.bytes() +
-         "\n  </AppendedData>\n</VTKFile>\n";
 }
 
 }  // namespace
@@ -80,6 +58,24 @@ void put_appended(std::FILE* out, const std::vector<RawArray>& arrays) {
   }
   put(out, std::string("\n  </AppendedData>\n</VTKFile>\n"));
 }
+
+// The arrays of one file, in order: the offset of each is known when it is added, the bytes are
+// written by put_appended (the data must live until then).
+class AppendedList {
+ public:
+  template <class T>
+  uint64_t add(const T* data, size_t n) {
+    const uint64_t offset = at_;
+    arrays_.push_back({reinterpret_cast<const char*>(data), n * sizeof(T)});
+    at_ += sizeof(uint64_t) + n * sizeof(T);
+    return offset;
+  }
+  const std::vector<RawArray>& arrays() const { return arrays_; }
+
+ private:
+  std::vector<RawArray> arrays_;
+  uint64_t at_ = 0;
+};
 
 std::string with_file(const std::function<void(std::FILE*)>& fill) {
   char* buf = nullptr;
@@ -178,41 +174,47 @@ std::string material_vtk_bytes(const VoxelImage& im) {
 namespace {
 // The inclusion list as a string in field data (VTK's ascii form: byte values, then 0), so the
 // RVE filters work on inclusions read back from the file.
-void field_data_inclusions(std::ostringstream& s, const std::string& inclusions_json) {
+// The inclusion list as field data "rvegen_inclusions" (a String array of one value, stored as
+// its bytes and a terminating NUL in the appended data), so that the RVE filters work on
+// inclusions read back from the file.
+void field_data_inclusions(std::ostringstream& s, AppendedList* app,
+                           const std::string& inclusions_json) {
   if (inclusions_json.empty()) return;
+  // c_str() is NUL-terminated: the NUL is the string's terminator in the file.
+  const uint64_t at = app->add(inclusions_json.c_str(), inclusions_json.size() + 1);
   s << "    <FieldData>\n      <Array type=\"String\" Name=\"rvegen_inclusions\" "
-       "NumberOfTuples=\"1\" format=\"ascii\">\n";
-  for (unsigned char c : inclusions_json) s << static_cast<int>(c) << ' ';
-  s << "0\n      </Array>\n    </FieldData>\n";
+       "NumberOfTuples=\"1\" format=\"appended\" offset=\""
+    << at << "\"/>\n    </FieldData>\n";
 }
 }  // namespace
 
-std::string vtp_bytes(const SurfaceMesh& m, const std::string& inclusions_json) {
-  Appended app;
-  std::vector<double> pts(3 * m.points.size());
+void write_surfaces_vtp(const SurfaceMesh& m, const std::string& inclusions_json, std::FILE* out) {
+  // Points as Float32 (the tessellation error is far above float precision).
+  std::vector<float> pts(3 * m.points.size());
   for (size_t i = 0; i < m.points.size(); ++i) {
-    for (int a = 0; a < 3; ++a) pts[3 * i + a] = m.points[i][a];
+    for (int a = 0; a < 3; ++a) pts[3 * i + a] = static_cast<float>(m.points[i][a]);
   }
   std::vector<int64_t> conn(3 * m.triangles.size()), offs(m.triangles.size());
   for (size_t i = 0; i < m.triangles.size(); ++i) {
     for (int a = 0; a < 3; ++a) conn[3 * i + a] = m.triangles[i][a];
     offs[i] = static_cast<int64_t>(3 * (i + 1));
   }
-  const size_t o_pts = app.add(pts.data(), pts.size());
-  const size_t o_conn = app.add(conn.data(), conn.size());
-  const size_t o_offs = app.add(offs.data(), offs.size());
-  const size_t o_id = app.add(m.inclusion_id.data(), m.inclusion_id.size());
-  const size_t o_fam = app.add(m.family.data(), m.family.size());
-  const size_t o_shape = app.add(m.shape.data(), m.shape.size());
-  const size_t o_phase = app.add(m.phase.data(), m.phase.size());
-  const size_t o_axis = app.add(reinterpret_cast<const float*>(m.axis.data()), 3 * m.axis.size());
+  AppendedList app;
   std::ostringstream s;
   s << header("PolyData") << "  <PolyData>\n";
-  field_data_inclusions(s, inclusions_json);
+  field_data_inclusions(s, &app, inclusions_json);
+  const uint64_t o_pts = app.add(pts.data(), pts.size());
+  const uint64_t o_conn = app.add(conn.data(), conn.size());
+  const uint64_t o_offs = app.add(offs.data(), offs.size());
+  const uint64_t o_id = app.add(m.inclusion_id.data(), m.inclusion_id.size());
+  const uint64_t o_fam = app.add(m.family.data(), m.family.size());
+  const uint64_t o_shape = app.add(m.shape.data(), m.shape.size());
+  const uint64_t o_phase = app.add(m.phase.data(), m.phase.size());
+  const uint64_t o_axis = app.add(reinterpret_cast<const float*>(m.axis.data()), 3 * m.axis.size());
   s << "    <Piece NumberOfPoints=\"" << m.points.size()
     << "\" NumberOfVerts=\"0\" NumberOfLines=\"0\""
     << " NumberOfStrips=\"0\" NumberOfPolys=\"" << m.triangles.size() << "\">\n";
-  s << "    <Points>\n" << array_tag("Float64", "Points", 3, o_pts) << "    </Points>\n";
+  s << "    <Points>\n" << array_tag("Float32", "Points", 3, o_pts) << "    </Points>\n";
   s << "    <Polys>\n"
     << array_tag("Int64", "connectivity", 1, o_conn) << array_tag("Int64", "offsets", 1, o_offs)
     << "    </Polys>\n";
@@ -221,10 +223,11 @@ std::string vtp_bytes(const SurfaceMesh& m, const std::string& inclusions_json) 
     << array_tag("Int32", "shape", 1, o_shape) << array_tag("Int32", "phase", 1, o_phase)
     << array_tag("Float32", "axis", 3, o_axis) << "    </CellData>\n";
   s << "    </Piece>\n  </PolyData>\n";
-  return s.str() + footer(app);
+  put(out, s.str());
+  put_appended(out, app.arrays());
 }
 
-std::string points_vtp_bytes(const InclusionSet& set, const std::string& inclusions_json) {
+void write_points_vtp(const InclusionSet& set, const std::string& inclusions_json, std::FILE* out) {
   const GlyphPoints g = glyph_points(set);
   const size_t n = g.size();
   std::vector<int64_t> conn(n), offs(n);
@@ -232,20 +235,20 @@ std::string points_vtp_bytes(const InclusionSet& set, const std::string& inclusi
     conn[i] = static_cast<int64_t>(i);
     offs[i] = static_cast<int64_t>(i + 1);
   }
-  Appended app;
-  const size_t o_pts = app.add(g.points.data(), g.points.size());
-  const size_t o_conn = app.add(conn.data(), conn.size());
-  const size_t o_offs = app.add(offs.data(), offs.size());
-  const size_t o_id = app.add(g.inclusion_id.data(), n), o_fam = app.add(g.family.data(), n),
-               o_shape = app.add(g.shape.data(), n), o_phase = app.add(g.phase.data(), n),
-               o_image = app.add(g.image.data(), n), o_mod = app.add(g.modified.data(), n),
-               o_r = app.add(g.radius.data(), n), o_ha = app.add(g.half_axis.data(), 3 * n),
-               o_sa = app.add(g.semi_axes.data(), 3 * n),
-               o_q = app.add(g.orientation.data(), 4 * n),
-               o_dir = app.add(g.direction.data(), 3 * n), o_sc = app.add(g.scale.data(), 3 * n);
+  AppendedList app;
   std::ostringstream s;
   s << header("PolyData") << "  <PolyData>\n";
-  field_data_inclusions(s, inclusions_json);
+  field_data_inclusions(s, &app, inclusions_json);
+  const uint64_t o_pts = app.add(g.points.data(), g.points.size());
+  const uint64_t o_conn = app.add(conn.data(), conn.size());
+  const uint64_t o_offs = app.add(offs.data(), offs.size());
+  const uint64_t o_id = app.add(g.inclusion_id.data(), n), o_fam = app.add(g.family.data(), n),
+                 o_shape = app.add(g.shape.data(), n), o_phase = app.add(g.phase.data(), n),
+                 o_image = app.add(g.image.data(), n), o_mod = app.add(g.modified.data(), n),
+                 o_r = app.add(g.radius.data(), n), o_ha = app.add(g.half_axis.data(), 3 * n),
+                 o_sa = app.add(g.semi_axes.data(), 3 * n),
+                 o_q = app.add(g.orientation.data(), 4 * n),
+                 o_dir = app.add(g.direction.data(), 3 * n), o_sc = app.add(g.scale.data(), 3 * n);
   s << "    <Piece NumberOfPoints=\"" << n << "\" NumberOfVerts=\"" << n
     << "\" NumberOfLines=\"0\" NumberOfStrips=\"0\" NumberOfPolys=\"0\">\n";
   s << "    <Points>\n" << array_tag("Float64", "Points", 3, o_pts) << "    </Points>\n";
@@ -261,7 +264,8 @@ std::string points_vtp_bytes(const InclusionSet& set, const std::string& inclusi
     << array_tag("Float64", "direction", 3, o_dir) << array_tag("Float64", "scale", 3, o_sc)
     << "    </PointData>\n";
   s << "    </Piece>\n  </PolyData>\n";
-  return s.str() + footer(app);
+  put(out, s.str());
+  put_appended(out, app.arrays());
 }
 
 namespace {

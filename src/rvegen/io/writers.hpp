@@ -26,19 +26,21 @@ std::string vti_bytes(const VoxelImage& image);
 /// labels present in the image. Streamed in blocks.
 void write_material_vtk(const VoxelImage& image, std::FILE* out);
 std::string material_vtk_bytes(const VoxelImage& image);
-/// VTK XML PolyData with cell arrays "inclusion_id", "family", "shape", "phase" (Int32) and
-/// "axis" (Float32 x 3).
-/// With `inclusions_json` (write_inclusions_json), field data "rvegen_inclusions" holds it.
-std::string vtp_bytes(const SurfaceMesh& mesh, const std::string& inclusions_json = "");
-/// VTK XML PolyData of the inclusions as points (one vertex per inclusion and per periodic
-/// image whose bounding box reaches into the box), for glyphs: point data "inclusion_id",
-/// "family", "shape" (0 sphere, 1 cylinder, 2 ellipsoid), "phase", "image" (1 for a periodic
-/// image), "modified" (1 for wavy, deformed, coated or debonded: drawn from surfaces.vtp),
-/// "radius", "half_axis", "semi_axes", "direction" (axis), "orientation" (unit quaternion w, x, y,
-/// z) and "scale": a unit sphere glyph (radius 0.5) or a cylinder glyph along y (height 1, radius
-/// 0.5), scaled by "scale" then turned by "orientation", is the inclusion exactly. Field data as
-/// vtp_bytes.
-std::string points_vtp_bytes(const InclusionSet& set, const std::string& inclusions_json = "");
+/// VTK XML PolyData of a mesh, streamed to `out`: Float32 points (shared within each inclusion's
+/// surface), triangles, cell arrays "inclusion_id", "family", "shape", "phase" (Int32) and "axis"
+/// (Float32 x 3). With `inclusions_json` (write_inclusions_json), field data "rvegen_inclusions"
+/// holds it (a String array, raw bytes in the appended data).
+void write_surfaces_vtp(const SurfaceMesh& mesh, const std::string& inclusions_json,
+                        std::FILE* out);
+/// VTK XML PolyData of the inclusions as points (rvegen::glyph_points: one vertex per inclusion
+/// and per periodic image whose bounding box reaches into the box), streamed to `out`: point data
+/// "inclusion_id", "family", "shape" (0 sphere, 1 cylinder, 2 ellipsoid), "phase", "image" (1 for
+/// a periodic image), "modified" (1 for wavy, deformed, coated or debonded: drawn from
+/// surfaces.vtp), "radius", "half_axis", "semi_axes", "direction" (axis), "orientation" (unit
+/// quaternion w, x, y, z) and "scale": a unit sphere glyph (radius 0.5) or a cylinder glyph along
+/// y (height 1, radius 0.5), scaled by "scale" then turned by "orientation", is the inclusion
+/// exactly. Field data as write_surfaces_vtp.
+void write_points_vtp(const InclusionSet& set, const std::string& inclusions_json, std::FILE* out);
 
 /// The files one run writes into its output directory, and nothing else. An output directory
 /// holds one complete set or the previous one, never a mix:

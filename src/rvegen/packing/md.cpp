@@ -67,6 +67,7 @@ class MdPacker {
   const ProgressFn& progress_;
   std::vector<Inclusion> pop_;  // drawn cores and modifiers
   md::Bodies bodies_;
+  std::vector<int> drawn_;  // body k packs the drawn inclusion pop_[drawn_[k]]
   md::VerletList list_;
   md::ContactSums sums_;
   std::unique_ptr<md::Integrator> integrator_;
@@ -91,6 +92,9 @@ void MdPacker::init() {
   Random rng(scene_.seed);
   pop_ = draw_population(scene_, rng);
   bodies_ = md::make_bodies(scene_, pop_, rng);
+  drawn_.resize(bodies_.all.size());
+  for (size_t i = 0; i < drawn_.size(); ++i) drawn_[i] = static_cast<int>(i);
+  if (bodies_.all.size() >= md::kSpaceOrderFrom) drawn_ = md::order_in_space(box_, &bodies_);
   s_start_ = s_out_ = bodies_.start_scale;
   m_ = scene_.md.pressure;
   integrator_ = std::make_unique<md::Integrator>(bodies_.all.size());
@@ -202,12 +206,16 @@ PackingResult MdPacker::run() {
   if (best_oriented_.size() == oriented.size()) {
     for (size_t k = 0; k < oriented.size(); ++k) bodies[oriented[k]].shape = best_oriented_[k];
   }
-  for (size_t i = 0; i < best_center_.size(); ++i) {
+  // Written in the order drawn, whatever order the bodies were packed in.
+  std::vector<int> body_of(drawn_.size());
+  for (size_t k = 0; k < drawn_.size(); ++k) body_of[drawn_[k]] = static_cast<int>(k);
+  for (size_t j = 0; j < best_center_.size(); ++j) {
+    const int i = body_of[j];
     Body b = bodies[i];
     b.shape.center = best_center_[i];
     wrap(box_, &b);
     // Aligned fibres (radial) keep their length: only the radius is scaled.
-    Inclusion inc = place_like(pop_[i], b.shape, b.radial ? 1.0 : res.scale);
+    Inclusion inc = place_like(pop_[j], b.shape, b.radial ? 1.0 : res.scale);
     if (b.radial) inc.shape.radius *= res.scale;
     inc.id = static_cast<int>(res.set.inclusions.size());
     res.set.inclusions.push_back(inc);

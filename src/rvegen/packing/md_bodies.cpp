@@ -3,6 +3,8 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <utility>
 
 #include "rvegen/model/body.hpp"
 
@@ -162,6 +164,50 @@ Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, R
   if (radial > 0.0)
     out.start_scale = std::min(out.start_scale, std::sqrt(kStartFraction * box.volume() / radial));
   return out;
+}
+
+namespace {
+// Spreads the 10 low bits of v to every third bit.
+uint32_t spread_bits(uint32_t v) {
+  v &= 0x3ffu;
+  v = (v | (v << 16)) & 0x030000ffu;
+  v = (v | (v << 8)) & 0x0300f00fu;
+  v = (v | (v << 4)) & 0x030c30c3u;
+  v = (v | (v << 2)) & 0x09249249u;
+  return v;
+}
+}  // namespace
+
+std::vector<int> order_in_space(const Box& box, Bodies* bodies) {
+  std::vector<Body>& all = bodies->all;
+  const size_t n = all.size();
+  std::vector<std::pair<uint32_t, int>> keyed(n);
+  for (size_t i = 0; i < n; ++i) {
+    uint32_t cell[3];
+    for (int a = 0; a < 3; ++a) {
+      const double t = (all[i].shape.center[a] - box.origin[a]) / box.size[a];
+      cell[a] = static_cast<uint32_t>(std::clamp(t, 0.0, 1.0 - 1e-12) * 1024.0);
+    }
+    keyed[i] = {spread_bits(cell[0]) | spread_bits(cell[1]) << 1 | spread_bits(cell[2]) << 2,
+                static_cast<int>(i)};
+  }
+  std::sort(keyed.begin(), keyed.end());
+  std::vector<int> drawn(n), place(n);
+  std::vector<Body> sorted;
+  sorted.reserve(n);
+  for (size_t k = 0; k < n; ++k) {
+    drawn[k] = keyed[k].second;
+    place[drawn[k]] = static_cast<int>(k);
+    sorted.push_back(all[drawn[k]]);
+  }
+  all.swap(sorted);
+  auto renumber = [&](std::vector<int>* list) {
+    for (int& i : *list) i = place[i];
+    std::sort(list->begin(), list->end());
+  };
+  renumber(&bodies->oriented);
+  for (auto& entry : bodies->held) renumber(&entry.second);
+  return drawn;
 }
 
 }  // namespace rvegen::md

@@ -68,4 +68,14 @@ struct Bodies {
 };
 Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, Random& rng);
 
+/// Bodies from this many on are put in space order (order_in_space): below, they fit in the
+/// caches and the order makes no difference (and the packing stays as it always was).
+constexpr size_t kSpaceOrderFrom = size_t(1) << 15;
+
+/// Reorders the bodies along a Morton (Z-order) curve of their centres, so that bodies near in
+/// space are near in memory (a large packing otherwise misses the cache at every neighbour it
+/// visits). Returns `drawn`: body k is the drawn inclusion drawn[k]. The lists of body indices
+/// (oriented, held) follow. The curve has 2^10 cells per axis of the box.
+std::vector<int> order_in_space(const Box& box, Bodies* bodies);
+
 }  // namespace rvegen::md

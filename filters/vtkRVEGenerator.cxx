@@ -362,8 +362,7 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
   if (wanted(3)) {
     // The tessellated surfaces of this piece's inclusions: of every inclusion with Mesh,
     // otherwise of the modified ones.
-    rvegen::MeshOptions mopt;
-    mopt.clip_to_box = scene.clip_surfaces;
+    const rvegen::MeshOptions mopt = rvegen::mesh_options(scene, scene.box);
     vtkPolyData* surfaces = vtkPolyData::GetData(outVec, 3);
     const rvegen::InclusionSet piece = PieceOf(result.set, outVec->GetInformationObject(3));
     RVEPolyDataFromMesh(

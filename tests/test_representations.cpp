@@ -476,6 +476,34 @@ TEST(LevelSets, VdbFileReadsBack) {
   EXPECT_GT(volume, 0.0);
 }
 
+// With a chord error the segments around a cylinder are the fewest that keep every chord within
+// it of the true surface (r (1 - cos(pi / n)) <= e < r (1 - cos(pi / (n - 1)))).
+TEST(Surfaces, ChordErrorChoosesTheSegments) {
+  for (const double r : {0.03, 0.1}) {
+    for (const double e : {2e-4, 1e-3}) {
+      const InclusionSet set = single(Shape::cylinder({0.5, 0.5, 0.5}, r, Vec3(0.0, 0.0, 0.2)));
+      MeshOptions o;
+      o.chord_error = e;
+      o.min_segments = 3;
+      o.max_segments = 1000;
+      const SurfaceMesh m = tessellate(set, o);
+      int side = 0;  // points on the lateral surface (two rings of n)
+      for (const Vec3& p : m.points) {
+        side += std::abs(std::hypot(p[0] - 0.5, p[1] - 0.5) - r) < 1e-12;
+      }
+      const int n = side / 2;
+      ASSERT_GT(n, 3);
+      EXPECT_LE(r * (1.0 - std::cos(M_PI / n)), e * (1.0 + 1e-12)) << r << " " << e;
+      EXPECT_GT(r * (1.0 - std::cos(M_PI / (n - 1))), e) << r << " " << e;
+    }
+  }
+  // mesh_options turns the scene's chord error in voxels into a length.
+  Scene scene = default_scene();
+  scene.resolution = {64, 128, 32};
+  scene.surface_chord_error = 0.5;
+  EXPECT_DOUBLE_EQ(mesh_options(scene, scene.box).chord_error, 0.5 * scene.box.size[1] / 128);
+}
+
 TEST(Surfaces, ClippedToTheBoxAndCarryCellData) {
   const InclusionSet& set = default_rve().set;
   MeshOptions o;

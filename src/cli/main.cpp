@@ -181,9 +181,8 @@ int cmd_generate(const std::vector<std::string>& args) {
     rvegen::InclusionSet meshed = rvegen::meshed_inclusions(result.set, want.mesh);
     if (!meshed.inclusions.empty()) {
       timed("surfaces", [&] {
-        rvegen::MeshOptions mopt;
-        mopt.clip_to_box = scene.clip_surfaces;
-        const rvegen::SurfaceMesh mesh = rvegen::tessellate(meshed, mopt);
+        const rvegen::SurfaceMesh mesh =
+            rvegen::tessellate(meshed, rvegen::mesh_options(scene, scene.box));
         out.write_with("surfaces.vtp",
                        [&](std::FILE* f) { rvegen::write_surfaces_vtp(mesh, inclusions, f); });
       });

@@ -15,15 +15,17 @@ void check(herr_t status, const char* what) {
   if (status < 0) throw std::runtime_error(std::string("HDF5: cannot write ") + what);
 }
 
+// A dataset written at once. With `image_slices` (a [nz][ny][nx] voxel image) it is chunked by
+// z slices and deflated: label images compress well. Tables stay contiguous (chunked by row, a
+// table of a million rotations took 12.9 s and 3 GB of chunk index).
 template <class T>
 void dataset(hid_t parent, const char* name, hid_t type, const std::vector<hsize_t>& dims,
-             const T* data) {
+             const T* data, bool image_slices = false) {
   const hid_t space = H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr);
   hid_t plist = H5P_DEFAULT;
   size_t total = 1;
   for (hsize_t d : dims) total *= d;
-  if (dims.size() == 3 && total > 0) {
-    // Chunked and deflated: label images compress well.
+  if (image_slices && dims.size() == 3 && total > 0) {
     plist = H5Pcreate(H5P_DATASET_CREATE);
     const hsize_t chunk[3] = {1, dims[1], dims[2]};
     H5Pset_chunk(plist, 3, chunk);
@@ -111,9 +113,11 @@ void write_hdf5(const std::string& path, const VoxelImage& im, const InclusionSe
     const std::vector<hsize_t> dims = {static_cast<hsize_t>(im.size(2)),
                                        static_cast<hsize_t>(im.size(1)),
                                        static_cast<hsize_t>(im.size(0))};
-    dataset(vox, "phase", H5T_NATIVE_UINT8, dims, im.phase.data());
-    dataset(vox, "inclusion_id", H5T_NATIVE_INT32, dims, im.inclusion_id.data());
-    if (!im.fraction.empty()) dataset(vox, "fraction", H5T_NATIVE_FLOAT, dims, im.fraction.data());
+    dataset(vox, "phase", H5T_NATIVE_UINT8, dims, im.phase.data(), true);
+    dataset(vox, "inclusion_id", H5T_NATIVE_INT32, dims, im.inclusion_id.data(), true);
+    if (!im.fraction.empty()) {
+      dataset(vox, "fraction", H5T_NATIVE_FLOAT, dims, im.fraction.data(), true);
+    }
     attribute(
         vox, "origin",
         {im.origin[0] + im.extent[0] * im.spacing[0], im.origin[1] + im.extent[2] * im.spacing[1],

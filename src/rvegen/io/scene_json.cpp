@@ -325,9 +325,12 @@ Scene parse_scene(const std::string& text) {
   }
   if (root.contains("surfaces")) {
     const Json& m = root["surfaces"];
-    only_keys(m, {"clip", "mesh"}, "surfaces");
+    only_keys(m, {"clip", "mesh", "chord_error"}, "surfaces");
     if (m.contains("clip")) s.clip_surfaces = boolean(m["clip"], "surfaces.clip");
     if (m.contains("mesh")) s.outputs.mesh = boolean(m["mesh"], "surfaces.mesh");
+    if (m.contains("chord_error")) {
+      s.surface_chord_error = number(m["chord_error"], "surfaces.chord_error");
+    }
   }
   if (root.contains("outputs")) {
     // The files to write: exactly the names listed (report.json always).
@@ -463,7 +466,7 @@ std::string scene_to_json(const Scene& s) {
                     {"subsamples", s.subsamples}};
   root["levelsets"] = {{"half_width", s.levelset_half_width}};
   if (s.levelset_voxel_size > 0.0) root["levelsets"]["voxel_size"] = s.levelset_voxel_size;
-  root["surfaces"] = {{"clip", s.clip_surfaces}};
+  root["surfaces"] = {{"clip", s.clip_surfaces}, {"chord_error", s.surface_chord_error}};
   if (!(s.outputs == Outputs{})) {
     OJson names = OJson::array();
     const Outputs& o = s.outputs;

@@ -122,6 +122,9 @@ struct OutputSpec {
   double levelset_half_width = 3.0;
   /// Surfaces: cut periodic images at the box faces.
   bool clip_surfaces = false;
+  /// Surfaces: largest distance between a tessellated surface and the true one, in voxels of
+  /// the image (the smallest voxel size); each inclusion gets the segments this needs.
+  double surface_chord_error = 0.1;
 };
 
 /// A whole scene: the packing and the outputs.

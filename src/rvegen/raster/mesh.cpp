@@ -8,9 +8,14 @@
 namespace rvegen {
 namespace {
 
-int segments_for(double length, const MeshOptions& o, double box_min) {
-  const int n = static_cast<int>(std::ceil(length / (o.edge_fraction * box_min)));
-  return std::clamp(n, o.min_segments, o.max_segments);
+// Segments around a circumference of radius r.
+int segments_for(double r, const MeshOptions& o, double box_min) {
+  double n = 2.0 * M_PI * r / (o.edge_fraction * box_min);
+  if (o.chord_error > 0.0) {
+    // A chord of angle 2 pi / n stays within r (1 - cos(pi / n)) of the circle.
+    n = o.chord_error >= r ? 0.0 : M_PI / std::acos(1.0 - o.chord_error / r);
+  }
+  return std::clamp(static_cast<int>(std::ceil(std::min(n, 1e6))), o.min_segments, o.max_segments);
 }
 
 Vec3 axis_of(const Shape& s) {
@@ -109,18 +114,18 @@ void mesh_one(SurfaceMesh& m, const Inclusion& inc, const Vec3& center, const Me
   switch (s.kind) {
     case ShapeKind::Sphere:
       mesh_ellipsoid(m, inc, center, Mat3::Identity() * s.radius,
-                     segments_for(2.0 * M_PI * s.radius, o, box_min), radial);
+                     segments_for(s.radius, o, box_min), radial);
       break;
     case ShapeKind::Ellipsoid:
       mesh_ellipsoid(m, inc, center, s.rotation * s.semi_axes.asDiagonal(),
-                     segments_for(2.0 * M_PI * s.semi_axes.maxCoeff(), o, box_min), radial);
+                     segments_for(s.semi_axes.maxCoeff(), o, box_min), radial);
       break;
     case ShapeKind::Cylinder: {
       // Straight: one segment along the axis; wavy: 16 rings per wavelength.
       const double len = 2.0 * s.half_axis.norm();
       const int rings =
           mod.wavy() ? std::max(1, static_cast<int>(std::ceil(16.0 * len / mod.wave_length))) : 1;
-      mesh_cylinder(m, inc, center, segments_for(2.0 * M_PI * s.radius, o, box_min), rings);
+      mesh_cylinder(m, inc, center, segments_for(s.radius, o, box_min), rings);
       break;
     }
   }
@@ -209,6 +214,15 @@ void append(SurfaceMesh* a, const SurfaceMesh& b) {
   a->shape.insert(a->shape.end(), b.shape.begin(), b.shape.end());
   a->phase.insert(a->phase.end(), b.phase.begin(), b.phase.end());
   a->axis.insert(a->axis.end(), b.axis.begin(), b.axis.end());
+}
+
+MeshOptions mesh_options(const OutputSpec& spec, const Box& box) {
+  MeshOptions o;
+  o.clip_to_box = spec.clip_surfaces;
+  double voxel = box.size[0] / spec.resolution[0];
+  for (int a = 1; a < 3; ++a) voxel = std::min(voxel, box.size[a] / spec.resolution[a]);
+  o.chord_error = spec.surface_chord_error * voxel;
+  return o;
 }
 
 }  // namespace rvegen

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "rvegen/model/inclusion_set.hpp"
+#include "rvegen/model/scene.hpp"
 
 namespace rvegen {
 
@@ -29,7 +30,15 @@ struct MeshOptions {
   bool periodic_images = true;
   /// Cut every triangle at the box faces and keep what lies inside (open surfaces at the faces).
   bool clip_to_box = false;
+  /// When positive: each inclusion gets the segments around its circumference that keep the
+  /// chords within this distance of the true surface (a radius r needs
+  /// ceil(pi / acos(1 - chord_error / r)) segments, clamped as above), instead of edge_fraction.
+  double chord_error = 0.0;
 };
+
+/// The mesh options of a scene: clipping, and the chord error in voxels (surface_chord_error)
+/// turned into a length (the smallest voxel size of the image).
+MeshOptions mesh_options(const OutputSpec& spec, const Box& box);
 
 /// Tessellates every inclusion core (and, for periodic boxes, its images that reach into the
 /// box): straight shapes analytically, wavy fibres with rings along the wave, deformed shapes

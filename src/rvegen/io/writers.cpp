@@ -98,17 +98,10 @@ std::string with_file(const std::function<void(std::FILE*)>& fill) {
 }  // namespace
 
 void write_vti(const VoxelImage& im, std::FILE* out) {
-  const std::vector<RawArray> arrays = {
-      {reinterpret_cast<const char*>(im.phase.data()), im.phase.size() * sizeof(im.phase[0])},
-      {reinterpret_cast<const char*>(im.inclusion_id.data()),
-       im.inclusion_id.size() * sizeof(im.inclusion_id[0])},
-      {reinterpret_cast<const char*>(im.fraction.data()),
-       im.fraction.size() * sizeof(im.fraction[0])}};
-  uint64_t offset[3], at = 0;
-  for (int k = 0; k < 3; ++k) {
-    offset[k] = at;
-    at += sizeof(uint64_t) + arrays[k].bytes;
-  }
+  AppendedList app;
+  const uint64_t offset[3] = {app.add(im.phase.data(), im.phase.size()),
+                              app.add(im.inclusion_id.data(), im.inclusion_id.size()),
+                              app.add(im.fraction.data(), im.fraction.size())};
   std::ostringstream s;
   s.precision(17);
   s << header("ImageData");
@@ -124,7 +117,7 @@ void write_vti(const VoxelImage& im, std::FILE* out) {
   if (!im.fraction.empty()) s << array_tag("Float32", "fraction", 1, offset[2]);
   s << "    </CellData>\n    </Piece>\n  </ImageData>\n";
   put(out, s.str());
-  put_appended(out, arrays);
+  put_appended(out, app.arrays());
 }
 
 std::string vti_bytes(const VoxelImage& im) {

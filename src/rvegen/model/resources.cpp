@@ -14,8 +14,8 @@ namespace {
 constexpr double kBytesPerInclusion = 2500.0;
 constexpr double kBytesPerFibrePiece = 400.0;  // per bounding sub-sphere of a long inclusion
 constexpr double kBytesPerTriangle = 300.0;    // mesh, .vtp text and arrays
-constexpr double kBytesPerBandVoxel = 40.0;
-constexpr double kBytesPerGlyphPoint = 600.0;  // arrays, appended file text, images (x 1.3)    // values, OpenVDB leaves, the build's buffers
+constexpr double kBytesPerBandVoxel = 40.0;    // values, OpenVDB leaves, the build's buffers
+constexpr double kBytesPerGlyphPoint = 600.0;  // arrays and file, periodic images (x 1.3)
 
 // Triangles of one mean-size inclusion as tessellate() meshes it (MeshOptions defaults:
 // segments for an edge of 1/96 of the smallest box size, clamped to [12, 64]), times 1.3 for
@@ -96,8 +96,8 @@ ResourceEstimate estimate_resources(const Scene& scene) {
     }
     const FamilyModifiers& m = f.modifiers;
     // Meshed: every inclusion with "mesh", otherwise the modified ones (not glyphs).
-    const bool meshed = scene.outputs.mesh || m.wave_amplitude > 0.0 ||
-                        m.deform_amplitude > 0.0 || m.coating > 0.0 || m.debond_fraction > 0.0;
+    const bool meshed = scene.outputs.mesh || m.wave_amplitude > 0.0 || m.deform_amplitude > 0.0 ||
+                        m.coating > 0.0 || m.debond_fraction > 0.0;
     if (meshed) e.surface_bytes += n * triangles(f, scene.box.size.minCoeff()) * kBytesPerTriangle;
     // Glyph points (inclusions.vtp): arrays and file, periodic images included.
     if (scene.outputs.inclusions) e.surface_bytes += n * kBytesPerGlyphPoint;

@@ -80,6 +80,21 @@ check(worst < 1e-12, "glyphs differ from the inclusions by %.3g" % worst)
 check(own == len(inclusions), "%d own points for %d inclusions" % (own, len(inclusions)))
 check(points.GetNumberOfPoints() > own, "no periodic image points in a periodic box")
 
+# surfaces.vtp (zlib-compressed appended data) reads back whole: every inclusion meshed, and
+# its field data is inclusions.json byte for byte.
+with open(os.path.join(rve, "surfaces.vtp"), "rb") as f:
+    check(b'compressor="vtkZLibDataCompressor"' in f.read(400), "surfaces.vtp is not compressed")
+mesh = servermanager.Fetch(XMLPolyDataReader(FileName=[os.path.join(rve, "surfaces.vtp")]))
+mesh_ids = mesh.GetCellData().GetArray("inclusion_id")
+check(mesh_ids is not None and {int(mesh_ids.GetValue(i)) for i in range(mesh_ids.GetNumberOfTuples())}
+      == set(inclusions), "surfaces.vtp does not mesh every inclusion")
+check(mesh.GetPoints() is not None and mesh.GetPoints().GetDataType() == 10,  # VTK_FLOAT
+      "surfaces.vtp points are not Float32")
+listed = mesh.GetFieldData().GetAbstractArray("rvegen_inclusions")
+with open(os.path.join(rve, "inclusions.json")) as f:
+    check(listed is not None and listed.GetValue(0) == f.read(),
+          "surfaces.vtp field data differs from inclusions.json")
+
 # The same RVE drawn from glyphs and from its mesh, same camera.
 voxels = XMLImageDataReader(FileName=[os.path.join(rve, "voxels.vti")])
 glyph_png, mesh_png = os.path.join(work, "glyphs.png"), os.path.join(work, "mesh.png")

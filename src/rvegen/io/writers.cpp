@@ -4,6 +4,7 @@
 #include <signal.h>
 #include <sys/stat.h>
 #include <unistd.h>
+#include <zlib.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -11,15 +12,17 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <list>
 #include <sstream>
 #include <stdexcept>
 
 namespace rvegen {
 namespace {
 
-std::string header(const char* type) {
+std::string header(const char* type, bool compressed = false) {
   return std::string("<?xml version=\"1.0\"?>\n<VTKFile type=\"") + type +
-         "\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n";
+         "\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\"" +
+         (compressed ? " compressor=\"vtkZLibDataCompressor\"" : "") + ">\n";
 }
 
 std::string array_tag(const char* vtk_type, const char* name, int components, size_t offset) {
@@ -38,6 +41,7 @@ namespace {
 struct RawArray {
   const char* data;
   uint64_t bytes;
+  bool prefixed = true;  // false: `data` carries its own header (compressed arrays)
 };
 
 void put(std::FILE* out, const void* data, size_t bytes) {
@@ -53,26 +57,60 @@ void put(std::FILE* out, const std::string& s) {
 void put_appended(std::FILE* out, const std::vector<RawArray>& arrays) {
   put(out, std::string("  <AppendedData encoding=\"raw\">\n   _"));
   for (const RawArray& a : arrays) {
-    put(out, &a.bytes, sizeof a.bytes);
+    if (a.prefixed) put(out, &a.bytes, sizeof a.bytes);
     put(out, a.data, a.bytes);
   }
   put(out, std::string("\n  </AppendedData>\n</VTKFile>\n"));
 }
 
 // The arrays of one file, in order: the offset of each is known when it is added, the bytes are
-// written by put_appended (the data must live until then).
+// written by put_appended (the data must live until then). Compressed lists (the file says
+// compressor="vtkZLibDataCompressor") deflate each array at once in blocks of kBlock bytes, as
+// VTK's XML readers expect: a UInt64 header (blocks, block size, size of the last partial block
+// or 0, compressed size of each block) followed by the compressed blocks.
 class AppendedList {
  public:
+  explicit AppendedList(bool compressed = false) : compressed_(compressed) {}
   template <class T>
   uint64_t add(const T* data, size_t n) {
     const uint64_t offset = at_;
-    arrays_.push_back({reinterpret_cast<const char*>(data), n * sizeof(T)});
-    at_ += sizeof(uint64_t) + n * sizeof(T);
+    const char* bytes = reinterpret_cast<const char*>(data);
+    const uint64_t size = n * sizeof(T);
+    if (!compressed_) {
+      arrays_.push_back({bytes, size});
+      at_ += sizeof(uint64_t) + size;
+      return offset;
+    }
+    blobs_.push_back(deflate_blocks(bytes, size));
+    arrays_.push_back({blobs_.back().data(), blobs_.back().size(), false});
+    at_ += blobs_.back().size();
     return offset;
   }
   const std::vector<RawArray>& arrays() const { return arrays_; }
+  bool compressed() const { return compressed_; }
 
  private:
+  static constexpr uint64_t kBlock = 1 << 16;
+  static std::string deflate_blocks(const char* data, uint64_t size) {
+    const uint64_t blocks = (size + kBlock - 1) / kBlock;
+    std::vector<uint64_t> head = {blocks, kBlock, size % kBlock};
+    std::string body;
+    std::vector<Bytef> buf(compressBound(kBlock));
+    for (uint64_t b = 0; b < blocks; ++b) {
+      const uint64_t len = std::min(kBlock, size - b * kBlock);
+      uLongf out = static_cast<uLongf>(buf.size());
+      if (compress2(buf.data(), &out, reinterpret_cast<const Bytef*>(data + b * kBlock),
+                    static_cast<uLong>(len), 1) != Z_OK) {
+        throw OutputError("zlib: compression failed");
+      }
+      head.push_back(out);
+      body.append(reinterpret_cast<const char*>(buf.data()), out);
+    }
+    return std::string(reinterpret_cast<const char*>(head.data()), head.size() * sizeof(uint64_t)) +
+           body;
+  }
+  bool compressed_;
+  std::list<std::string> blobs_;  // stable addresses
   std::vector<RawArray> arrays_;
   uint64_t at_ = 0;
 };
@@ -192,9 +230,9 @@ void write_surfaces_vtp(const SurfaceMesh& m, const std::string& inclusions_json
     for (int a = 0; a < 3; ++a) conn[3 * i + a] = m.triangles[i][a];
     offs[i] = static_cast<int64_t>(3 * (i + 1));
   }
-  AppendedList app;
+  AppendedList app(true);
   std::ostringstream s;
-  s << header("PolyData") << "  <PolyData>\n";
+  s << header("PolyData", true) << "  <PolyData>\n";
   field_data_inclusions(s, &app, inclusions_json);
   const uint64_t o_pts = app.add(pts.data(), pts.size());
   const uint64_t o_conn = app.add(conn.data(), conn.size());

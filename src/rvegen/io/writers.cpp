@@ -232,7 +232,7 @@ void write_surfaces_vtp(const SurfaceMesh& m, const std::string& inclusions_json
   }
   AppendedList app(true);
   std::ostringstream s;
-  s << header("PolyData", true) << "  <PolyData>\n";
+  s << header("PolyData", app.compressed()) << "  <PolyData>\n";
   field_data_inclusions(s, &app, inclusions_json);
   const uint64_t o_pts = app.add(pts.data(), pts.size());
   const uint64_t o_conn = app.add(conn.data(), conn.size());

@@ -37,6 +37,8 @@ const char* contact_type_name(ContactType t) {
       return "pw";
     case ContactType::kCE:
       return "ce";
+    case ContactType::kSupport:
+      return "support";
   }
   return "?";
 }

@@ -21,19 +21,20 @@ constexpr double kContactRelTolerance = 1e-9;
 
 enum class ContactType {
   kNone = 0,
-  kSS,   // sphere-sphere
-  kSC1,  // cylinder inside the sphere (paper: sc1)
-  kSC2,  // sphere against the lateral surface (sc2)
-  kSC3,  // sphere cuts an end disk, centre within the infinite cylinder (sc3)
-  kSC4,  // sphere cuts an end disk rim, centre outside the infinite cylinder (sc4)
-  kCC1,  // lateral surfaces cross (cc1)
-  kCD1,  // an end disk grazes the other's lateral surface (cd1)
-  kCD2,  // an end disk reaches past the other's axis (cd2)
-  kCD3,  // the other cylinder passes through an end disk (cd3)
-  kD1,   // end disk against end disk, first disk's rim inside the second (d1)
-  kD2,   // end disk against end disk, second disk's rim inside the first (d2)
-  kPW,   // ellipsoid-ellipsoid or sphere-ellipsoid (Perram-Wertheim)
-  kCE,   // cylinder-ellipsoid (GJK/EPA)
+  kSS,       // sphere-sphere
+  kSC1,      // cylinder inside the sphere (paper: sc1)
+  kSC2,      // sphere against the lateral surface (sc2)
+  kSC3,      // sphere cuts an end disk, centre within the infinite cylinder (sc3)
+  kSC4,      // sphere cuts an end disk rim, centre outside the infinite cylinder (sc4)
+  kCC1,      // lateral surfaces cross (cc1)
+  kCD1,      // an end disk grazes the other's lateral surface (cd1)
+  kCD2,      // an end disk reaches past the other's axis (cd2)
+  kCD3,      // the other cylinder passes through an end disk (cd3)
+  kD1,       // end disk against end disk, first disk's rim inside the second (d1)
+  kD2,       // end disk against end disk, second disk's rim inside the first (d2)
+  kPW,       // ellipsoid-ellipsoid or sphere-ellipsoid (Perram-Wertheim)
+  kCE,       // cylinder-ellipsoid (GJK/EPA)
+  kSupport,  // deformed spheres: certified support functions along the line of centres
 };
 
 /// Short name as used in reports ("sc2", "cc1", "pw", ...).

@@ -6,6 +6,7 @@
 
 #include "rvegen/io/json_util.hpp"
 #include "rvegen/model/body.hpp"
+#include "rvegen/model/deformed_support.hpp"
 
 namespace rvegen {
 
@@ -55,6 +56,7 @@ Modifiers read_modifiers(const json_util::Json& j, const Shape& shape, const std
       m.deform_waves.push_back(w);
     }
     if (sum > 1.0 + 1e-9) fail(p + ".deform_waves", "weights must sum to at most 1");
+    m.deform_peak = deformation_peak(m);
   }
   if (j.contains("packing_pad")) {
     m.packing_pad = number(j["packing_pad"], p + ".packing_pad");

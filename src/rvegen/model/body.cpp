@@ -42,7 +42,7 @@ Shape grown(const Inclusion& inc, double t) {
   switch (s.kind) {
     case ShapeKind::Sphere: {
       double r = s.radius;
-      if (m.deformed()) r *= m.deform_scale * (1.0 + m.deform_amplitude);
+      if (m.deformed()) r *= m.deform_scale * (1.0 + m.deform_amplitude * m.deform_peak);
       if (m.debonded()) r += m.debond_gap;
       return Shape::sphere(s.center, r + t);
     }
@@ -50,7 +50,7 @@ Shape grown(const Inclusion& inc, double t) {
       return grown_cylinder(s, m.wave_amplitude + t, t);
     case ShapeKind::Ellipsoid: {
       Shape e = s;
-      if (m.deformed()) e = e.scaled(m.deform_scale * (1.0 + m.deform_amplitude));
+      if (m.deformed()) e = e.scaled(m.deform_scale * (1.0 + m.deform_amplitude * m.deform_peak));
       // E + ball(t) lies inside E scaled by 1 + t / a_min: h_E(d) + t |d| <= (1 + t / a_min)
       // h_E(d) because h_E(d) >= a_min |d|.
       if (t > 0.0) e = e.scaled(1.0 + t / e.semi_axes.minCoeff());

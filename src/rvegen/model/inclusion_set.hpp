@@ -48,6 +48,9 @@ struct Modifiers {
   /// deform_scale keeps the volume of the undeformed shape.
   double deform_amplitude = 0.0, deform_scale = 1.0;
   std::vector<DeformationWave> deform_waves;
+  /// A certified upper bound of g's maximum (deformation_peak), set where the waves are drawn
+  /// or read; 1 (the bound |g| <= 1) otherwise. Derived: not written.
+  double deform_peak = 1.0;
   /// Spheres: a void of thickness debond_gap over the cap of the surface around debond_axis
   /// that covers debond_fraction of the surface.
   double debond_fraction = 0.0, debond_gap = 0.0;

@@ -6,6 +6,7 @@
 #include <cstdio>
 
 #include "rvegen/model/body.hpp"
+#include "rvegen/model/deformed_support.hpp"
 #include "rvegen/model/orientation.hpp"
 
 namespace rvegen {
@@ -71,7 +72,9 @@ double Family::max_min_width() const {
 double Family::envelope_ratio() const {
   const FamilyModifiers& m = modifiers;
   if (!m.any()) return 1.0;
-  // A representative inclusion of mean sizes; deformation counted at its smallest growth 1 + e.
+  // A representative inclusion of mean sizes. Deformation is not counted: a deformed sphere is
+  // packed by its own support function (deformed_support.hpp), whose hull has about the volume
+  // of the core, and how far a deformed ellipsoid's bound grows depends on the draw.
   Random rng(0);
   Inclusion inc;
   Family mean = *this;
@@ -80,7 +83,7 @@ double Family::envelope_ratio() const {
   for (int k = 0; k < 3; ++k) mean.semi_axes[k] = semi_axes[k].mean();
   inc.shape = mean.draw(Vec3::Zero(), rng);
   inc.mod = m.draw(rng);
-  if (inc.mod.deformed()) inc.mod.deform_scale = 1.0;
+  inc.mod.deform_amplitude = 0.0;
   return envelope(inc).volume() / inc.shape.volume();
 }
 
@@ -109,6 +112,7 @@ Modifiers FamilyModifiers::draw(Random& rng) const {
     }
     for (auto& w : m.deform_waves) w.weight /= sum;
     m.deform_scale = deformation_volume_scale(m);
+    m.deform_peak = deformation_peak(m);
   }
   if (debond_gap > 0.0) {
     m.debond_fraction = debond_fraction;

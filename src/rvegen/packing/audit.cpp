@@ -1,19 +1,58 @@
 #include "rvegen/packing/audit.hpp"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <memory>
 
 #include "rvegen/model/body.hpp"
+#include "rvegen/model/deformed_support.hpp"
 #include "rvegen/model/neighbours.hpp"
 
 namespace rvegen {
 
+namespace {
+
+// The support tables of the deformed spheres (null for the others), built in parallel.
+void tables_of(const std::vector<Inclusion>& inc,
+               std::vector<std::shared_ptr<const DeformedSupport>>* table) {
+  tbb::parallel_for(size_t(0), inc.size(), [&](size_t i) { (*table)[i] = support_table(inc[i]); });
+}
+
+// Spheres of which one at least is deformed, b shifted by `shift`: a plane normal to the line of
+// centres separates them when their support functions along it (certified upper bounds, an
+// undeformed sphere's being its radius) sum to at most the distance. Otherwise the record says
+// overlap, with that excess as its depth.
+Contact support_contact(const Inclusion& a, const DeformedSupport* ta, const Inclusion& b,
+                        const DeformedSupport* tb, const Vec3& shift) {
+  Contact c;
+  const Vec3 d = b.shape.center + shift - a.shape.center;
+  const double dist = d.norm();
+  const Vec3 u = dist > 0.0 ? Vec3(d / dist) : Vec3::UnitX();
+  const double ha = ta ? envelope_support(a, *ta, u) : envelope(a).radius;
+  const double hb = tb ? envelope_support(b, *tb, -u) : envelope(b).radius;
+  const double tol = kContactRelTolerance * std::min(a.shape.min_size(), b.shape.min_size());
+  if (ha + hb - dist <= tol) return c;
+  c.overlap = true;
+  c.type = ContactType::kSupport;
+  c.depth = ha + hb - dist;
+  c.normal = u;
+  c.point = a.shape.center + ha * u;
+  return c;
+}
+
+}  // namespace
+
 std::vector<OverlapRecord> find_overlaps(const InclusionSet& set, size_t limit) {
   const auto& inc = set.inclusions;
-  // Modified inclusions are tested by their envelopes, which hold everything they add.
+  // Modified inclusions are tested by their envelopes, which hold everything they add; deformed
+  // spheres, packed by their support functions, by those (see separated_by_support).
   std::vector<Shape> env(inc.size());
+  std::vector<std::shared_ptr<const DeformedSupport>> table(inc.size());
   for (size_t i = 0; i < inc.size(); ++i) env[i] = envelope(inc[i]);
+  tables_of(inc, &table);
   double rmax = 0.0;
   for (const auto& e : env) rmax = std::max(rmax, e.bounding_radius());
   NeighbourGrid grid(set.box, 2.0 * rmax, inc.size());
@@ -38,7 +77,10 @@ std::vector<OverlapRecord> find_overlaps(const InclusionSet& set, size_t limit) 
         if (j == i && (s[0] < 0 || (s[0] == 0 && (s[1] < 0 || (s[1] == 0 && s[2] < 0))))) {
           return;
         }
-        const Contact c = intersect(a, b.translated(s));
+        const Contact c =
+            (table[i] || table[j]) && b.kind == ShapeKind::Sphere && a.kind == ShapeKind::Sphere
+                ? support_contact(inc[i], table[i].get(), inc[j], table[j].get(), s)
+                : intersect(a, b.translated(s));
         if (c.overlap) out.push_back({i, j, s, c});
       });
     }

@@ -1,5 +1,7 @@
 #include "rvegen/packing/md_bodies.hpp"
 
+#include <tbb/parallel_for.h>
+
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
@@ -155,6 +157,16 @@ Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, R
     // Random centre: anywhere in a periodic box, inside (as far as the scale allows) otherwise.
     for (int a = 0; a < 3; ++a) b.shape.center[a] = box.origin[a] + box.size[a] * rng.uniform();
   }
+  // Deformed spheres are kept apart by their support functions (tables built in parallel).
+  tbb::parallel_for(size_t(0), pop.size(), [&](size_t i) {
+    if (auto table = support_table(pop[i])) {
+      const Modifiers& m = pop[i].mod;
+      Body& b = bodies[i];
+      b.support = std::move(table);
+      b.core_radius = pop[i].shape.radius;
+      b.extra = (m.shells_may_touch ? 0.0 : m.coating) + m.packing_pad;
+    }
+  });
   double elongation = 0.0;
   for (const Body& b : bodies) elongation += b.volume * b.bound / b.shape.min_size();
   elongation /= std::max(total, 1e-300);

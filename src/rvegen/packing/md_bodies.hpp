@@ -4,8 +4,10 @@
 #pragma once
 
 #include <map>
+#include <memory>
 #include <vector>
 
+#include "rvegen/model/deformed_support.hpp"
 #include "rvegen/model/scene.hpp"
 #include "rvegen/packing/contacts.hpp"
 
@@ -29,6 +31,16 @@ struct Body {
   double half_gap = 0.0;
   Turn turn = Turn::kNone;
   Vec3 turn_axis = Vec3::UnitZ();
+  // Deformed spheres (deformed_support.hpp): `shape` is their bounding ball; pairs are kept
+  // apart along the line of centres by the support function core_radius table(u) + extra, at
+  // most the ball's radius (at scale 1; it scales with the body).
+  std::shared_ptr<const DeformedSupport> support;
+  double core_radius = 0.0, extra = 0.0;
+
+  /// Support value at scale 1 along unit u: the table's, or the ball's radius.
+  double support_along(const Vec3& u) const {
+    return support ? std::min(shape.radius, core_radius * (*support)(u) + extra) : shape.radius;
+  }
 
   /// The scale the forces act at when the packer's outer scale is s_out.
   double force_scale(double s_out) const { return s_out + pad; }

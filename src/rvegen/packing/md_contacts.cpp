@@ -40,12 +40,22 @@ double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& ori
       // Sphere pairs in closed form: intersect_sphere_sphere's test without its tolerance (any
       // overlap pushes; validity comes from s_in, not from this decision), and without a square
       // root for the many listed pairs that are apart.
-      const double ra = ba.shape.radius, rb = bb.shape.radius;
+      double ra = ba.shape.radius, rb = bb.shape.radius;
       const Vec3 d = bb.shape.center + e.shift - ba.shape.center;
-      const double rr = fa * ra + fb * rb, d2 = d.squaredNorm();
+      double rr = fa * ra + fb * rb;
+      const double d2 = d.squaredNorm();
       if (d2 >= rr * rr) continue;
-      const double dist = std::sqrt(d2), depth = rr - dist;
+      const double dist = std::sqrt(d2);
       const Vec3 nrm = dist > 0.0 ? Vec3(d / dist) : Vec3::UnitX();
+      if (ba.support || bb.support) {
+        // Deformed spheres: their support functions along the line of centres (a plane
+        // normal to it separates them when these sum to at most the distance).
+        ra = ba.support_along(nrm);
+        rb = bb.support_along(-nrm);
+        rr = fa * ra + fb * rb;
+        if (dist >= rr) continue;
+      }
+      const double depth = rr - dist;
       max_overlap = std::max(max_overlap, depth / std::min(fa * ra, fb * rb));
       s_in = std::min(s_in, (dist - ba.pad * ra - bb.pad * rb) / (ra + rb));
       const Vec3 J = (kRelaxation * depth / (1.0 / ba.volume + 1.0 / bb.volume)) * nrm;

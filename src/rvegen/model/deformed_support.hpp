@@ -1,0 +1,58 @@
+// Certified bounds of a deformed inclusion's own shape, tighter than the ball of radius
+// deform_scale (1 + deform_amplitude) that |g| <= 1 gives.
+//
+// Both rest on one fact: at the maximum of a smooth function f on the unit sphere its gradient
+// vanishes, so a sample within angle delta of it is at most M delta^2 / 2 below it (M bounds f''
+// along great circles). The samples are the nodes of a cube map with n cells a face side: every
+// direction lies within angle sqrt(2) / n of one.
+//
+// The support function h(u) = max over the surface x of x . u is sublinear: h(sum b_i c_i) <=
+// sum b_i h(c_i) for b_i >= 0. A table of certified h at the nodes of a coarser cube map, read
+// with bilinear weights on the cube face, is therefore a certified upper bound for every u; the
+// error is of second order in the cell size (about 0.4 % of the radius here).
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "rvegen/model/inclusion_set.hpp"
+
+namespace rvegen {
+
+/// A certified upper bound of the maximum of the deformation field g over the unit sphere
+/// (never above the sum of the wave weights, the bound |g| <= 1 gives).
+double deformation_peak(const Modifiers& m);
+
+/// Certified support function of a deformed sphere whose undeformed radius is 1 (the surface
+/// |y| = deform_scale (1 + deform_amplitude g(y / |y|)) about the centre).
+class DeformedSupport {
+ public:
+  /// The table for a deformation, or null when the deformation is too rough (wavenumbers too
+  /// high) for the table to beat the ball of radius deform_scale (1 + amplitude peak).
+  static std::shared_ptr<const DeformedSupport> make(const Modifiers& m);
+
+  /// An upper bound of h(u) for any vector u (h is positively homogeneous: h(t u) = t h(u)).
+  double operator()(const Vec3& u) const;
+  /// A certified upper bound of the surface's distance from the centre:
+  /// deform_scale (1 + deform_amplitude deformation_peak).
+  double radius() const { return radius_; }
+
+  /// Cells per face side of the table, and of the sample grid behind it.
+  static constexpr int kCells = 16;
+
+ private:
+  DeformedSupport() = default;
+  std::vector<float> h_;  // 6 faces x (kCells + 1)^2 nodes: h at the node vector on the face
+  double radius_ = 0.0;
+};
+
+/// The table of an inclusion packed and audited by its support function: a deformed sphere
+/// without a debonding void whose table exists (see DeformedSupport::make); null otherwise.
+std::shared_ptr<const DeformedSupport> support_table(const Inclusion& inc);
+
+/// The support function of such an inclusion's packing envelope about its centre along unit u:
+/// radius * table(u) plus the envelope's extra thickness (the shell unless shells may touch,
+/// and the packing pad).
+double envelope_support(const Inclusion& inc, const DeformedSupport& table, const Vec3& u);
+
+}  // namespace rvegen

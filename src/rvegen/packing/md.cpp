@@ -118,9 +118,11 @@ void MdPacker::report_progress(bool force) {
   double vol = 0.0;
   double valid = 0.0;
   const double s = std::clamp(best_scale_, 0.0, 1.0);
-  for (const Body& b : bodies_.all) {
-    vol += b.volume;
-    valid += b.volume * (b.radial ? s * s : s * s * s);
+  // In the volumes of the inclusions' cores (what the target counts), not of the envelopes.
+  for (size_t k = 0; k < bodies_.all.size(); ++k) {
+    const double v = pop_[drawn_[k]].shape.volume();
+    vol += v;
+    valid += v * (bodies_.all[k].radial ? s * s : s * s * s);
   }
   char buf[200];
   std::snprintf(

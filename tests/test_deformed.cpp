@@ -12,6 +12,7 @@
 #include "rvegen/model/deformed_support.hpp"
 #include "rvegen/model/stats.hpp"
 #include "rvegen/packing/audit.hpp"
+#include "rvegen/packing/md_bodies.hpp"
 #include "rvegen/packing/packing.hpp"
 
 namespace rvegen {
@@ -187,6 +188,50 @@ TEST(DeformedSupport, PackingReachesHalfAndTrueSurfacesDoNotOverlap) {
   // Written and read back, the result passes the same audit (check runs it).
   const InclusionSet back = read_inclusions_json(write_inclusions_json(r.set));
   EXPECT_TRUE(find_overlaps(back).empty());
+}
+
+// The packer's bodies and the audit bound a deformed sphere by the same support values (the
+// smaller of the table's and the ball's): were the packer's larger or smaller anywhere, packed
+// pairs could fail the audit or be looser than it allows.
+TEST(DeformedSupport, PackerBodiesAndAuditAgree) {
+  const Scene s = parse_scene(R"({"box":{"size":[1,1,1]},"seed":6,"families":[
+      {"shape":"sphere","radius":0.05,"volume_fraction":0.1,
+       "deformation":{"amplitude":0.2,"smoothness":1}}]})");
+  Random rng(s.seed);
+  const std::vector<Inclusion> pop = draw_population(s, rng);
+  const md::Bodies bodies = md::make_bodies(s, pop, rng);
+  const std::vector<Vec3> probes = random_directions(2000, 9);
+  int below_ball = 0, at_ball = 0;
+  for (size_t i = 0; i < 20; ++i) {
+    const md::Body& b = bodies.all[i];
+    ASSERT_TRUE(b.support);
+    const auto table = support_table(pop[i]);
+    for (const Vec3& u : probes) {
+      const double audit = envelope_support(pop[i], *table, u);
+      EXPECT_DOUBLE_EQ(b.support_along(u), audit);
+      EXPECT_LE(audit, envelope(pop[i]).radius);
+      (audit < envelope(pop[i]).radius ? below_ball : at_ball)++;
+    }
+  }
+  EXPECT_GT(below_ball, 10 * at_ball);  // the table is what keeps them apart, mostly
+  EXPECT_GT(at_ball, 0);                // and the ball caps it near the peak
+}
+
+// Above jamming: the packer stops jammed with its best valid configuration, which passes the
+// audit (the packer and the audit bound each pair by the same certified support values) and is
+// far denser than the balls |g| <= 1 would let through.
+TEST(DeformedSupport, AboveJammingStopsJammedWithTheAuditPassed) {
+  const Scene s = parse_scene(R"({"box":{"size":[1,1,1]},"seed":6,"families":[
+      {"shape":"sphere","radius":0.08,"volume_fraction":0.7,
+       "deformation":{"amplitude":0.2,"smoothness":1}}]})");
+  PackingResult r;
+  ASSERT_NO_THROW(r = generate(s));  // generate throws when the audit fails
+  EXPECT_EQ(r.status, PackingStatus::kTargetNotReached);
+  EXPECT_EQ(r.stop_reason, StopReason::kJammed);
+  const double vf = family_volume_fractions(r.set, 1)[0];
+  EXPECT_GT(vf, 0.55);
+  EXPECT_LT(vf, 0.7);
+  EXPECT_TRUE(find_overlaps(read_inclusions_json(write_inclusions_json(r.set))).empty());
 }
 
 }  // namespace

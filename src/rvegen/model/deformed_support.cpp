@@ -248,7 +248,7 @@ std::shared_ptr<const DeformedSupport> support_table(const Inclusion& inc) {
 double envelope_support(const Inclusion& inc, const DeformedSupport& table, const Vec3& u) {
   const Modifiers& m = inc.mod;
   const double extra = (m.shells_may_touch ? 0.0 : m.coating) + m.packing_pad;
-  return inc.shape.radius * table(u) + extra * u.norm();
+  return bounded_support(table, inc.shape.radius, extra, envelope(inc).radius, u);
 }
 
 }  // namespace rvegen

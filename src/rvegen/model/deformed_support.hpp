@@ -12,6 +12,7 @@
 // error is of second order in the cell size (about 0.4 % of the radius here).
 #pragma once
 
+#include <algorithm>
 #include <memory>
 #include <vector>
 
@@ -50,9 +51,18 @@ class DeformedSupport {
 /// without a debonding void whose table exists (see DeformedSupport::make); null otherwise.
 std::shared_ptr<const DeformedSupport> support_table(const Inclusion& inc);
 
-/// The support function of such an inclusion's packing envelope about its centre along unit u:
-/// radius * table(u) plus the envelope's extra thickness (the shell unless shells may touch,
-/// and the packing pad).
+/// The support bound of a body made of a deformed core of radius `core_radius` grown by `extra`
+/// and held in a ball of radius `ball` about the same centre, along u: the smaller of the two
+/// certified bounds (the table's, near the peak, can exceed the ball's by its margin).
+inline double bounded_support(const DeformedSupport& table, double core_radius, double extra,
+                              double ball, const Vec3& u) {
+  const double len = u.norm();
+  return std::min(ball * len, core_radius * table(u) + extra * len);
+}
+
+/// The support function of such an inclusion's packing envelope about its centre along u:
+/// bounded_support with the core radius, the envelope's extra thickness (the shell unless
+/// shells may touch, and the packing pad) and the envelope's ball.
 double envelope_support(const Inclusion& inc, const DeformedSupport& table, const Vec3& u);
 
 }  // namespace rvegen

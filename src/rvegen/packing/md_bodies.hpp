@@ -39,7 +39,7 @@ struct Body {
 
   /// Support value at scale 1 along unit u: the table's, or the ball's radius.
   double support_along(const Vec3& u) const {
-    return support ? std::min(shape.radius, core_radius * (*support)(u) + extra) : shape.radius;
+    return support ? bounded_support(*support, core_radius, extra, shape.radius, u) : shape.radius;
   }
 
   /// The scale the forces act at when the packer's outer scale is s_out.

@@ -107,6 +107,68 @@ Shape envelope(const Inclusion& inc) {
   return grown(inc, (m.shells_may_touch ? 0.0 : m.coating) + m.packing_pad);
 }
 
+namespace {
+// What a chain is cut from: the sheared straight cylinder of radius R, half length H (the core
+// with its shell unless shells may touch), n pieces of axial length ds and sagitta sag.
+struct ChainPlan {
+  double R, H, pad, A, k, ds, sag;
+  int n;
+};
+ChainPlan chain_plan(const Inclusion& inc) {
+  const Modifiers& m = inc.mod;
+  ChainPlan c;
+  // The shell is the sheared image of the straight fibre's offset, which the straight cylinder of
+  // radius r + t and half length h + t holds: the chain follows that cylinder, sheared.
+  const double shell = m.shells_may_touch ? 0.0 : m.coating;
+  c.pad = m.packing_pad;
+  c.R = inc.shape.radius + shell;
+  c.H = inc.shape.half_axis.norm() + shell;
+  c.A = m.wave_amplitude;
+  c.k = 2.0 * M_PI / m.wave_length;
+  // Pieces of length ds with A k^2 ds^2 / 8 <= kChainSagitta R (the count is a ratio of lengths,
+  // the same at every scale; the 1e-9 keeps an exact integer from rounding either way).
+  const double span = 2.0 * c.H * c.k * std::sqrt(c.A / (8.0 * kChainSagitta * c.R));
+  c.n = std::max(1, static_cast<int>(std::ceil(span * (1.0 - 1e-9))));
+  c.ds = 2.0 * c.H / c.n;
+  c.sag = std::min(c.A, c.A * c.k * c.k * c.ds * c.ds / 8.0);
+  return c;
+}
+}  // namespace
+
+Shape chain_bound(const Inclusion& inc) {
+  const ChainPlan c = chain_plan(inc);
+  const FibreFrame f = fibre_frame(inc);
+  // A piece's points lie within R + sag + pad of its chord extended by e = (R + sag) sin(alpha)
+  // + pad at each end; chord points are within A of the axis and the extension moves e sin(alpha)
+  // sideways and e along the axis (sin(alpha) <= A k / sqrt(1 + (A k)^2), the largest slope).
+  const double sin_a = c.A * c.k / std::sqrt(1.0 + c.A * c.k * c.A * c.k);
+  const double e = (c.R + c.sag) * sin_a + c.pad, reach = c.R + c.sag + c.pad;
+  const double radius = (c.A + e * sin_a + reach) * (1.0 + 1e-12);
+  const double half = (c.H + e + reach) * (1.0 + 1e-12);
+  return Shape::cylinder(inc.shape.center, radius, f.u * half);
+}
+
+void chain_pieces(const Inclusion& inc, std::vector<Shape>* out) {
+  const Modifiers& m = inc.mod;
+  const FibreFrame f = fibre_frame(inc);
+  const ChainPlan c = chain_plan(inc);
+  const double R = c.R, H = c.H, pad = c.pad, A = c.A, k = c.k, ds = c.ds, sag = c.sag;
+  const int n = c.n;
+  auto point = [&](double s) {
+    return inc.shape.center + s * f.u + A * std::sin(k * s + m.wave_phase) * f.v;
+  };
+  for (int i = 0; i < n; ++i) {
+    const double s0 = -H + i * ds, s1 = (i + 1 == n) ? H : s0 + ds;
+    const Vec3 p0 = point(s0), p1 = point(s1), chord = p1 - p0;
+    const double len = chord.norm();
+    const double sin_a = std::sqrt(std::max(0.0, 1.0 - std::pow((s1 - s0) / len, 2)));
+    const double half = 0.5 * len + (R + sag) * sin_a + pad;
+    // Grown by a relative 1e-12 against rounding (the exact tests decide to 1e-9 of the size).
+    out->push_back(Shape::cylinder(0.5 * (p0 + p1), (R + sag + pad) * (1.0 + 1e-12),
+                                   chord * (half * (1.0 + 1e-12) / len)));
+  }
+}
+
 Shape outer_bound(const Inclusion& inc) {
   return inc.mod.any() ? grown(inc, inc.mod.coating) : inc.shape;
 }

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <vector>
 
 #include "rvegen/model/inclusion_set.hpp"
 
@@ -23,6 +24,25 @@ enum class Region : uint8_t { kOutside = 0, kCore = 1, kShell = 2, kVoid = 3 };
 Shape envelope(const Inclusion& inc);
 /// A convex shape holding every region of the inclusion (the envelope with the whole shell).
 Shape outer_bound(const Inclusion& inc);
+
+/// Wavy fibres are packed and audited as chains of straight cylinders, not by the envelope (the
+/// cylinder of radius r + A, four times the fibre's volume when A = r). The fibre (with its shell
+/// unless shells may touch: the sheared straight cylinder of radius R = r + t, half length
+/// H = h + t) is cut along its axis into n equal pieces; over a piece the cross-sections' offset
+/// A sin(k s + phase) departs from its chord by at most the sagitta A k^2 ds^2 / 8, so a point of
+/// the piece lies within R + sagitta of the chord's line and at most (R + sagitta) sin(alpha)
+/// beyond its ends (alpha: the chord's angle to the axis). Each piece is that cylinder, grown by
+/// the packing pad: together they hold what the envelope holds. n keeps the sagitta below
+/// kChainSagitta of R.
+constexpr double kChainSagitta = 0.03;
+inline bool packs_as_chain(const Inclusion& inc) {
+  return inc.shape.kind == ShapeKind::Cylinder && inc.mod.wavy();
+}
+/// The pieces of a wavy fibre's chain (world coordinates), appended to *out.
+void chain_pieces(const Inclusion& inc, std::vector<Shape>* out);
+/// A straight cylinder about the fibre's axis holding every piece of its chain (the bound the
+/// broad phases and walls use).
+Shape chain_bound(const Inclusion& inc);
 
 /// The drawn inclusion (core at the origin, modifiers at scale 1) placed and turned as
 /// `packed`, its envelope after packing, and scaled by `scale` about its centre (modifier

@@ -43,6 +43,32 @@ Contact support_contact(const Inclusion& a, const DeformedSupport* ta, const Inc
   return c;
 }
 
+// Pairs with a wavy fibre: its chain of pieces (body.hpp) against the other's chain or
+// envelope (b shifted), piece by piece with the exact tests; the first overlap found.
+Contact chain_contact(const Inclusion& a, const Shape& env_a, const Inclusion& b,
+                      const Shape& env_b, const Vec3& shift) {
+  std::vector<Shape> pa, pb;
+  if (packs_as_chain(a)) {
+    chain_pieces(a, &pa);
+  } else {
+    pa.push_back(env_a);
+  }
+  if (packs_as_chain(b)) {
+    chain_pieces(b, &pb);
+  } else {
+    pb.push_back(env_b);
+  }
+  for (Shape& p : pb) p = p.translated(shift);
+  for (const Shape& x : pa) {
+    for (const Shape& y : pb) {
+      if ((x.center - y.center).norm() > x.bounding_radius() + y.bounding_radius()) continue;
+      const Contact c = intersect(x, y);
+      if (c.overlap) return c;
+    }
+  }
+  return Contact{};
+}
+
 }  // namespace
 
 std::vector<OverlapRecord> find_overlaps(const InclusionSet& set, size_t limit) {
@@ -77,10 +103,15 @@ std::vector<OverlapRecord> find_overlaps(const InclusionSet& set, size_t limit) 
         if (j == i && (s[0] < 0 || (s[0] == 0 && (s[1] < 0 || (s[1] == 0 && s[2] < 0))))) {
           return;
         }
-        const Contact c =
-            (table[i] || table[j]) && b.kind == ShapeKind::Sphere && a.kind == ShapeKind::Sphere
-                ? support_contact(inc[i], table[i].get(), inc[j], table[j].get(), s)
-                : intersect(a, b.translated(s));
+        Contact c;
+        if (packs_as_chain(inc[i]) || packs_as_chain(inc[j])) {
+          c = chain_contact(inc[i], a, inc[j], b, s);
+        } else if ((table[i] || table[j]) && b.kind == ShapeKind::Sphere &&
+                   a.kind == ShapeKind::Sphere) {
+          c = support_contact(inc[i], table[i].get(), inc[j], table[j].get(), s);
+        } else {
+          c = intersect(a, b.translated(s));
+        }
         if (c.overlap) out.push_back({i, j, s, c});
       });
     }

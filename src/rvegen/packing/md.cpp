@@ -183,7 +183,8 @@ PackingResult MdPacker::run() {
         break;
       }
     }
-    s_out_ = std::max(s_start_, s_in * (1.0 + m_));
+    // (No valid scale this step: the contacts keep acting at the same scale, never at 0.)
+    if (s_in > 0.0) s_out_ = std::max(s_start_, s_in * (1.0 + m_));
     if (steps_ >= scene_.md.max_steps) {
       why = StopReason::kStepBudget;
       break;

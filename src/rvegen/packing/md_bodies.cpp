@@ -103,7 +103,11 @@ Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, R
   double total = 0.0, crowding = 0.0, radial = 0.0;
   for (size_t i = 0; i < pop.size(); ++i) {
     Body& b = bodies[i];
-    b.shape = envelope(pop[i]);  // modified inclusions are packed by their envelopes
+    b.shape = envelope(pop[i]);    // modified inclusions are packed by their envelopes ...
+    if (packs_as_chain(pop[i])) {  // ... wavy fibres by their chains of straight pieces
+      b.shape = chain_bound(pop[i]);
+      b.chain = std::make_shared<const Inclusion>(pop[i]);
+    }
     b.family = pop[i].family;
     b.volume = b.shape.volume();
     b.bound = b.shape.bounding_radius();

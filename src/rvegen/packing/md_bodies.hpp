@@ -36,6 +36,9 @@ struct Body {
   // most the ball's radius (at scale 1; it scales with the body).
   std::shared_ptr<const DeformedSupport> support;
   double core_radius = 0.0, extra = 0.0;
+  // Wavy fibres (body.hpp, chain_pieces): `shape` is the straight cylinder holding their chain of
+  // pieces, and the drawn fibre they are cut from, placed like `shape` at each contact.
+  std::shared_ptr<const Inclusion> chain;
 
   /// Support value at scale 1 along unit u: the table's, or the ball's radius.
   double support_along(const Vec3& u) const {

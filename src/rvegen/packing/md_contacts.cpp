@@ -4,11 +4,100 @@
 #include <cmath>
 
 #include "rvegen/geometry/convex.hpp"
+#include "rvegen/model/body.hpp"
 
 namespace rvegen::md {
 
 namespace {
 constexpr double kRelaxation = 1.0;  // scale of the summed contact impulses
+
+// A capsule holding a shape: segment p-q and radius.
+struct Capsule {
+  Vec3 p, q;
+  double r;
+};
+Capsule capsule_of(const Shape& s) {
+  if (s.kind == ShapeKind::Cylinder)
+    return {s.center - s.half_axis, s.center + s.half_axis, s.radius};
+  const double r = s.bounding_radius();
+  return {s.center, s.center, r};
+}
+bool capsules_meet(const Capsule& a, const Capsule& b) {
+  return segment_distance2(a.p, a.q, b.p, b.q) < (a.r + b.r) * (a.r + b.r);
+}
+
+// Pieces of every body at one scale, computed when first asked for (a body's chain costs a
+// place_like and a sine per piece; it meets many others).
+class PieceCache {
+ public:
+  PieceCache(const std::vector<Body>& bodies, std::vector<std::vector<Shape>>* store)
+      : bodies_(bodies), store_(*store), scale_(bodies.size(), -1.0) {
+    store_.resize(bodies.size());
+  }
+  /// Pieces of body i at the force scale of growth s (its chain's, or its own shape).
+  const std::vector<Shape>& at(int i, double s) {
+    if (scale_[i] != s) {
+      const Body& b = bodies_[i];
+      std::vector<Shape>& out = store_[i];
+      out.clear();
+      if (b.chain) {
+        chain_pieces(place_like(*b.chain, b.shape, b.force_scale(s)), &out);
+      } else {
+        out.push_back(b.at_scale(s));
+      }
+      scale_[i] = s;
+    }
+    return store_[i];
+  }
+
+ private:
+  const std::vector<Body>& bodies_;
+  std::vector<std::vector<Shape>>& store_;
+  std::vector<double> scale_;
+};
+
+// The overlapping pieces of the pair e at growth s: the pieces of each body near the other's
+// bounding capsule, then the exact tests between those. Appends the contacts to *found (only
+// the first when first_only) and returns whether there is any.
+struct NearPieces {
+  std::vector<const Shape*> a;
+  std::vector<Shape> b;  // shifted
+};
+bool chain_overlaps(const std::vector<Body>& bodies, const std::vector<Vec3>& axis,
+                    PieceCache* pieces, const PairEntry& e, double s, bool first_only,
+                    NearPieces* near, std::vector<Contact>* found) {
+  const Body &ba = bodies[e.a], &bb = bodies[e.b];
+  const Vec3 ca = ba.shape.center, cb = bb.shape.center + e.shift;
+  const Vec3 ha = axis[e.a] * ba.cap_half_at(s), hb = axis[e.b] * bb.cap_half_at(s);
+  const Capsule cap_a{ca - ha, ca + ha, ba.cap_radius_at(s)};
+  const Capsule cap_b{cb - hb, cb + hb, bb.cap_radius_at(s)};
+  near->a.clear();
+  near->b.clear();
+  for (const Shape& p : pieces->at(e.a, s)) {
+    if (capsules_meet(capsule_of(p), cap_b)) near->a.push_back(&p);
+  }
+  if (near->a.empty()) return false;
+  for (const Shape& p : pieces->at(e.b, s)) {
+    const Shape q = p.translated(e.shift);
+    if (capsules_meet(capsule_of(q), cap_a)) near->b.push_back(q);
+  }
+  bool any = false;
+  for (const Shape* pa : near->a) {
+    for (const Shape& pb : near->b) {
+      if ((pa->center - pb.center).squaredNorm() >=
+          std::pow(pa->bounding_radius() + pb.bounding_radius(), 2)) {
+        continue;
+      }
+      if (!capsules_meet(capsule_of(*pa), capsule_of(pb))) continue;
+      const Contact c = intersect(*pa, pb);
+      if (!c.overlap) continue;
+      any = true;
+      if (found) found->push_back(c);
+      if (first_only) return true;
+    }
+  }
+  return any;
+}
 }  // namespace
 
 double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& oriented,
@@ -26,12 +115,17 @@ double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& ori
     move[i] += dx;
     turn[i] += dw;
   };
-  axis.resize(n);
+  axis.assign(n, Vec3::Zero());  // spheres have none (their capsules are points)
   for (int i : oriented) axis[i] = principal_axis(bodies[i].shape);  // spheres have none
   double s_in = s_out;
   double& max_overlap = sums->max_overlap;
   max_overlap = 0.0;
   size_t visited = 0;
+  PieceCache pieces(bodies, &sums->pieces);  // chains
+  NearPieces near;
+  std::vector<const PairEntry*> chain_pairs;  // pairs with a chain whose capsules meet
+  double chain_depth = 0.0;                   // their deepest overlap, relative
+  std::vector<Contact> found;                 // the overlapping pieces of one pair
   for (const PairEntry& e : pairs) {
     if ((++visited & 4095) == 0 && tick) tick();
     const Body &ba = bodies[e.a], &bb = bodies[e.b];
@@ -97,6 +191,29 @@ double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& ori
         continue;
       }
     }
+    if (ba.chain || bb.chain) {
+      // Chains: the exact tests piece by piece; each contact acts on the whole bodies, with the
+      // weight 1 / count (at full weight, the several contacts of a crossing would push it
+      // apart several times over).
+      const Vec3 ca = ba.shape.center, cb = bb.shape.center + e.shift;
+      chain_pairs.push_back(&e);
+      found.clear();
+      if (!chain_overlaps(bodies, axis, &pieces, e, s_out, false, &near, &found)) continue;
+      const Shape A = ba.at_scale(s_out), B = bb.at_scale(s_out).translated(e.shift);
+      for (const Contact& c : found) {
+        const double rel = c.depth / std::min(A.min_size(), B.min_size());
+        max_overlap = std::max(max_overlap, rel);
+        chain_depth = std::max(chain_depth, rel);
+      }
+      const BodyMobility ma = ba.mobility(A), mb = bb.mobility(B);
+      for (const Contact& c : found) {
+        const ContactResponse r =
+            contact_response(ca, ma, cb, mb, c, kRelaxation / static_cast<double>(found.size()));
+        add(e.a, r.move_a, r.turn_a);
+        add(e.b, r.move_b, r.turn_b);
+      }
+      continue;
+    }
     const Shape A = ba.at_scale(s_out);
     const Shape B = bb.at_scale(s_out).translated(e.shift);
     const Contact c = intersect(A, B);
@@ -150,6 +267,36 @@ double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& ori
         }
       }
     }
+  }
+  if (!chain_pairs.empty()) {
+    // A chain is not convex: shrunk about its centre, a piece behind it moves towards what lies
+    // beyond, so no pair is valid below a scale merely because it is valid at s_out. The scale
+    // is tested: every chain pair whose capsules meet is checked piece by piece at it. Pairs
+    // whose capsules do not meet stay apart below (capsules are convex about the centres); the
+    // packer stops at scale 1.
+    size_t first = 0;  // the pair that failed last is tested first
+    auto clear_at = [&](double s) {
+      for (size_t k = 0; k < chain_pairs.size(); ++k) {
+        const size_t i = (first + k) % chain_pairs.size();
+        if (chain_overlaps(bodies, axis, &pieces, *chain_pairs[i], s, true, &near, nullptr)) {
+          first = i;
+          return false;
+        }
+      }
+      return true;
+    };
+    // Without an overlap at s_out, s_out itself (or the others' scale); otherwise the largest
+    // of s_out (1 - 0.001 2^k) that passes (0 after k = 12).
+    double s = std::min(s_in, 1.0);
+    if (chain_depth > 0.0) {
+      for (int k = 0;; ++k) {
+        s = k <= 12 ? std::min({s_in, 1.0, s_out * (1.0 - 0.001 * std::ldexp(1.0, k))}) : 0.0;
+        if (s <= 0.0 || clear_at(s)) break;
+      }
+    } else if (!clear_at(s)) {
+      s = 0.0;  // (cannot happen: the pairs were tested at s_out; kept for certainty)
+    }
+    s_in = s;
   }
   return std::max(0.0, s_in);
 }

@@ -13,9 +13,10 @@ namespace rvegen::md {
 
 /// What the contacts of one step do, summed per body.
 struct ContactSums {
-  std::vector<Vec3> move, turn;  // displacements and rotation vectors
-  double max_overlap = 0.0;      // largest overlap depth relative to the smaller body
-  std::vector<Vec3> axis;        // principal axis of every oriented body this step
+  std::vector<Vec3> move, turn;            // displacements and rotation vectors
+  double max_overlap = 0.0;                // largest overlap depth relative to the smaller body
+  std::vector<Vec3> axis;                  // principal axis of every oriented body this step
+  std::vector<std::vector<Shape>> pieces;  // storage of the chains' pieces (reused)
 };
 
 /// Tests every listed pair (and, in a closed box, every body against the walls) at the force

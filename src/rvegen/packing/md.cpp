@@ -184,7 +184,12 @@ PackingResult MdPacker::run() {
       }
     }
     // (No valid scale this step: the contacts keep acting at the same scale, never at 0.)
-    if (s_in > 0.0) s_out_ = std::max(s_start_, s_in * (1.0 + m_));
+    // With chains the contacts' scale never exceeds 1, where the chains are placed: a chain is
+    // not convex, and valid at a scale above 1 need not mean valid at 1.
+    if (s_in > 0.0) {
+      s_out_ = std::max(s_start_, s_in * (1.0 + m_));
+      if (bodies_.chains) s_out_ = std::min(s_out_, 1.0);
+    }
     if (steps_ >= scene_.md.max_steps) {
       why = StopReason::kStepBudget;
       break;

@@ -107,6 +107,7 @@ Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, R
     if (packs_as_chain(pop[i])) {  // ... wavy fibres by their chains of straight pieces
       b.shape = chain_bound(pop[i]);
       b.chain = std::make_shared<const Inclusion>(pop[i]);
+      out.chains = true;
     }
     b.family = pop[i].family;
     b.volume = b.shape.volume();

@@ -76,6 +76,7 @@ struct Bodies {
   std::vector<Body> all;
   std::vector<int> oriented;             // bodies that are not spheres
   std::map<int, std::vector<int>> held;  // md.rotation keep_tensor: family -> bodies that turn
+  bool chains = false;                   // some bodies are chains (wavy fibres)
   double start_scale = 1.0;              // where few bodies touch (see make_bodies)
   // Steps over which a stalled valid scale halves the pressure: md.patience, times the mean
   // elongation / 6.7 (at most 6) of the bodies, as long bodies rearrange more slowly.

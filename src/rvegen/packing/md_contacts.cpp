@@ -285,16 +285,14 @@ double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& ori
       }
       return true;
     };
-    // Without an overlap at s_out, s_out itself (or the others' scale); otherwise the largest
-    // of s_out (1 - 0.001 2^k) that passes (0 after k = 12).
-    double s = std::min(s_in, 1.0);
-    if (chain_depth > 0.0) {
-      for (int k = 0;; ++k) {
-        s = k <= 12 ? std::min({s_in, 1.0, s_out * (1.0 - 0.001 * std::ldexp(1.0, k))}) : 0.0;
-        if (s <= 0.0 || clear_at(s)) break;
-      }
-    } else if (!clear_at(s)) {
-      s = 0.0;  // (cannot happen: the pairs were tested at s_out; kept for certainty)
+    // The largest of min(s_in, 1, s_out (1 - d)) that passes, d = 0 (without an overlap at
+    // s_out), then 0.001 2^k (k = 0..9); 0 when none does.
+    double s = 0.0;
+    for (int k = chain_depth > 0.0 ? 0 : -1; k <= 9; ++k) {
+      const double d = k < 0 ? 0.0 : 0.001 * std::ldexp(1.0, k);
+      s = std::min({s_in, 1.0, s_out * (1.0 - d)});
+      if (clear_at(s)) break;
+      s = 0.0;
     }
     s_in = s;
   }

@@ -104,6 +104,21 @@ def run_all(jobs):
         return {name: f.result() for name, f in futures.items()}
 
 
+def comparison(what, method, xs, res, mine, theirs):
+    """Table rows: reached fraction (exit, audit, wall) of this build and of the baseline."""
+    def cell(r):
+        return " %.4f (%d, %s, %.1f) |" % (r["vf"] or 0, r["exit"], r["audit"], r["wall"])
+    rows = ["", "| %s | reached, %s (exit, audit, wall s) |" % (what, method) +
+            (" reached, baseline (exit, audit, wall s) |" if baseline else ""),
+            "|---|---|" + ("---|" if baseline else "")]
+    for x in xs:
+        row = "| %g |" % x + cell(res["%s-%g" % (mine, x)])
+        if baseline:
+            row += cell(res["%s-%g" % (theirs, x)])
+        rows.append(row)
+    return rows
+
+
 # The issue's density table (curved fibres: no curvature modifier yet, not run).
 TABLE = [("wavy fibres a 8, amplitude = radius, wavelength 5 D", 0.30, wavy(0.30)),
          ("Figure 5: coated wavy fibres 0.20 + deformed spheres 0.15", 0.35, figure5()),
@@ -129,16 +144,7 @@ jobs = [(exe, "s-%g" % e, grains(0.66, e)) for e in amps]
 if baseline:
     jobs += [(baseline, "b-%g" % e, grains(round(0.70 / (1 + e) ** 3, 4), e)) for e in amps]
 jam = run_all(jobs)
-lines += ["", "| amplitude | reached, support (exit, audit, wall s) |" +
-          (" reached, baseline (exit, audit, wall s) |" if baseline else ""),
-          "|---|---|" + ("---|" if baseline else "")]
-for e in amps:
-    s = jam["s-%g" % e]
-    row = "| %g | %.4f (%d, %s, %.1f) |" % (e, s["vf"] or 0, s["exit"], s["audit"], s["wall"])
-    if baseline:
-        b = jam["b-%g" % e]
-        row += " %.4f (%d, %s, %.1f) |" % (b["vf"] or 0, b["exit"], b["audit"], b["wall"])
-    lines.append(row)
+lines += comparison("amplitude", "support", amps, jam, "s", "b")
 # Wavy fibres against amplitude / radius: targets above jamming (the envelope binary refuses
 # envelopes above 0.9069 of the box: it gets 0.85 / (1 + A / r)^2).
 ratios = [0.25, 0.5, 1.0]
@@ -148,17 +154,7 @@ if baseline:
               wavy(round(0.85 / (1 + q) ** 2, 4), seconds=budget // 2, amplitude=0.02 * q))
              for q in ratios]
 wj = run_all(jobs)
-lines += ["", "| wave amplitude / radius | reached, chains (exit, audit, wall s) |" +
-          (" reached, envelope baseline (exit, audit, wall s) |" if baseline else ""),
-          "|---|---|" + ("---|" if baseline else "")]
-for q in ratios:
-    s_ = wj["w-%g" % q]
-    row = "| %g | %.4f (%d, %s, %.1f) |" % (q, s_["vf"] or 0, s_["exit"], s_["audit"], s_["wall"])
-    if baseline:
-        b = wj["wb-%g" % q]
-        row += " %.4f (%d, %s, %.1f) |" % (b["vf"] or 0, b["exit"], b["audit"], b["wall"])
-    lines.append(row)
-
+lines += comparison("wave amplitude / radius", "chains", ratios, wj, "w", "wb")
 
 plt.figure(figsize=(6, 4))
 plt.plot(amps, [jam["s-%g" % e]["vf"] for e in amps], "o-",

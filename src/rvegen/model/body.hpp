@@ -25,18 +25,24 @@ Shape envelope(const Inclusion& inc);
 /// A convex shape holding every region of the inclusion (the envelope with the whole shell).
 Shape outer_bound(const Inclusion& inc);
 
-/// Wavy fibres are packed and audited as chains of straight cylinders, not by the envelope (the
-/// cylinder of radius r + A, four times the fibre's volume when A = r). The fibre (with its shell
-/// unless shells may touch: the sheared straight cylinder of radius R = r + t, half length
-/// H = h + t) is cut along its axis into n equal pieces; over a piece the cross-sections' offset
-/// A sin(k s + phase) departs from its chord by at most the sagitta A k^2 ds^2 / 8, so a point of
-/// the piece lies within R + sagitta of the chord's line and at most (R + sagitta) sin(alpha)
-/// beyond its ends (alpha: the chord's angle to the axis). Each piece is that cylinder, grown by
-/// the packing pad: together they hold what the envelope holds. n keeps the sagitta below
+/// Wavy fibres of large amplitude are packed and audited as chains of straight cylinders, not by
+/// the envelope (the cylinder of radius r + A, four times the fibre's volume when A = r). The fibre
+/// (with its shell unless shells may touch: the sheared straight cylinder of radius R = r + t, half
+/// length H = h + t) is cut along its axis into n equal pieces; over a piece the cross-sections'
+/// offset A sin(k s + phase) departs from its chord by at most the sagitta A k^2 ds^2 / 8, so a
+/// point of the piece lies within R + sagitta of the chord's line and at most (R + sagitta)
+/// sin(alpha) beyond its ends (alpha: the chord's angle to the axis). Each piece is that cylinder,
+/// grown by the packing pad: together they hold what the envelope holds. n keeps the sagitta below
 /// kChainSagitta of R.
-constexpr double kChainSagitta = 0.03;
+/// Chains pay where the envelope is far larger than the fibre: from a wave amplitude of
+/// kChainFrom times R (measured, samples/bench_deformed.py: at A = r / 2 the envelope packed as
+/// densely, at A = r chains reached 0.27 where the envelope jammed at 0.14).
+constexpr double kChainSagitta = 0.03, kChainFrom = 0.75;
 inline bool packs_as_chain(const Inclusion& inc) {
-  return inc.shape.kind == ShapeKind::Cylinder && inc.mod.wavy();
+  const Modifiers& m = inc.mod;
+  return inc.shape.kind == ShapeKind::Cylinder && m.wavy() &&
+         m.wave_amplitude >=
+             kChainFrom * (inc.shape.radius + (m.shells_may_touch ? 0.0 : m.coating));
 }
 /// The pieces of a wavy fibre's chain (world coordinates), appended to *out.
 void chain_pieces(const Inclusion& inc, std::vector<Shape>* out);

@@ -74,8 +74,8 @@ double Family::envelope_ratio() const {
   if (!m.any()) return 1.0;
   // A representative inclusion of mean sizes. Deformation is not counted: a deformed sphere is
   // packed by its own support function (deformed_support.hpp), whose hull has about the volume
-  // of the core, and how far a deformed ellipsoid's bound grows depends on the draw. Nor is
-  // waviness: wavy fibres are packed as chains that follow them (body.hpp, chain_pieces).
+  // of the core, and how far a deformed ellipsoid's bound grows depends on the draw. Nor is a
+  // large waviness: such fibres are packed as chains that follow them (body.hpp, chain_pieces).
   Random rng(0);
   Inclusion inc;
   Family mean = *this;
@@ -85,7 +85,7 @@ double Family::envelope_ratio() const {
   inc.shape = mean.draw(Vec3::Zero(), rng);
   inc.mod = m.draw(rng);
   inc.mod.deform_amplitude = 0.0;
-  inc.mod.wave_amplitude = 0.0;
+  if (packs_as_chain(inc)) inc.mod.wave_amplitude = 0.0;
   return envelope(inc).volume() / inc.shape.volume();
 }
 

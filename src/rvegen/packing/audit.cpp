@@ -74,7 +74,9 @@ Contact chain_contact(const Inclusion& a, const Shape& env_a, const Inclusion& b
 std::vector<OverlapRecord> find_overlaps(const InclusionSet& set, size_t limit) {
   const auto& inc = set.inclusions;
   // Modified inclusions are tested by their envelopes, which hold everything they add; deformed
-  // spheres, packed by their support functions, by those (see separated_by_support).
+  // spheres by their support functions (support_contact) and strongly wavy fibres by their
+  // chains (chain_contact), as they were packed. Pairs whose envelopes are apart are apart (a
+  // chain's pieces may reach beyond the envelope, the fibre does not).
   std::vector<Shape> env(inc.size());
   std::vector<std::shared_ptr<const DeformedSupport>> table(inc.size());
   for (size_t i = 0; i < inc.size(); ++i) env[i] = envelope(inc[i]);

@@ -115,8 +115,9 @@ double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& ori
     move[i] += dx;
     turn[i] += dw;
   };
-  axis.assign(n, Vec3::Zero());  // spheres have none (their capsules are points)
-  for (int i : oriented) axis[i] = principal_axis(bodies[i].shape);  // spheres have none
+  // Spheres have no axis: zero (their capsules are points), set once (bodies keep their order).
+  if (axis.size() != n) axis.assign(n, Vec3::Zero());
+  for (int i : oriented) axis[i] = principal_axis(bodies[i].shape);
   double s_in = s_out;
   double& max_overlap = sums->max_overlap;
   max_overlap = 0.0;

@@ -214,7 +214,6 @@ std::shared_ptr<const DeformedSupport> DeformedSupport::make(const Modifiers& m)
       }
     }
   }
-  out->radius_ = lam * (1.0 + e * deformation_peak(m));
   return out;
 }
 

@@ -34,17 +34,12 @@ class DeformedSupport {
 
   /// An upper bound of h(u) for any vector u (h is positively homogeneous: h(t u) = t h(u)).
   double operator()(const Vec3& u) const;
-  /// A certified upper bound of the surface's distance from the centre:
-  /// deform_scale (1 + deform_amplitude deformation_peak).
-  double radius() const { return radius_; }
-
   /// Cells per face side of the table, and of the sample grid behind it.
   static constexpr int kCells = 16;
 
  private:
   DeformedSupport() = default;
   std::vector<float> h_;  // 6 faces x (kCells + 1)^2 nodes: h at the node vector on the face
-  double radius_ = 0.0;
 };
 
 /// The table of an inclusion packed and audited by its support function: a deformed sphere

@@ -1,0 +1,264 @@
+#include "rvegen/packing/md_layers.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <numeric>
+
+#include "rvegen/geometry/convex.hpp"
+#include "rvegen/model/neighbours.hpp"
+
+namespace rvegen::md {
+
+namespace {
+
+constexpr int kMoves = 1000;  // in-plane moves of a fibre before it takes the least crowded layer
+constexpr int kSweeps = 16;   // height sweeps after layering
+
+// The box axis k normal to the plane the family's law confines axes to, or -1.
+int plane_normal_axis(const OrientationLaw& law) {
+  if (law.kind == OrientationLaw::Kind::kAligned) return -1;
+  const Eigen::SelfAdjointEigenSolver<Mat3> es(law.tensor());
+  if (es.eigenvalues()[0] > 1e-12 || es.eigenvalues()[1] <= 1e-12) return -1;
+  const Vec3 n = es.eigenvectors().col(0);
+  for (int k = 0; k < 3; ++k) {
+    if (std::abs(n[k]) > 1.0 - 1e-9) return k;
+  }
+  return -1;
+}
+
+struct Fibre {
+  int body;
+  double t;      // radius at full size with the gap's pad: half thickness and capsule radius
+  Vec3 half;     // half axis at full size (in the plane)
+  Vec3 normal;   // unit normal of the axis in the plane
+  double reach;  // |half| + t
+};
+
+class Layering {
+ public:
+  Layering(const Box& box, int k, std::vector<Body>* all, std::vector<Fibre> fibres)
+      : box_(box), k_(k), all_(*all), fibres_(std::move(fibres)) {
+    double reach = 0.0, tmax = 0.0;
+    for (const Fibre& f : fibres_) {
+      reach = std::max(reach, f.reach);
+      tmax = std::max(tmax, f.t);
+    }
+    reach_ = 2.0 * reach;
+    height_ = box.size[k];
+    layers_ = static_cast<int>(std::floor(height_ / (2.0 * tmax)));
+    // The grid is over projected centres (height = origin). Where the plane is at least twice
+    // the largest reach wide, only the nearest image of a pair can meet.
+    grid_ = std::make_unique<NeighbourGrid>(box, reach_, fibres_.size());
+    unique_image_ = true;
+    for (int x = 0; x < 3; ++x) {
+      if (x != k && box.size[x] < 2.0 * reach_) unique_image_ = false;
+    }
+  }
+
+  int layers() const { return layers_; }
+
+  // Steps 1 and 2 (see md_layers.hpp): layers, largest first.
+  void place(Random& rng) {
+    std::vector<int> order(fibres_.size());
+    std::iota(order.begin(), order.end(), 0);
+    std::stable_sort(order.begin(), order.end(),
+                     [&](int a, int b) { return fibres_[a].reach > fibres_[b].reach; });
+    layer_.assign(fibres_.size(), -1);
+    adj_.assign(fibres_.size(), {});
+    members_.assign(layers_, {});
+    std::vector<int> held(layers_), hits, perm(layers_);
+    std::iota(perm.begin(), perm.end(), 0);
+    for (int f : order) {
+      int layer = -1;
+      for (int move = 0; move <= kMoves && layer < 0; ++move) {
+        // Moved in its plane when every layer was taken here; in a box with walls, placed
+        // inside it from the start.
+        if (move > 0 || !box_.periodic) draw_center(f, rng);
+        layer = free_layer(f, rng, &perm);
+      }
+      conflicts(f, &hits);
+      if (layer < 0) {  // crowded: the layer fewest neighbours hold
+        std::fill(held.begin(), held.end(), 0);
+        for (int g : hits) ++held[layer_[g]];
+        layer = static_cast<int>(std::min_element(held.begin(), held.end()) - held.begin());
+      }
+      layer_[f] = layer;
+      members_[layer].push_back(f);
+      for (int g : hits) {
+        adj_[f].push_back(g);
+        adj_[g].push_back(f);
+      }
+      grid_->insert(f, projected(f));
+    }
+    const double pitch = height_ / layers_;
+    for (size_t f = 0; f < fibres_.size(); ++f) {
+      all_[fibres_[f].body].shape.center[k_] = box_.origin[k_] + (layer_[f] + 0.5) * pitch;
+    }
+  }
+
+  // Step 3: each fibre to a uniform height in the room its crossing neighbours leave.
+  void shake(Random& rng) {
+    for (int sweep = 0; sweep < kSweeps; ++sweep) {
+      for (size_t f = 0; f < fibres_.size(); ++f) {
+        double up, down;
+        if (!room(static_cast<int>(f), &up, &down)) continue;
+        Vec3& c = all_[fibres_[f].body].shape.center;
+        c[k_] += rng.uniform(-down, up);
+        if (box_.periodic) {
+          c[k_] -= std::floor((c[k_] - box_.origin[k_]) / height_) * height_;
+        }
+      }
+    }
+  }
+
+  size_t size() const { return fibres_.size(); }
+
+ private:
+  Vec3 projected(int f) const {
+    Vec3 c = all_[fibres_[f].body].shape.center;
+    c[k_] = box_.origin[k_];
+    return c;
+  }
+
+  // A random centre in the plane: anywhere in a periodic box, else where f is inside the box
+  // (in its middle where it cannot be).
+  void draw_center(int f, Random& rng) {
+    Vec3& c = all_[fibres_[f].body].shape.center;
+    for (int a = 0; a < 3; ++a) {
+      if (a == k_) continue;
+      const double margin = box_.periodic ? 0.0 : std::abs(fibres_[f].half[a]) + fibres_[f].t;
+      const double room = std::max(0.0, box_.size[a] - 2.0 * margin);
+      c[a] = box_.origin[a] + std::min(margin, 0.5 * box_.size[a]) + room * rng.uniform();
+    }
+  }
+
+  // A uniformly random layer where f meets no fibre (the first free one in a random order), or
+  // -1.
+  int free_layer(int f, Random& rng, std::vector<int>* perm) const {
+    for (int q = layers_ - 1; q > 0; --q) {
+      std::swap((*perm)[q], (*perm)[std::min<int>(q, rng.uniform() * (q + 1))]);
+    }
+    for (int c : *perm) {
+      if (!meets_layer(f, c, -1)) return c;
+    }
+    return -1;
+  }
+
+  // f meets a fibre of layer c other than `except`.
+  bool meets_layer(int f, int c, int except) const {
+    for (int g : members_[c]) {
+      if (g != except && meets(f, g)) return true;
+    }
+    return false;
+  }
+
+  // Fibres already placed whose projections may meet f's.
+  void conflicts(int f, std::vector<int>* hits) const {
+    hits->clear();
+    grid_->for_each_candidate(projected(f), [&](int g) {
+      if (meets(f, g)) hits->push_back(g);
+    });
+  }
+
+  // The projections of f and g (capsules of radius t about their axes, in the plane) meet, for
+  // some periodic image of g.
+  bool meets(int f, int g) const {
+    const Fibre& a = fibres_[f];
+    const Fibre& b = fibres_[g];
+    const double reach = a.reach + b.reach;
+    const double tt = a.t + b.t;
+    Vec3 d = projected(g) - projected(f);
+    int lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
+    if (box_.periodic) {
+      for (int x = 0; x < 3; ++x) {
+        if (x == k_) continue;
+        const double L = box_.size[x];
+        d[x] -= std::round(d[x] / L) * L;
+        if (unique_image_) continue;
+        lo[x] = static_cast<int>(std::ceil((-reach - d[x]) / L));
+        hi[x] = static_cast<int>(std::floor((reach - d[x]) / L));
+      }
+    }
+    for (int i = lo[0]; i <= hi[0]; ++i) {
+      for (int j = lo[1]; j <= hi[1]; ++j) {
+        for (int l = lo[2]; l <= hi[2]; ++l) {
+          const Vec3 q = d + Vec3(i * box_.size[0], j * box_.size[1], l * box_.size[2]);
+          if (q.squaredNorm() >= reach * reach) continue;
+          // b's centre within |h_b . n_a| + t_a + t_b of a's line (n_a: a's in-plane normal)
+          if (std::abs(q.dot(a.normal)) >= std::abs(b.half.dot(a.normal)) + tt) continue;
+          if (segment_distance2(-a.half, a.half, q - b.half, q + b.half) < tt * tt) return true;
+        }
+      }
+    }
+    return false;
+  }
+
+  // The room above and below f's height; false when a neighbour is already too close.
+  bool room(int f, double* up, double* down) const {
+    const double z = all_[fibres_[f].body].shape.center[k_];
+    if (box_.periodic) {
+      *up = *down = 0.5 * height_;
+    } else {
+      *up = box_.origin[k_] + height_ - fibres_[f].t - z;
+      *down = z - box_.origin[k_] - fibres_[f].t;
+    }
+    for (int g : adj_[f]) {
+      const double sep = fibres_[f].t + fibres_[g].t;
+      double d = all_[fibres_[g].body].shape.center[k_] - z;
+      if (box_.periodic) {
+        d -= std::floor(d / height_) * height_;  // [0, H): g above by d, below by H - d
+        *up = std::min(*up, d - sep);
+        *down = std::min(*down, height_ - d - sep);
+      } else if (d >= 0.0) {
+        *up = std::min(*up, d - sep);
+      } else {
+        *down = std::min(*down, -d - sep);
+      }
+    }
+    return *up >= 0.0 && *down >= 0.0;
+  }
+
+  const Box& box_;
+  int k_;
+  std::vector<Body>& all_;
+  std::vector<Fibre> fibres_;
+  double reach_ = 0.0, height_ = 0.0;
+  bool unique_image_ = false;
+  std::vector<std::vector<int>> members_;  // per layer
+  int layers_ = 0;
+  std::unique_ptr<NeighbourGrid> grid_;
+  std::vector<int> layer_;
+  std::vector<std::vector<int>> adj_;
+};
+
+}  // namespace
+
+size_t layer_planar_fibres(const PackingSpec& spec, const std::vector<Inclusion>& pop, Random& rng,
+                           Bodies* bodies) {
+  std::vector<Fibre> by_axis[3];
+  for (size_t i = 0; i < bodies->all.size(); ++i) {
+    const Body& b = bodies->all[i];
+    if (b.shape.kind != ShapeKind::Cylinder || pop[i].mod.any() || b.radial) continue;
+    const int k = plane_normal_axis(spec.families[b.family].orientation);
+    if (k < 0 || std::abs(b.shape.half_axis[k]) > 1e-9 * b.shape.half_axis.norm()) continue;
+    Vec3 half = b.shape.half_axis * (1.0 + b.pad);
+    half[k] = 0.0;
+    const double t = b.shape.radius * (1.0 + b.pad);
+    by_axis[k].push_back(
+        {static_cast<int>(i), t, half, Vec3::Unit(k).cross(half).normalized(), half.norm() + t});
+  }
+  size_t placed = 0;
+  for (int k = 0; k < 3; ++k) {
+    if (by_axis[k].size() < 2) continue;
+    Layering layering(spec.box, k, &bodies->all, std::move(by_axis[k]));
+    if (layering.layers() < 2) continue;
+    layering.place(rng);
+    layering.shake(rng);
+    placed += layering.size();
+  }
+  return placed;
+}
+
+}  // namespace rvegen::md

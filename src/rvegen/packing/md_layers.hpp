@@ -1,0 +1,35 @@
+// Molecular-dynamics packing, the start of planar fibres: heights in layers.
+//
+// Fibres of a planar law that keep their orientation (or turn only in their plane) meet where
+// their projections onto the plane cross, and the contact pushes them along the plane's normal
+// only. Growing about random centres, they keep the order of their heights along that normal,
+// and a stack of crossing fibres that winds once around a periodic box stops the growth (with
+// random heights, 2,500 fibres of L/D 20 jammed at 0.05). So these fibres start at heights that
+// leave room for their full size:
+//   1. a fibre's projection is its section through its axis (a cylinder lying in the plane is
+//      symmetric about it), so two fibres can overlap only if their projections do (their
+//      capsules of radius r (1 + pad) in the plane, a superset), and never when their heights
+//      differ by at least the sum of their radii;
+//   2. the box height H along the normal holds K = floor(H / T) layers of thickness T (the
+//      largest diameter); largest first, each fibre takes a random layer that no fibre already
+//      placed with a crossing projection holds, and is moved elsewhere in its plane (orientation
+//      kept) when every layer is taken; after kMoves moves it takes the least crowded layer and
+//      the packing sorts it out;
+//   3. a few sweeps move each fibre to a uniformly random height within the room its crossing
+//      neighbours leave (exactly, on the periodic circle), so heights are not on a lattice where
+//      there is room.
+// Only plain cylinders (no modifiers) whose law confines their axes to a plane normal to a box
+// axis are placed so; the others keep their random centres.
+#pragma once
+
+#include "rvegen/geometry/random.hpp"
+#include "rvegen/packing/md_bodies.hpp"
+
+namespace rvegen::md {
+
+/// Sets the heights (and where a layer is full, the in-plane centres) of the planar fibres of
+/// `bodies` as above. Returns the number of fibres placed in layers.
+size_t layer_planar_fibres(const PackingSpec& spec, const std::vector<Inclusion>& pop, Random& rng,
+                           Bodies* bodies);
+
+}  // namespace rvegen::md

@@ -357,10 +357,19 @@ ConvexQuery convex_query(const Shape& a, const Shape& b, double tolerance, bool 
 // Squared distance between segments [p1, q1] and [p2, q2] (Ericson, Real-Time Collision
 // Detection, 5.1.9).
 double segment_distance2(const Vec3& p1, const Vec3& q1, const Vec3& p2, const Vec3& q2) {
+  double s, t;
+  return segment_closest(p1, q1, p2, q2, &s, &t);
+}
+
+double segment_closest(const Vec3& p1, const Vec3& q1, const Vec3& p2, const Vec3& q2,
+                       double* s_out, double* t_out) {
   const Vec3 d1 = q1 - p1, d2 = q2 - p2, r = p1 - p2;
   const double a = d1.squaredNorm(), e = d2.squaredNorm(), f = d2.dot(r);
   double s = 0.0, t = 0.0;
-  if (a <= 1e-300 && e <= 1e-300) return r.squaredNorm();
+  if (a <= 1e-300 && e <= 1e-300) {
+    *s_out = *t_out = 0.0;
+    return r.squaredNorm();
+  }
   if (a <= 1e-300) {
     t = std::clamp(f / e, 0.0, 1.0);
   } else {
@@ -380,6 +389,8 @@ double segment_distance2(const Vec3& p1, const Vec3& q1, const Vec3& p2, const V
       }
     }
   }
+  *s_out = s;
+  *t_out = t;
   return (p1 + d1 * s - (p2 + d2 * t)).squaredNorm();
 }
 

@@ -33,5 +33,8 @@ ConvexQuery convex_query(const Shape& a, const Shape& b, double tolerance, bool 
 
 /// Squared distance between the segments [p1, q1] and [p2, q2] (either may be a point).
 double segment_distance2(const Vec3& p1, const Vec3& q1, const Vec3& p2, const Vec3& q2);
+/// The same, with the closest points' parameters: p1 + s (q1 - p1) and p2 + t (q2 - p2).
+double segment_closest(const Vec3& p1, const Vec3& q1, const Vec3& p2, const Vec3& q2, double* s,
+                       double* t);
 
 }  // namespace rvegen

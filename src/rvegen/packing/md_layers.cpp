@@ -13,8 +13,11 @@ namespace rvegen::md {
 
 namespace {
 
-constexpr int kMoves = 1000;  // in-plane moves of a fibre before it takes the least crowded layer
-constexpr int kSweeps = 16;   // height sweeps after layering
+constexpr int kMoves = 30;       // in-plane moves of a fibre to find a free layer
+constexpr int kSlides = 3000;    // then places where it slides out of a few fibres of a layer,
+constexpr int kSlideFibres = 3;  // at most that many,
+constexpr int kSlideSteps = 8;   // in that many pushes; then it takes the least crowded layer
+constexpr int kSweeps = 16;      // height sweeps after layering
 
 // The box axis k normal to the plane the family's law confines axes to, or -1.
 int plane_normal_axis(const OrientationLaw& law) {
@@ -77,6 +80,22 @@ class Layering {
         // inside it from the start.
         if (move > 0 || !box_.periodic) draw_center(f, rng);
         layer = free_layer(f, rng, &perm);
+      }
+      // Crowded: tries layers where the fibre meets one or two others, sliding it out of them.
+      for (int slid = 0; slid < kSlides && layer < 0; ++slid) {
+        draw_center(f, rng);
+        conflicts(f, &hits);
+        std::fill(held.begin(), held.end(), 0);
+        for (int g : hits) ++held[layer_[g]];
+        const Vec3 at = all_[fibres_[f].body].shape.center;
+        for (int c = 0; c < layers_ && layer < 0; ++c) {
+          if (held[c] > kSlideFibres) continue;
+          if (slide(f, c)) {
+            layer = c;
+          } else {
+            all_[fibres_[f].body].shape.center = at;
+          }
+        }
       }
       conflicts(f, &hits);
       if (layer < 0) {  // crowded: the layer fewest neighbours hold
@@ -165,6 +184,13 @@ class Layering {
   // The projections of f and g (capsules of radius t about their axes, in the plane) meet, for
   // some periodic image of g.
   bool meets(int f, int g) const {
+    return each_meeting(f, g, [](const Vec3&, double) { return true; });
+  }
+
+  // Calls on_hit(q, d2) for every image of g whose projection meets f's (q: g's centre from
+  // f's, d2: squared distance of the axes) until it returns true; returns whether it did.
+  template <class F>
+  bool each_meeting(int f, int g, F&& on_hit) const {
     const Fibre& a = fibres_[f];
     const Fibre& b = fibres_[g];
     const double reach = a.reach + b.reach;
@@ -188,11 +214,54 @@ class Layering {
           if (q.squaredNorm() >= reach * reach) continue;
           // b's centre within |h_b . n_a| + t_a + t_b of a's line (n_a: a's in-plane normal)
           if (std::abs(q.dot(a.normal)) >= std::abs(b.half.dot(a.normal)) + tt) continue;
-          if (segment_distance2(-a.half, a.half, q - b.half, q + b.half) < tt * tt) return true;
+          const double d2 = segment_distance2(-a.half, a.half, q - b.half, q + b.half);
+          if (d2 < tt * tt && on_hit(q, d2)) return true;
         }
       }
     }
     return false;
+  }
+
+  // Slides f in its plane out of the few fibres of layer c it meets (each pushes it along the
+  // line of the axes' closest points by the overlap plus a little), kSlideSteps times at most;
+  // true when f then meets none. Gives up where axes cross (no short slide frees them) or more
+  // than kSlideFibres are met.
+  bool slide(int f, int c) {
+    const Fibre& a = fibres_[f];
+    Vec3& centre = all_[a.body].shape.center;
+    for (int step = 0;; ++step) {
+      Vec3 push = Vec3::Zero();
+      int met = 0;
+      bool stuck = false;
+      for (int g : members_[c]) {
+        const Fibre& b = fibres_[g];
+        const double tt = a.t + b.t;
+        each_meeting(f, g, [&](const Vec3& q, double d2) {
+          const double dist = std::sqrt(d2);
+          if (++met > kSlideFibres || dist < 0.05 * tt) return stuck = true;
+          double s, t;
+          segment_closest(-a.half, a.half, q - b.half, q + b.half, &s, &t);
+          const Vec3 pa = a.half * (2.0 * s - 1.0), pb = q + b.half * (2.0 * t - 1.0);
+          push += (pa - pb) * ((1.02 * tt - dist) / dist);
+          return false;
+        });
+        if (stuck) return false;
+      }
+      if (met == 0) return true;
+      if (step == kSlideSteps) return false;
+      push[k_] = 0.0;
+      centre += push;
+      if (!box_.periodic) {
+        for (int x = 0; x < 3; ++x) {
+          if (x == k_) continue;
+          const double margin = std::abs(a.half[x]) + a.t;
+          if (centre[x] < box_.origin[x] + margin ||
+              centre[x] > box_.origin[x] + box_.size[x] - margin) {
+            return false;
+          }
+        }
+      }
+    }
   }
 
   // The room above and below f's height; false when a neighbour is already too close.

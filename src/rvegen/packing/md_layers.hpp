@@ -12,9 +12,12 @@
 //      differ by at least the sum of their radii;
 //   2. the box height H along the normal holds K = floor(H / T) layers of thickness T (the
 //      largest diameter); largest first, each fibre takes a random layer that no fibre already
-//      placed with a crossing projection holds, and is moved elsewhere in its plane (orientation
-//      kept) when every layer is taken; after kMoves moves it takes the least crowded layer and
-//      the packing sorts it out;
+//      placed with a crossing projection holds, and is moved elsewhere in its plane (direction
+//      kept) when every layer is taken there; after kMoves moves it tries places where it meets
+//      at most kSlideFibres fibres of some layer and slides out of them in its plane (each
+//      pushes it along the line of the axes' closest points by the overlap), which fills the
+//      layers well beyond random placement; after kSlides such places it takes the least
+//      crowded layer and the packing sorts it out;
 //   3. a few sweeps move each fibre to a uniformly random height within the room its crossing
 //      neighbours leave (exactly, on the periodic circle), so heights are not on a lattice where
 //      there is room.

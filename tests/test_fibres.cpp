@@ -306,6 +306,39 @@ TEST(PlanarFibres, HeightsAreUniformWhereThereIsRoom) {
   EXPECT_TRUE(find_outside(w.set).empty());
 }
 
+// Aligned fibres about a third of the box long: with random positions along the axis each line
+// holds about one fibre and the packing jammed near 0.45; in slots along the axis two share a
+// line and 0.58 is reached, every fibre its drawn length and direction.
+TEST(AlignedFibres, SlotsAlongTheAxisReachDensePackings) {
+  const Scene s = fibre_scene(R"({"law":"aligned","axis":[1,0,0]})", 0.58, 10.0, 1500);
+  Random rng(s.seed);
+  const std::vector<Inclusion> drawn = draw_population(s, rng);
+  const PackingResult r = pack_md(s);
+  EXPECT_EQ(r.status, PackingStatus::kOk) << r.scale;
+  EXPECT_TRUE(find_overlaps(r.set).empty());
+  ASSERT_EQ(r.set.inclusions.size(), drawn.size());
+  for (size_t i = 0; i < drawn.size(); ++i) {
+    EXPECT_LT((r.set.inclusions[i].shape.half_axis - drawn[i].shape.half_axis).norm(), 1e-12);
+  }
+}
+
+// Where one fibre per line fits (sections filling less than 0.7 of the cross-section), no slots:
+// the fibres' ends are spread evenly along the axis.
+TEST(AlignedFibres, NoSlotsWhereOneFibrePerLineFits) {
+  const Scene s = fibre_scene(R"({"law":"aligned","axis":[1,0,0]})", 0.15, 10.0, 1500);
+  const PackingResult r = pack_md(s);
+  ASSERT_EQ(r.status, PackingStatus::kOk);
+  std::vector<int> tenth(10, 0);
+  for (const Inclusion& inc : r.set.inclusions) {
+    const double end = inc.shape.center[0] - std::abs(inc.shape.half_axis[0]);
+    ++tenth[std::clamp(static_cast<int>((end - std::floor(end)) * 10.0), 0, 9)];
+  }
+  for (int t : tenth) {
+    EXPECT_GT(t, 90);
+    EXPECT_LT(t, 210);
+  }
+}
+
 TEST(FibreOrientation, AlignedFibresKeepTheGapInANonPeriodicBox) {
   const Scene s = parse_scene(R"({"box":{"size":[1,1,1],"periodic":false},"seed":9,
       "min_gap":0.004,"families":[{"shape":"cylinder","radius":0.02,"aspect_ratio":8,

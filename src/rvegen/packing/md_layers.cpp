@@ -17,7 +17,12 @@ constexpr int kMoves = 30;       // in-plane moves of a fibre to find a free lay
 constexpr int kSlides = 3000;    // then places where it slides out of a few fibres of a layer,
 constexpr int kSlideFibres = 3;  // at most that many,
 constexpr int kSlideSteps = 8;   // in that many pushes; then it takes the least crowded layer
-constexpr int kSweeps = 16;      // height sweeps after layering
+constexpr long long kSlideBudget = 200;  // slide places per fibre, in all
+constexpr double kCrowdedShare = 0.01;   // no slides once that share of fibres is crowded
+constexpr int kSweeps = 16;
+constexpr double kLinesFull = 0.7;  // aligned fibres: slots where sections fill more
+constexpr double kShrink = 0.95;    // layers for smaller sizes ...
+constexpr double kMinScale = 0.7;   // ... down to this scale
 
 // The box axis k normal to the plane the family's law confines axes to, or -1.
 int plane_normal_axis(const OrientationLaw& law) {
@@ -63,7 +68,9 @@ class Layering {
   int layers() const { return layers_; }
 
   // Steps 1 and 2 (see md_layers.hpp): layers, largest first.
-  void place(Random& rng) {
+  // Returns false, unfinished, once more than kCrowdedShare of the fibres are crowded, unless
+  // `finish` (then they go on without slides).
+  bool place(Random& rng, bool finish) {
     std::vector<int> order(fibres_.size());
     std::iota(order.begin(), order.end(), 0);
     std::stable_sort(order.begin(), order.end(),
@@ -73,7 +80,15 @@ class Layering {
     members_.assign(layers_, {});
     std::vector<int> held(layers_), hits, perm(layers_);
     std::iota(perm.begin(), perm.end(), 0);
+    // The work is bounded: kSlideBudget slide places per fibre in all, and none once
+    // kCrowdedShare of the fibres are crowded (the target is then out of reach of layers).
+    long long slides = kSlideBudget * static_cast<long long>(fibres_.size());
+    size_t crowded = 0;
     for (int f : order) {
+      if (crowded > kCrowdedShare * fibres_.size()) {
+        if (!finish) return false;
+        slides = 0;
+      }
       int layer = -1;
       for (int move = 0; move <= kMoves && layer < 0; ++move) {
         // Moved in its plane when every layer was taken here; in a box with walls, placed
@@ -81,8 +96,8 @@ class Layering {
         if (move > 0 || !box_.periodic) draw_center(f, rng);
         layer = free_layer(f, rng, &perm);
       }
-      // Crowded: tries layers where the fibre meets one or two others, sliding it out of them.
-      for (int slid = 0; slid < kSlides && layer < 0; ++slid) {
+      // Crowded: tries layers where the fibre meets a few others, sliding it out of them.
+      for (int slid = 0; slid < kSlides && layer < 0 && slides > 0; ++slid, --slides) {
         draw_center(f, rng);
         conflicts(f, &hits);
         std::fill(held.begin(), held.end(), 0);
@@ -102,6 +117,7 @@ class Layering {
         std::fill(held.begin(), held.end(), 0);
         for (int g : hits) ++held[layer_[g]];
         layer = static_cast<int>(std::min_element(held.begin(), held.end()) - held.begin());
+        ++crowded;
       }
       layer_[f] = layer;
       members_[layer].push_back(f);
@@ -115,6 +131,7 @@ class Layering {
     for (size_t f = 0; f < fibres_.size(); ++f) {
       all_[fibres_[f].body].shape.center[k_] = box_.origin[k_] + (layer_[f] + 0.5) * pitch;
     }
+    return true;
   }
 
   // Step 3: each fibre to a uniform height in the room its crossing neighbours leave.
@@ -321,11 +338,67 @@ size_t layer_planar_fibres(const PackingSpec& spec, const std::vector<Inclusion>
   size_t placed = 0;
   for (int k = 0; k < 3; ++k) {
     if (by_axis[k].size() < 2) continue;
-    Layering layering(spec.box, k, &bodies->all, std::move(by_axis[k]));
-    if (layering.layers() < 2) continue;
-    layering.place(rng);
-    layering.shake(rng);
-    placed += layering.size();
+    // Layers for the drawn sizes; where more than kCrowdedShare of the fibres find no room in
+    // them (a target beyond what layers hold), for sizes kShrink smaller, down to kMinScale.
+    for (double scale = 1.0;; scale *= kShrink) {
+      std::vector<Fibre> fibres = by_axis[k];
+      for (Fibre& f : fibres) {
+        f.t *= scale;
+        f.half *= scale;
+        f.reach *= scale;
+      }
+      Layering layering(spec.box, k, &bodies->all, std::move(fibres));
+      if (layering.layers() < 2) break;
+      if (!layering.place(rng, scale * kShrink < kMinScale)) continue;
+      layering.shake(rng);
+      placed += layering.size();
+      break;
+    }
+  }
+  return placed;
+}
+
+size_t slot_aligned_fibres(const PackingSpec& spec, Random& rng, Bodies* bodies) {
+  const Box& box = spec.box;
+  std::vector<int> by_axis[3];
+  double longest[3] = {0.0, 0.0, 0.0};
+  for (size_t i = 0; i < bodies->all.size(); ++i) {
+    const Body& b = bodies->all[i];
+    if (!b.radial) continue;
+    const Vec3 u = b.shape.half_axis / b.cap_half;
+    for (int k = 0; k < 3; ++k) {
+      if (std::abs(u[k]) > 1.0 - 1e-12) {
+        by_axis[k].push_back(static_cast<int>(i));
+        longest[k] = std::max(longest[k], 2.0 * (b.cap_half + b.half_gap));
+      }
+    }
+  }
+  size_t placed = 0;
+  for (int k = 0; k < 3; ++k) {
+    if (by_axis[k].empty()) continue;
+    const int slots = static_cast<int>(std::floor(box.size[k] / longest[k]));
+    if (slots < 2) continue;  // one slot: any two fibres side by side already share their span
+    // Only where one fibre per line would not fit: their sections would fill more than
+    // kLinesFull of the box's cross-section.
+    double section = 0.0;
+    for (int i : by_axis[k]) {
+      const Body& b = bodies->all[i];
+      section += M_PI * (b.shape.radius + b.half_gap) * (b.shape.radius + b.half_gap);
+    }
+    if (section * box.size[k] <= kLinesFull * box.volume()) continue;
+    const double pitch = box.size[k] / slots;
+    // Equal counts per slot, in a random order.
+    std::vector<int>& fibres = by_axis[k];
+    for (size_t q = fibres.size() - 1; q > 0; --q) {
+      std::swap(fibres[q], fibres[std::min<size_t>(q, rng.uniform() * (q + 1))]);
+    }
+    for (size_t q = 0; q < fibres.size(); ++q) {
+      Body& b = bodies->all[fibres[q]];
+      const double room = std::max(0.0, pitch - 2.0 * (b.cap_half + b.half_gap));
+      b.shape.center[k] = box.origin[k] + (static_cast<double>(q % slots) + 0.5) * pitch +
+                          room * (rng.uniform() - 0.5);
+    }
+    placed += fibres.size();
   }
   return placed;
 }

@@ -98,6 +98,41 @@ bool chain_overlaps(const std::vector<Body>& bodies, const std::vector<Vec3>& ax
   }
   return any;
 }
+// The valid scale of the overlapping pairs `limits` (scale certified by the contact plane,
+// pair): the plane of the contact normal is not the best separating plane of every pair (end
+// disks, the normals of EPA), and the pairs with the lowest such scales hold the packing back.
+// Those kRefined are bisected kBisections times between their plane's scale and s_out with the
+// exact test (valid at one scale, a pair is valid below it: both shapes shrink about inner
+// points); the scale is the least of theirs and the next pair's plane scale.
+double refined_scale(const std::vector<Body>& bodies, double s_out,
+                     std::vector<std::pair<double, const PairEntry*>>* limits) {
+  constexpr size_t kRefined = 64;
+  constexpr int kBisections = 12;
+  std::vector<std::pair<double, const PairEntry*>>& l = *limits;
+  if (l.empty()) return s_out;
+  const size_t k = std::min(kRefined, l.size());
+  const auto by_scale = [](const auto& x, const auto& y) { return x.first < y.first; };
+  if (k < l.size()) {
+    std::nth_element(l.begin(), l.begin() + k, l.end(), by_scale);
+  }
+  double s = k < l.size() ? l[k].first : s_out;
+  for (size_t i = 0; i < k; ++i) {
+    const PairEntry& e = *l[i].second;
+    const Body &ba = bodies[e.a], &bb = bodies[e.b];
+    double lo = std::max(0.0, l[i].first), hi = s_out;
+    for (int it = 0; it < kBisections && lo < s; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      if (intersect(ba.at_scale(mid), bb.at_scale(mid).translated(e.shift)).overlap) {
+        hi = mid;
+      } else {
+        lo = mid;
+      }
+    }
+    s = std::min(s, lo);
+  }
+  return s;
+}
+
 }  // namespace
 
 double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& oriented,
@@ -127,6 +162,9 @@ double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& ori
   std::vector<const PairEntry*> chain_pairs;  // pairs with a chain whose capsules meet
   double chain_depth = 0.0;                   // their deepest overlap, relative
   std::vector<Contact> found;                 // the overlapping pieces of one pair
+  // Pairs that overlap at s_out (exact test) and the scale their contact plane certifies.
+  std::vector<std::pair<double, const PairEntry*>>& limits = sums->limits;
+  limits.clear();
   for (const PairEntry& e : pairs) {
     if ((++visited & 4095) == 0 && tick) tick();
     const Body &ba = bodies[e.a], &bb = bodies[e.b];
@@ -220,7 +258,7 @@ double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& ori
     const Contact c = intersect(A, B);
     if (!c.overlap) continue;
     max_overlap = std::max(max_overlap, c.depth / std::min(A.min_size(), B.min_size()));
-    s_in = std::min(s_in, separating_scale(ba, bb, e.shift, c.normal));
+    limits.push_back({separating_scale(ba, bb, e.shift, c.normal), &e});
     // An inclusion against its own periodic image (e.a == e.b) only turns: the two moves
     // cancel.
     const ContactResponse r =
@@ -228,6 +266,7 @@ double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& ori
     add(e.a, r.move_a, r.turn_a);
     add(e.b, r.move_b, r.turn_b);
   }
+  s_in = std::min(s_in, refined_scale(bodies, s_out, &limits));
   if (!box.periodic) {
     // Walls: contacts push the shape at the force scale back inside; the valid scale is the
     // largest at which the (unpadded) shape is inside.

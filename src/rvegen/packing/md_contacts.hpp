@@ -5,6 +5,7 @@
 #pragma once
 
 #include <functional>
+#include <utility>
 #include <vector>
 
 #include "rvegen/packing/md_neighbours.hpp"
@@ -17,13 +18,15 @@ struct ContactSums {
   double max_overlap = 0.0;                // largest overlap depth relative to the smaller body
   std::vector<Vec3> axis;                  // principal axis of every oriented body this step
   std::vector<std::vector<Shape>> pieces;  // storage of the chains' pieces (reused)
+  std::vector<std::pair<double, const PairEntry*>> limits;  // work space (reused)
 };
 
 /// Tests every listed pair (and, in a closed box, every body against the walls) at the force
 /// scale s_out, sums each contact's response into *sums, and returns a scale (>= 0, at most
 /// s_out) at which the current configuration is valid: pairs that do not overlap at s_out are
 /// valid below it, the others below the scale at which the plane of their contact normal
-/// separates them. `tick` is called every 4096 pairs.
+/// separates them (for the pairs that limit it most, the scale bisected with the exact test).
+/// `tick` is called every 4096 pairs.
 double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& oriented,
                     const std::vector<PairEntry>& pairs, const Box& box, double s_out,
                     ContactSums* sums, const std::function<void()>& tick);

@@ -240,7 +240,8 @@ TEST(Audit, GenerateNeverReturnsAnOverlappingRve) {
 
 TEST(Budgets, MdTimeBudgetHoldsInsideACrowdedPairListBuild) {
   // 30,000 thin disks of radius 0.05 (aspect ratio 1e-3): each meets hundreds of others, so
-  // one pair-list build takes longer than the budget; the run stops there, validly.
+  // one pair-list build takes longer than the budget; the run stops in the second step (the
+  // first always completes: its configuration is the least a run returns), validly.
   Scene s = parse_scene(R"({"box":{"size":[1,1,1]},"seed":1,"md":{"max_seconds":0.01},
       "families":[{"shape":"cylinder","radius":0.05,"aspect_ratio":0.001,"count":30000}],
       "voxels":{"resolution":8}})");

@@ -19,10 +19,10 @@ constexpr int kSlideFibres = 3;  // at most that many,
 constexpr int kSlideSteps = 8;   // in that many pushes; then it takes the least crowded layer
 constexpr long long kSlideBudget = 200;  // slide places per fibre, in all
 constexpr double kCrowdedShare = 0.01;   // no slides once that share of fibres is crowded
-constexpr int kSweeps = 16;
-constexpr double kLinesFull = 0.7;  // aligned fibres: slots where sections fill more
-constexpr double kShrink = 0.95;    // layers for smaller sizes ...
-constexpr double kMinScale = 0.7;   // ... down to this scale
+constexpr int kSweeps = 16;              // height sweeps after layering
+constexpr double kLinesFull = 0.7;       // aligned fibres: slots where sections fill more
+constexpr double kShrink = 0.95;         // layers for smaller sizes ...
+constexpr double kMinScale = 0.7;        // ... down to this scale
 
 // The box axis k normal to the plane the family's law confines axes to, or -1.
 int plane_normal_axis(const OrientationLaw& law) {

@@ -17,7 +17,10 @@
 //      at most kSlideFibres fibres of some layer and slides out of them in its plane (each
 //      pushes it along the line of the axes' closest points by the overlap), which fills the
 //      layers well beyond random placement; after kSlides such places it takes the least
-//      crowded layer and the packing sorts it out;
+//      crowded layer and the packing sorts it out. The slide work is bounded (kSlideBudget
+//      places per fibre in all). Where more than kCrowdedShare of the fibres find no room (a
+//      target beyond what layers hold), the layers are built for sizes kShrink smaller, down to
+//      kMinScale, and the packing grows from there;
 //   3. a few sweeps move each fibre to a uniformly random height within the room its crossing
 //      neighbours leave (exactly, on the periodic circle), so heights are not on a lattice where
 //      there is room.

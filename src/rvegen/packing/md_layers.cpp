@@ -149,8 +149,6 @@ class Layering {
     }
   }
 
-  size_t size() const { return fibres_.size(); }
-
  private:
   Vec3 projected(int f) const {
     Vec3 c = all_[fibres_[f].body].shape.center;
@@ -321,8 +319,8 @@ class Layering {
 
 }  // namespace
 
-size_t layer_planar_fibres(const PackingSpec& spec, const std::vector<Inclusion>& pop, Random& rng,
-                           Bodies* bodies) {
+void layer_planar_fibres(const PackingSpec& spec, const std::vector<Inclusion>& pop, Random& rng,
+                         Bodies* bodies) {
   std::vector<Fibre> by_axis[3];
   for (size_t i = 0; i < bodies->all.size(); ++i) {
     const Body& b = bodies->all[i];
@@ -335,7 +333,6 @@ size_t layer_planar_fibres(const PackingSpec& spec, const std::vector<Inclusion>
     by_axis[k].push_back(
         {static_cast<int>(i), t, half, Vec3::Unit(k).cross(half).normalized(), half.norm() + t});
   }
-  size_t placed = 0;
   for (int k = 0; k < 3; ++k) {
     if (by_axis[k].size() < 2) continue;
     // Layers for the drawn sizes; where more than kCrowdedShare of the fibres find no room in
@@ -351,14 +348,12 @@ size_t layer_planar_fibres(const PackingSpec& spec, const std::vector<Inclusion>
       if (layering.layers() < 2) break;
       if (!layering.place(rng, scale * kShrink < kMinScale)) continue;
       layering.shake(rng);
-      placed += layering.size();
       break;
     }
   }
-  return placed;
 }
 
-size_t slot_aligned_fibres(const PackingSpec& spec, Random& rng, Bodies* bodies) {
+void slot_aligned_fibres(const PackingSpec& spec, Random& rng, Bodies* bodies) {
   const Box& box = spec.box;
   std::vector<int> by_axis[3];
   double longest[3] = {0.0, 0.0, 0.0};
@@ -373,7 +368,6 @@ size_t slot_aligned_fibres(const PackingSpec& spec, Random& rng, Bodies* bodies)
       }
     }
   }
-  size_t placed = 0;
   for (int k = 0; k < 3; ++k) {
     if (by_axis[k].empty()) continue;
     const int slots = static_cast<int>(std::floor(box.size[k] / longest[k]));
@@ -398,9 +392,7 @@ size_t slot_aligned_fibres(const PackingSpec& spec, Random& rng, Bodies* bodies)
       b.shape.center[k] = box.origin[k] + (static_cast<double>(q % slots) + 0.5) * pitch +
                           room * (rng.uniform() - 0.5);
     }
-    placed += fibres.size();
   }
-  return placed;
 }
 
 }  // namespace rvegen::md

@@ -34,9 +34,9 @@
 namespace rvegen::md {
 
 /// Sets the heights (and where a layer is full, the in-plane centres) of the planar fibres of
-/// `bodies` as above. Returns the number of fibres placed in layers.
-size_t layer_planar_fibres(const PackingSpec& spec, const std::vector<Inclusion>& pop, Random& rng,
-                           Bodies* bodies);
+/// `bodies` as above.
+void layer_planar_fibres(const PackingSpec& spec, const std::vector<Inclusion>& pop, Random& rng,
+                         Bodies* bodies);
 
 /// Aligned fibres (growing in radius only, at full length; see md_bodies.hpp) along a box axis
 /// where the box holds K = floor(H / L) >= 2 of the longest end to end: with random positions
@@ -46,7 +46,6 @@ size_t layer_planar_fibres(const PackingSpec& spec, const std::vector<Inclusion>
 /// more than 0.7 of the cross-section), the axis is cut into K slots of length H / K, equal
 /// numbers of fibres go to each (in a random order), each placed at a uniform position within
 /// its slot. Fibres of different slots never meet; each slot is packed as a layer of disks.
-/// Returns the number of fibres placed so.
-size_t slot_aligned_fibres(const PackingSpec& spec, Random& rng, Bodies* bodies);
+void slot_aligned_fibres(const PackingSpec& spec, Random& rng, Bodies* bodies);
 
 }  // namespace rvegen::md

@@ -6,10 +6,14 @@
 
 #include "rvegen/geometry/convex.hpp"
 #include "rvegen/geometry/pair.hpp"
+#include "rvegen/geometry/random.hpp"
 
 using namespace rvegen;
 
 namespace {
+
+// EPA depth accuracy asked for where a test checks depths to 1e-6.
+constexpr double kTightDepth = 1e-8;
 
 const Shape kCyl =
     Shape::cylinder(Vec3::Zero(), 1.0, Vec3(0, 0, 2));  // radius 1, length 4, along z
@@ -158,7 +162,9 @@ TEST(CylinderCylinder, OneInsideTheOther) {
 
 TEST(CylinderCylinder, EndDiskIntoLateralSurfaceTJunction) {
   // The disk plane is parallel to the other's axis: the paper's Algorithm 3 divides by zero.
-  const Contact c = intersect(kCyl, Shape::cylinder({2.4, 0, 0.3}, 0.5, Vec3(1.5, 0, 0)));
+  // (A tight EPA depth is asked for: the default stops within 1e-3 of it, see below.)
+  const Contact c =
+      intersect(kCyl, Shape::cylinder({2.4, 0, 0.3}, 0.5, Vec3(1.5, 0, 0)), kTightDepth);
   ASSERT_TRUE(c.overlap);
   EXPECT_EQ(c.type, ContactType::kCD1);
   EXPECT_NEAR(c.depth, 0.1, 1e-6);
@@ -179,7 +185,7 @@ TEST(CylinderCylinder, Cd3AxisThroughEndDisk) {
 TEST(CylinderCylinder, CoplanarAxesCornerToCorner) {
   // Axes in the plane y = 0, 90 degrees apart, corners meeting: only end disks are involved.
   const Shape c2 = Shape::cylinder({1 + 2 - 0.05, 0, 2 + 1 - 0.05}, 1.0, Vec3(2, 0, 0));
-  const Contact c = intersect(kCyl, c2);
+  const Contact c = intersect(kCyl, c2, kTightDepth);
   ASSERT_TRUE(c.overlap);
   EXPECT_NEAR(c.depth, 0.05, 1e-6);
   EXPECT_FALSE(intersect(kCyl, c2.translated(Vec3(0.06, 0, 0))).overlap);
@@ -232,7 +238,7 @@ TEST(PerramWertheim, CrossedEllipsoids) {
 TEST(CylinderEllipsoid, LateralContact) {
   const Shape e = Shape::ellipsoid({0, 0, 0}, Vec3(1, 2, 3), Mat3::Identity());
   const Shape c = Shape::cylinder({1.4, 0, 0}, 0.5, Vec3(0, 0, 1));
-  const Contact k = intersect(e, c);
+  const Contact k = intersect(e, c, kTightDepth);
   ASSERT_TRUE(k.overlap);
   EXPECT_EQ(k.type, ContactType::kCE);
   EXPECT_NEAR(k.depth, 0.1, 1e-6);
@@ -243,11 +249,37 @@ TEST(CylinderEllipsoid, LateralContact) {
 TEST(Convex, DistanceOfSeparatedShapes) {
   const Shape a = Shape::cylinder({0, 0, 0}, 1.0, Vec3(0, 0, 2));
   const Shape b = Shape::ellipsoid({3.5, 0, 0}, Vec3(1, 2, 3), Mat3::Identity());
-  const ConvexQuery q = convex_query(a, b, 1e-10, true);
+  const ConvexQuery q = convex_query(a, b, 1e-10, true, kTightDepth);
   EXPECT_TRUE(q.separated);
   EXPECT_NEAR(q.distance, 1.5, 1e-9);
   EXPECT_TRUE(clear_of(a, b, 1.4));
   EXPECT_FALSE(clear_of(a, b, 1.6));
+}
+
+TEST(Convex, DefaultDepthIsATightUpperBound) {
+  // The default EPA accuracy (kDepthRelTolerance) changes neither the decision nor, beyond that
+  // fraction, the depth: on overlapping pairs that go through EPA (end disks, cylinder-ellipsoid)
+  // the default depth lies in [tight depth, tight depth (1 + 1e-3)] and still separates.
+  Random rng(5);
+  int epa_pairs = 0;
+  for (int i = 0; i < 4000; ++i) {
+    const double r = rng.uniform(0.3, 1.0);
+    const Shape a = Shape::cylinder(Vec3::Zero(), r, rng.unit_vector() * r * rng.uniform(0.5, 6));
+    const Shape b =
+        i % 2 == 0
+            ? Shape::cylinder(rng.unit_vector() * rng.uniform(0.5, 3), rng.uniform(0.3, 1),
+                              rng.unit_vector() * rng.uniform(0.3, 4))
+            : Shape::ellipsoid(rng.unit_vector() * rng.uniform(0.5, 3),
+                               Vec3(rng.uniform(0.3, 2), rng.uniform(0.3, 2), 0.5), rng.rotation());
+    const Contact fast = intersect(a, b), tight = intersect(a, b, kTightDepth);
+    ASSERT_EQ(fast.overlap, tight.overlap) << i;
+    if (!fast.overlap || fast.type == ContactType::kCC1 || fast.type == ContactType::kSC2) continue;
+    ++epa_pairs;
+    EXPECT_GE(fast.depth, tight.depth * (1 - 1e-7)) << i;
+    EXPECT_LE(fast.depth, tight.depth * (1 + kDepthRelTolerance) + 1e-12) << i;
+    EXPECT_FALSE(intersect(a, b.translated((fast.depth * (1 + 1e-7)) * fast.normal)).overlap) << i;
+  }
+  EXPECT_GT(epa_pairs, 500);
 }
 
 TEST(Contact, NamesAreThePapers) {

@@ -14,13 +14,58 @@ struct Vertex {
   Vec3 w, pa, pb;
 };
 
-Vertex support(const Shape& a, const Shape& b, const Vec3& d) {
-  Vertex v;
-  v.pa = a.support(d);
-  v.pb = b.support(-d);
-  v.w = v.pa - v.pb;
-  return v;
-}
+// A shape's support function (the same maps as Shape::support) with what depends on the shape
+// alone worked out once per query instead of at every call: the cylinder's unit axis and half
+// length, the ellipsoid's squared semi-axes.
+class SupportMap {
+ public:
+  explicit SupportMap(const Shape& s) : s_(s) {
+    if (s.kind == ShapeKind::Cylinder) {
+      h_ = s.half_axis.norm();
+      u_ = s.half_axis / h_;
+    } else if (s.kind == ShapeKind::Ellipsoid) {
+      a2_ = s.semi_axes.cwiseProduct(s.semi_axes);
+    }
+  }
+  Vec3 operator()(const Vec3& d) const {
+    switch (s_.kind) {
+      case ShapeKind::Sphere:
+        return s_.center + (s_.radius / d.norm()) * d;
+      case ShapeKind::Cylinder: {
+        const double du = d.dot(u_);
+        Vec3 x = du >= 0.0 ? Vec3(s_.center + s_.half_axis) : Vec3(s_.center - s_.half_axis);
+        Vec3 radial = d - du * u_;
+        radial -= radial.dot(u_) * u_;  // second Gram-Schmidt pass, as in Shape::support
+        const double rn = radial.norm();
+        if (rn > 1e-14 * d.norm()) x += (s_.radius / rn) * radial;
+        return x;
+      }
+      case ShapeKind::Ellipsoid: {
+        const Vec3 dl = s_.rotation.transpose() * d;
+        const Vec3 md = a2_.cwiseProduct(dl);
+        return s_.center + s_.rotation * (md / std::sqrt(dl.dot(md)));
+      }
+    }
+    return s_.center;
+  }
+
+ private:
+  const Shape& s_;
+  Vec3 u_ = Vec3::Zero(), a2_ = Vec3::Zero();
+  double h_ = 0.0;
+};
+
+// The pair's supports: a's in direction d, b's in -d.
+struct PairSupport {
+  SupportMap a, b;
+  Vertex operator()(const Vec3& d) const {
+    Vertex v;
+    v.pa = a(d);
+    v.pb = b(-d);
+    v.w = v.pa - v.pb;
+    return v;
+  }
+};
 
 struct Simplex {
   std::array<Vertex, 4> v;
@@ -147,12 +192,12 @@ void solve(Simplex& s) {
 }
 
 // Grows a simplex that touches the origin to a non-degenerate tetrahedron of support points.
-bool grow_to_tetrahedron(const Shape& a, const Shape& b, Simplex& s, double eps) {
+bool grow_to_tetrahedron(const PairSupport& support, Simplex& s, double eps) {
   static const Vec3 axes[6] = {Vec3::UnitX(),  Vec3::UnitY(),  Vec3::UnitZ(),
                                -Vec3::UnitX(), -Vec3::UnitY(), -Vec3::UnitZ()};
   if (s.n == 1) {
     for (const auto& d : axes) {
-      Vertex v = support(a, b, d);
+      Vertex v = support(d);
       if ((v.w - s.v[0].w).norm() > eps) {
         s.v[s.n++] = v;
         break;
@@ -166,121 +211,139 @@ bool grow_to_tetrahedron(const Shape& a, const Shape& b, Simplex& s, double eps)
     for (int k = 0; k < 6 && s.n == 2; ++k) {
       const double th = k * M_PI / 3.0;
       const Vec3 d = std::cos(th) * e1 + std::sin(th) * e2;
-      Vertex v = support(a, b, d);
+      Vertex v = support(d);
       const Vec3 r = v.w - s.v[0].w;
       if ((r - r.dot(line) * line).norm() > eps) s.v[s.n++] = v;
     }
   }
   if (s.n == 3) {
     const Vec3 nrm = (s.v[1].w - s.v[0].w).cross(s.v[2].w - s.v[0].w).normalized();
-    Vertex v = support(a, b, nrm);
-    if (std::abs((v.w - s.v[0].w).dot(nrm)) <= eps) v = support(a, b, -nrm);
+    Vertex v = support(nrm);
+    if (std::abs((v.w - s.v[0].w).dot(nrm)) <= eps) v = support(-nrm);
     if (std::abs((v.w - s.v[0].w).dot(nrm)) > eps) s.v[s.n++] = v;
   }
   return s.n == 4;
 }
 
+// EPA works in fixed storage (no heap allocation): a polytope grown from a tetrahedron by at
+// most kEpaIterations support points has at most kEpaVertices vertices and, being convex and
+// triangulated, at most 2 V - 4 faces. Only live faces are stored (a dead face is overwritten by
+// the last one), so the nearest-face scan and the visibility pass see live faces only.
+constexpr int kEpaIterations = 124;
+constexpr int kEpaVertices = kEpaIterations + 4;
+constexpr int kEpaFaces = 2 * kEpaVertices;
+constexpr int kEpaEdges = 3 * kEpaFaces;
+
 struct Face {
   int i[3];
   Vec3 n;
   double d;
-  bool alive;
+};
+
+struct Polytope {
+  std::array<Vertex, kEpaVertices> v;
+  std::array<Face, kEpaFaces> f;
+  struct Edge {
+    int from, to;
+  };
+  std::array<Edge, kEpaEdges> edge;
+  int nv = 0, nf = 0, ne = 0;
+
+  // Face (i0, i1, i2) with its outward unit normal and its plane's distance to the origin.
+  // A degenerate (zero-area) face gets an infinite distance and is never the nearest.
+  Face make(int i0, int i1, int i2) const {
+    Face fc{{i0, i1, i2}, Vec3::Zero(), std::numeric_limits<double>::infinity()};
+    const Vec3 n = (v[i1].w - v[i0].w).cross(v[i2].w - v[i0].w);
+    const double len = n.norm();
+    if (len > 0.0) {
+      fc.n = n / len;
+      fc.d = fc.n.dot(v[i0].w);
+    }
+    return fc;
+  }
+  // Horizon bookkeeping: an edge seen twice (once each way) is interior and cancels.
+  void toggle_edge(int e0, int e1) {
+    for (int k = 0; k < ne; ++k) {
+      if (edge[k].from == e1 && edge[k].to == e0) {
+        edge[k] = edge[--ne];
+        return;
+      }
+    }
+    edge[ne++] = {e0, e1};
+  }
 };
 
 // Expanding polytope algorithm from a tetrahedron that contains the origin (possibly on its
-// boundary). Fills depth, normal and witness points of q.
-void epa(const Shape& a, const Shape& b, const Simplex& s, double tol, ConvexQuery* q) {
-  std::vector<Vertex> verts(s.v.begin(), s.v.begin() + 4);
-  const Vec3 centre = 0.25 * (verts[0].w + verts[1].w + verts[2].w + verts[3].w);
-  std::vector<Face> faces;
-  faces.reserve(256);
-  auto make_face = [&](int i0, int i1, int i2) {
-    Face f{{i0, i1, i2}, Vec3::Zero(), std::numeric_limits<double>::infinity(), true};
-    Vec3 n = (verts[i1].w - verts[i0].w).cross(verts[i2].w - verts[i0].w);
-    const double len = n.norm();
-    if (len > 0.0) {
-      n /= len;
-      f.n = n;
-      f.d = n.dot(verts[i0].w);
-    }
-    return f;
-  };
+// boundary). Fills depth, normal and witness points of q. The depth is the least directional
+// depth h_D(n) met, so translating b by it along its n separates the pair whatever the
+// convergence; the search stops once it is within max(tol, rel depth) of the polytope's
+// nearest face, a lower bound.
+void epa(const PairSupport& support, const Simplex& s, double tol, double rel, ConvexQuery* q) {
+  Polytope P;
+  for (int k = 0; k < 4; ++k) P.v[k] = s.v[k];
+  P.nv = 4;
+  const Vec3 centre = 0.25 * (P.v[0].w + P.v[1].w + P.v[2].w + P.v[3].w);
   // Outward winding for the initial tetrahedron.
   static const int tet[4][4] = {{0, 1, 2, 3}, {0, 3, 1, 2}, {0, 2, 3, 1}, {1, 3, 2, 0}};
   for (const auto& t : tet) {
-    const Vec3 n = (verts[t[1]].w - verts[t[0]].w).cross(verts[t[2]].w - verts[t[0]].w);
-    if (n.dot(verts[t[3]].w - verts[t[0]].w) > 0.0) {
-      faces.push_back(make_face(t[0], t[2], t[1]));
-    } else {
-      faces.push_back(make_face(t[0], t[1], t[2]));
-    }
+    const Vec3 n = (P.v[t[1]].w - P.v[t[0]].w).cross(P.v[t[2]].w - P.v[t[0]].w);
+    P.f[P.nf++] = n.dot(P.v[t[3]].w - P.v[t[0]].w) > 0.0 ? P.make(t[0], t[2], t[1])
+                                                         : P.make(t[0], t[1], t[2]);
   }
   double upper = std::numeric_limits<double>::infinity();
   Vec3 best_n = Vec3::UnitX();
-  int best_face = -1;
-  std::vector<std::pair<int, int>> edges;
-  for (int iter = 0; iter < 256; ++iter) {
+  Face best_face{{-1, -1, -1}, Vec3::Zero(), 0.0};
+  for (int iter = 0; iter < kEpaIterations; ++iter) {
     int fi = -1;
     double dmin = std::numeric_limits<double>::infinity();
-    for (int k = 0; k < static_cast<int>(faces.size()); ++k) {
-      if (faces[k].alive && faces[k].d < dmin) {
-        dmin = faces[k].d;
+    for (int k = 0; k < P.nf; ++k) {
+      if (P.f[k].d < dmin) {
+        dmin = P.f[k].d;
         fi = k;
       }
     }
     if (fi < 0) break;
-    const Vec3 n = faces[fi].n;
-    const Vertex w = support(a, b, n);
+    const Vec3 n = P.f[fi].n;
+    const Vertex w = support(n);
     const double hw = w.w.dot(n);  // directional depth along n: an upper bound on the depth
     if (hw < upper) {
       upper = hw;
       best_n = n;
-      best_face = fi;
+      best_face = P.f[fi];
     }
-    if (upper - dmin <= std::max(tol, 1e-6 * std::abs(upper))) break;
+    if (upper - dmin <= std::max(tol, rel * std::abs(upper))) break;
     // Expand: remove the faces that see w, stitch the horizon to w.
-    const int wi = static_cast<int>(verts.size());
-    verts.push_back(w);
-    edges.clear();
-    for (auto& f : faces) {
-      if (!f.alive) continue;
-      if (f.n.dot(w.w - verts[f.i[0]].w) > 1e-14 * (1.0 + std::abs(f.d))) {
-        f.alive = false;
-        for (int e = 0; e < 3; ++e) {
-          const int e0 = f.i[e], e1 = f.i[(e + 1) % 3];
-          auto it = std::find(edges.begin(), edges.end(), std::make_pair(e1, e0));
-          if (it != edges.end()) {
-            edges.erase(it);
-          } else {
-            edges.emplace_back(e0, e1);
-          }
-        }
+    const int wi = P.nv;
+    P.v[P.nv++] = w;
+    P.ne = 0;
+    for (int k = 0; k < P.nf;) {
+      const Face& f = P.f[k];
+      if (f.n.dot(w.w) - f.d > 1e-14 * (1.0 + std::abs(f.d))) {
+        for (int e = 0; e < 3; ++e) P.toggle_edge(f.i[e], f.i[(e + 1) % 3]);
+        P.f[k] = P.f[--P.nf];
+      } else {
+        ++k;
       }
     }
-    if (edges.empty()) break;  // w sees no face: numerically converged
-    for (const auto& [e0, e1] : edges) {
-      Face f = make_face(e0, e1, wi);
+    if (P.ne == 0 || P.nf + P.ne > kEpaFaces) break;  // w sees no face: numerically converged
+    for (int k = 0; k < P.ne; ++k) {
+      const auto [e0, e1] = P.edge[k];
+      Face f = P.make(e0, e1, wi);
       // Keep the outward orientation even for slivers.
-      if (f.d < std::numeric_limits<double>::infinity() && f.n.dot(verts[e0].w - centre) < 0.0) {
+      if (f.d < std::numeric_limits<double>::infinity() && f.n.dot(P.v[e0].w - centre) < 0.0) {
         f.n = -f.n;
         f.d = -f.d;
       }
-      faces.push_back(f);
-    }
-    if (faces.size() > 4096) {  // garbage-collect dead faces
-      faces.erase(
-          std::remove_if(faces.begin(), faces.end(), [](const Face& f) { return !f.alive; }),
-          faces.end());
-      best_face = -1;
+      P.f[P.nf++] = f;
     }
   }
   q->depth = std::max(0.0, upper);
   q->normal = best_n;
   // Witness points: barycentric coordinates of the origin's projection on the best face.
-  if (best_face >= 0 && best_face < static_cast<int>(faces.size())) {
-    const Face& f = faces[best_face];
+  if (best_face.i[0] >= 0) {
+    const Face& f = best_face;
     const Vec3 p = f.d * f.n;
-    const Vec3 &A = verts[f.i[0]].w, &B = verts[f.i[1]].w, &C = verts[f.i[2]].w;
+    const Vec3 &A = P.v[f.i[0]].w, &B = P.v[f.i[1]].w, &C = P.v[f.i[2]].w;
     const Vec3 v0 = B - A, v1 = C - A, v2 = p - A;
     const double d00 = v0.dot(v0), d01 = v0.dot(v1), d11 = v1.dot(v1);
     const double d20 = v2.dot(v0), d21 = v2.dot(v1);
@@ -288,25 +351,27 @@ void epa(const Shape& a, const Shape& b, const Simplex& s, double tol, ConvexQue
     if (den > 0.0) {
       const double v = (d11 * d20 - d01 * d21) / den, w = (d00 * d21 - d01 * d20) / den;
       const double u = 1.0 - v - w;
-      q->point_a = u * verts[f.i[0]].pa + v * verts[f.i[1]].pa + w * verts[f.i[2]].pa;
-      q->point_b = u * verts[f.i[0]].pb + v * verts[f.i[1]].pb + w * verts[f.i[2]].pb;
+      q->point_a = u * P.v[f.i[0]].pa + v * P.v[f.i[1]].pa + w * P.v[f.i[2]].pa;
+      q->point_b = u * P.v[f.i[0]].pb + v * P.v[f.i[1]].pb + w * P.v[f.i[2]].pb;
       return;
     }
   }
-  q->point_a = a.support(best_n);
-  q->point_b = b.support(-best_n);
+  q->point_a = support.a(best_n);
+  q->point_b = support.b(-best_n);
 }
 
 }  // namespace
 
-ConvexQuery convex_query(const Shape& a, const Shape& b, double tolerance, bool need_distance) {
+ConvexQuery convex_query(const Shape& a, const Shape& b, double tolerance, bool need_distance,
+                         double depth_rel) {
   ConvexQuery q;
   const double scale = a.bounding_radius() + b.bounding_radius();
   const double tiny = 1e-13 * scale;
+  const PairSupport support{SupportMap(a), SupportMap(b)};
   Simplex s;
   Vec3 v = a.center - b.center;  // a point of D = a - b
   if (v.norm() <= tiny) v = Vec3::UnitX() * tiny;
-  s.v[0] = support(a, b, -v);
+  s.v[0] = support(-v);
   s.n = 1;
   s.lambda[0] = 1.0;
   v = s.v[0].w;
@@ -315,7 +380,7 @@ ConvexQuery convex_query(const Shape& a, const Shape& b, double tolerance, bool 
   for (int iter = 0; iter < 200; ++iter) {
     const double vn = v.norm();
     if (vn <= tiny) break;  // the origin lies on the simplex
-    const Vertex w = support(a, b, -v);
+    const Vertex w = support(-v);
     const double vw = v.dot(w.w);
     if (vw > 0.0) {
       lower = std::max(lower, vw / vn);
@@ -346,11 +411,11 @@ ConvexQuery convex_query(const Shape& a, const Shape& b, double tolerance, bool 
     }
     return q;
   }
-  if (!enclosed && !grow_to_tetrahedron(a, b, s, tiny)) {
+  if (!enclosed && !grow_to_tetrahedron(support, s, tiny)) {
     q.depth = 0.0;  // cannot build a polytope: touching within round-off
     return q;
   }
-  epa(a, b, s, tolerance, &q);
+  epa(support, s, tolerance, depth_rel, &q);
   return q;
 }
 

@@ -16,7 +16,7 @@ struct ConvexQuery {
   /// if the query ran to convergence. 0 when not separated.
   double distance = 0.0;
   /// When not separated: the penetration depth (the length of the smallest translation of b
-  /// that makes the shapes touch), an upper bound within max(tolerance, 1e-6 depth) of the
+  /// that makes the shapes touch), an upper bound within max(tolerance, depth_rel depth) of the
   /// true value. 0 when separated.
   double depth = 0.0;
   /// Unit direction: translating b along +normal increases the separation.
@@ -29,7 +29,10 @@ struct ConvexQuery {
 /// Runs GJK, then EPA when the shapes are not separated.
 /// `tolerance` is an absolute length (callers use a small multiple of the shapes' size).
 /// `need_distance`: when false, stops as soon as a separating plane is found.
-ConvexQuery convex_query(const Shape& a, const Shape& b, double tolerance, bool need_distance);
+/// `depth_rel`: EPA stops once its depth (an upper bound) is within max(tolerance,
+/// depth_rel * depth) of the polytope's lower bound.
+ConvexQuery convex_query(const Shape& a, const Shape& b, double tolerance, bool need_distance,
+                         double depth_rel);
 
 /// Squared distance between the segments [p1, q1] and [p2, q2] (either may be a point).
 double segment_distance2(const Vec3& p1, const Vec3& q1, const Vec3& p2, const Vec3& q2);

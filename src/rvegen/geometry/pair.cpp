@@ -198,6 +198,35 @@ ContactType classify_end_contact(const Shape& c1, const Shape& c2, const ConvexQ
   return ContactType::kCD1;
 }
 
+// Half width of a cylinder's projection on the unit direction m: |l.m| + r sqrt(1 - (u.m)^2).
+double projected_half_width(const Shape& cyl, double h, const Vec3& m) {
+  const double lm = cyl.half_axis.dot(m), um = lm / h;
+  return std::abs(lm) + cyl.radius * std::sqrt(std::max(0.0, 1.0 - um * um));
+}
+
+// A cheap certificate of disjointness before GJK: the projections of the two cylinders on a
+// direction do not meet. Tried on the direction joining the closest points of the axis
+// segments (disjoint capsules are caught there too), each axis and the line of centres.
+// Finding none proves nothing; GJK/EPA then decides.
+bool separating_axis_found(const Shape& c1, const Shape& c2) {
+  const double h1 = c1.half_axis.norm(), h2 = c2.half_axis.norm();
+  const Vec3 d = c2.center - c1.center;
+  double s, t;
+  const Vec3 p1 = c1.center - c1.half_axis, p2 = c2.center - c2.half_axis;
+  segment_closest(p1, c1.center + c1.half_axis, p2, c2.center + c2.half_axis, &s, &t);
+  const Vec3 gap = (p2 + 2.0 * t * c2.half_axis) - (p1 + 2.0 * s * c1.half_axis);
+  const Vec3 axes[4] = {gap, c1.half_axis, c2.half_axis, d};
+  for (const Vec3& a : axes) {
+    const double len = a.norm();
+    if (!(len > 0.0)) continue;
+    const Vec3 m = a / len;
+    if (std::abs(d.dot(m)) > projected_half_width(c1, h1, m) + projected_half_width(c2, h2, m)) {
+      return true;
+    }
+  }
+  return false;
+}
+
 }  // namespace
 
 // Algorithm 4 of the paper with its degenerate cases:
@@ -208,7 +237,7 @@ ContactType classify_end_contact(const Shape& c1, const Shape& c2, const ConvexQ
 //    perpendicular, so without any end disk involved it is centred on pt_1 and pt_2);
 //  - otherwise an end disk is involved: the overlap is decided by GJK/EPA on the exact support
 //    functions and named by Algorithms 2-3.
-Contact intersect_cylinder_cylinder(const Shape& c1, const Shape& c2) {
+Contact intersect_cylinder_cylinder(const Shape& c1, const Shape& c2, double depth_rel) {
   Contact c;
   const double tol = contact_tolerance(c1, c2);
   const Vec3 d = c2.center - c1.center;
@@ -260,7 +289,8 @@ Contact intersect_cylinder_cylinder(const Shape& c1, const Shape& c2) {
     c.point = pt1 + c.normal * (r1 - 0.5 * c.depth);
     return c;
   }
-  const ConvexQuery q = convex_query(c1, c2, tol, false);
+  if (separating_axis_found(c1, c2)) return c;
+  const ConvexQuery q = convex_query(c1, c2, tol, false, depth_rel);
   if (q.separated || !(q.depth > tol)) return c;
   c.overlap = true;
   c.depth = q.depth;
@@ -271,86 +301,156 @@ Contact intersect_cylinder_cylinder(const Shape& c1, const Shape& c2) {
 }
 
 namespace {
-Mat3 shape_matrix_inverse(const Shape& e) {
+
+// Perram-Wertheim contact function in closed form. With A, B the shape matrices of e1 and e2
+// (x in E <=> (x - p)^T M^{-1} (x - p) <= 1) and r = p2 - p1,
+//   F(l) = l (1 - l) r^T G(l)^{-1} r,   G(l) = (1 - l) A + l B,   l in [0, 1].
+// In the frame where e1 is the unit ball, G = A^{1/2} ((1 - l) I + l B') A^{1/2} with
+// B' = A^{-1/2} B A^{-1/2} = Q diag(beta) Q^T, so with c = Q^T A^{-1/2} r and D_i = 1 - l + l
+// beta_i
+//   F = l (1 - l) sum c_i^2 / D_i,  F' = sum c_i^2 ((1 - l)^2 - l^2 beta_i) / D_i^2,
+//   F'' = -2 sum c_i^2 beta_i / D_i^3 < 0,
+// three terms each: F is concave and its maximum is found by safeguarded Newton steps.
+// A^{-1/2} = R diag(1 / a) R^T comes from e1's axes directly; B' needs a 3x3 symmetric
+// eigensolver unless one of the two is a sphere (then the roles are swapped so that the sphere
+// is e1 and B' = B / r^2 is diagonal in e2's axes). Swapping maps l to 1 - l and r to -r.
+struct PwFrame {
+  Vec3 c2;    // c_i^2
+  Vec3 beta;  // eigenvalues of B'
+  Mat3 back;  // A^{-1/2} Q: G^{-1} r = back * (c / D)
+  Vec3 c;     // c
+  bool swapped = false;
+
+  PwFrame(const Shape& e1, const Shape& e2) {
+    const Shape* a = &e1;
+    const Shape* b = &e2;
+    if (e2.kind == ShapeKind::Sphere && e1.kind != ShapeKind::Sphere) {
+      std::swap(a, b);
+      swapped = true;
+    }
+    const Vec3 r = swapped ? Vec3(e1.center - e2.center) : Vec3(e2.center - e1.center);
+    if (a->kind == ShapeKind::Sphere) {
+      const double inv = 1.0 / a->radius;
+      if (b->kind == ShapeKind::Sphere) {
+        beta = Vec3::Constant(b->radius * b->radius * inv * inv);
+        back = Mat3::Identity() * inv;
+        c = r * inv;
+      } else {
+        beta = b->semi_axes.cwiseProduct(b->semi_axes) * (inv * inv);
+        back = b->rotation * inv;
+        c = b->rotation.transpose() * r * inv;
+      }
+    } else {
+      const Mat3 a_inv_half =
+          a->rotation * a->semi_axes.cwiseInverse().asDiagonal() * a->rotation.transpose();
+      Mat3 bm;
+      if (b->kind == ShapeKind::Sphere) {
+        bm = Mat3::Identity() * (b->radius * b->radius);
+      } else {
+        bm = b->rotation * b->semi_axes.cwiseProduct(b->semi_axes).asDiagonal() *
+             b->rotation.transpose();
+      }
+      const Mat3 bp = a_inv_half * bm * a_inv_half;
+      const Eigen::SelfAdjointEigenSolver<Mat3> es(0.5 * (bp + bp.transpose()));
+      beta = es.eigenvalues();
+      back = a_inv_half * es.eigenvectors();
+      c = es.eigenvectors().transpose() * (a_inv_half * r);
+    }
+    c2 = c.cwiseProduct(c);
+  }
+  // l in the frame's own order (e1 of the frame first).
+  double F(double l) const {
+    const Vec3 D = Vec3::Constant(1.0 - l) + l * beta;
+    return l * (1.0 - l) * c2.cwiseQuotient(D).sum();
+  }
+  void derivatives(double l, double* F, double* d1, double* d2) const {
+    double s0 = 0.0, s1 = 0.0, s2 = 0.0;
+    for (int i = 0; i < 3; ++i) {
+      const double D = 1.0 - l + l * beta[i], inv = 1.0 / D;
+      s0 += c2[i] * inv;
+      s1 += c2[i] * ((1.0 - l) * (1.0 - l) - l * l * beta[i]) * inv * inv;
+      s2 += c2[i] * beta[i] * inv * inv * inv;
+    }
+    *F = l * (1.0 - l) * s0;
+    *d1 = s1;
+    *d2 = -2.0 * s2;
+  }
+  // Contact normal (from e1 towards e2 of the caller) at the caller's lambda.
+  Vec3 normal(double lambda) const {
+    const double l = swapped ? 1.0 - lambda : lambda;
+    const Vec3 D = Vec3::Constant(1.0 - l) + l * beta;
+    const Vec3 n = back * c.cwiseQuotient(D);
+    return swapped ? Vec3(-n) : n;
+  }
+};
+
+Mat3 shape_matrix(const Shape& e) {
   // M = R diag(a^2) R^T: x in E  <=>  (x-p)^T M^{-1} (x-p) <= 1.
   if (e.kind == ShapeKind::Sphere) return Mat3::Identity() * (e.radius * e.radius);
   return e.rotation * e.semi_axes.cwiseProduct(e.semi_axes).asDiagonal() * e.rotation.transpose();
 }
-}  // namespace
 
-double perram_wertheim(const Shape& e1, const Shape& e2, double* lambda_out, double stop_above) {
-  const Mat3 A = shape_matrix_inverse(e1), B = shape_matrix_inverse(e2);
-  const Vec3 r = e2.center - e1.center;
-  if (r.squaredNorm() == 0.0) {
-    if (lambda_out) *lambda_out = 0.5;
-    return 0.0;
-  }
-  // F(l) = l (1-l) r^T G^{-1} r with G = (1-l) A + l B is concave on [0, 1]; its derivative
-  // F'(l) = z^T ((1-l)^2 A - l^2 B) z, z = G^{-1} r, decreases from > 0 to < 0. Its root is
-  // bracketed and found by regula falsi with the Illinois modification (superlinear), falling
-  // back to bisection when an update barely shrinks the bracket. Since F(l) <= max F, the
-  // search may stop as soon as some F(l) >= stop_above.
-  auto eval = [&](double l, double* F) {
-    const Mat3 G = (1.0 - l) * A + l * B;
-    const Vec3 z = G.llt().solve(r);
-    *F = l * (1.0 - l) * r.dot(z);
-    return z.dot(((1.0 - l) * (1.0 - l)) * (A * z) - (l * l) * (B * z));
-  };
-  double lo = 0.0, hi = 1.0;
-  double flo = r.dot(A.llt().solve(r)), fhi = -r.dot(B.llt().solve(r));
-  double best_l = 0.5, best_F = -1.0;
-  int side = 0;
-  for (int it = 0; it < 100 && hi - lo > 1e-13; ++it) {
-    double l = (lo * fhi - hi * flo) / (fhi - flo);
-    const double w = hi - lo;
-    if (!(l > lo + 1e-3 * w && l < hi - 1e-3 * w) || it % 8 == 7) l = 0.5 * (lo + hi);
-    double F;
-    const double d = eval(l, &F);
+// max F over [0, 1] by Newton steps kept inside the bracket of F' (bisection when a step
+// leaves it). Stops when F(l) >= stop_above (F(l) is a lower bound of the maximum), or when
+// the step no longer moves l.
+double pw_maximum(const PwFrame& f, double* l_out, double stop_above) {
+  // For concentric-sphere-like pairs the maximiser is 1 / (1 + sqrt(beta)): start there with
+  // the c^2-weighted beta.
+  const double cs = f.c2.sum();
+  const double bmean = cs > 0.0 ? f.c2.dot(f.beta) / cs : f.beta.mean();
+  double l = 1.0 / (1.0 + std::sqrt(bmean));
+  double lo = 0.0, hi = 1.0, best_F = -1.0, best_l = l;
+  for (int it = 0; it < 60; ++it) {
+    double F, d1, d2;
+    f.derivatives(l, &F, &d1, &d2);
     if (F > best_F) {
       best_F = F;
       best_l = l;
     }
     if (best_F >= stop_above) break;
-    if (d > 0.0) {
+    if (d1 > 0.0) {
       lo = l;
-      flo = d;
-      if (side == 1) fhi *= 0.5;
-      side = 1;
-    } else if (d < 0.0) {
+    } else if (d1 < 0.0) {
       hi = l;
-      fhi = d;
-      if (side == -1) flo *= 0.5;
-      side = -1;
     } else {
-      lo = hi = l;
+      break;
     }
+    double next = d2 < 0.0 ? l - d1 / d2 : 0.5 * (lo + hi);
+    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+    if (std::abs(next - l) <= 1e-15 * std::max(l, 1e-300) || hi - lo <= 1e-15) break;
+    l = next;
   }
-  if (best_F < stop_above) {
-    const double l = 0.5 * (lo + hi);
-    double F;
-    eval(l, &F);
-    if (F > best_F) {
-      best_F = F;
-      best_l = l;
-    }
-  }
-  if (lambda_out) *lambda_out = best_l;
+  *l_out = f.swapped ? 1.0 - best_l : best_l;
   return best_F;
+}
+
+}  // namespace
+
+double perram_wertheim(const Shape& e1, const Shape& e2, double* lambda_out, double stop_above) {
+  if ((e2.center - e1.center).squaredNorm() == 0.0) {
+    if (lambda_out) *lambda_out = 0.5;
+    return 0.0;
+  }
+  const PwFrame f(e1, e2);
+  double l = 0.5;
+  const double F = pw_maximum(f, &l, stop_above);
+  if (lambda_out) *lambda_out = l;
+  return F;
 }
 
 Contact intersect_perram_wertheim(const Shape& e1, const Shape& e2) {
   Contact c;
-  double l = 0.5;
-  const double F = perram_wertheim(e1, e2, &l, 1.0);
-  if (!(F < 1.0)) return c;
-  const Mat3 A = shape_matrix_inverse(e1), B = shape_matrix_inverse(e2);
   const Vec3 r = e2.center - e1.center;
   Vec3 n;
   if (r.squaredNorm() == 0.0) {
     n = Vec3::UnitX();  // coincident centres: fixed direction
   } else {
-    n = ((1.0 - l) * A + l * B).llt().solve(r).normalized();  // normal at the PW contact point
+    const PwFrame f(e1, e2);
+    double l = 0.5;
+    if (!(pw_maximum(f, &l, 1.0) < 1.0)) return c;
+    n = f.normal(l).normalized();  // normal at the PW contact point
   }
+  const Mat3 A = shape_matrix(e1), B = shape_matrix(e2);
   // Translation of e2 along n that separates them: h_1(n) + h_2(-n) - n.r.
   const double depth = std::sqrt(n.dot(A * n)) + std::sqrt(n.dot(B * n)) - n.dot(r);
   if (!(depth > contact_tolerance(e1, e2))) return c;
@@ -362,10 +462,10 @@ Contact intersect_perram_wertheim(const Shape& e1, const Shape& e2) {
   return c;
 }
 
-Contact intersect_convex(const Shape& a, const Shape& b) {
+Contact intersect_convex(const Shape& a, const Shape& b, double depth_rel) {
   Contact c;
   const double tol = contact_tolerance(a, b);
-  const ConvexQuery q = convex_query(a, b, tol, false);
+  const ConvexQuery q = convex_query(a, b, tol, false, depth_rel);
   if (q.separated || !(q.depth > tol)) return c;
   c.overlap = true;
   c.type = ContactType::kCE;
@@ -375,7 +475,7 @@ Contact intersect_convex(const Shape& a, const Shape& b) {
   return c;
 }
 
-Contact intersect(const Shape& a, const Shape& b) {
+Contact intersect(const Shape& a, const Shape& b, double depth_rel) {
   const double reach = a.bounding_radius() + b.bounding_radius();
   if ((b.center - a.center).squaredNorm() >= reach * reach) return Contact{};
   auto swapped = [](Contact c) {
@@ -387,8 +487,8 @@ Contact intersect(const Shape& a, const Shape& b) {
   if (ka == K::Sphere && kb == K::Sphere) return intersect_sphere_sphere(a, b);
   if (ka == K::Sphere && kb == K::Cylinder) return intersect_sphere_cylinder(a, b);
   if (ka == K::Cylinder && kb == K::Sphere) return swapped(intersect_sphere_cylinder(b, a));
-  if (ka == K::Cylinder && kb == K::Cylinder) return intersect_cylinder_cylinder(a, b);
-  if (ka == K::Cylinder || kb == K::Cylinder) return intersect_convex(a, b);
+  if (ka == K::Cylinder && kb == K::Cylinder) return intersect_cylinder_cylinder(a, b, depth_rel);
+  if (ka == K::Cylinder || kb == K::Cylinder) return intersect_convex(a, b, depth_rel);
   return intersect_perram_wertheim(a, b);  // ellipsoid with ellipsoid or sphere
 }
 
@@ -404,7 +504,7 @@ bool clear_of(const Shape& a, const Shape& b, double gap) {
   if (a.kind == ShapeKind::Sphere && b.kind == ShapeKind::Sphere) {
     return std::sqrt(d2) - a.radius - b.radius >= gap - tol;
   }
-  const ConvexQuery q = convex_query(a, b, tol, true);
+  const ConvexQuery q = convex_query(a, b, tol, true, kDepthRelTolerance);
   return q.separated && q.distance >= gap - tol;
 }
 }  // namespace rvegen

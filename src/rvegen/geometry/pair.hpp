@@ -18,6 +18,10 @@
 namespace rvegen {
 
 constexpr double kContactRelTolerance = 1e-9;
+/// Relative accuracy of the depth where it comes from EPA (end disks, cylinder-ellipsoid): the
+/// reported depth is an upper bound within this fraction of the minimal translation. Forces
+/// need no more; pass a smaller value to the tests below for a tighter depth.
+constexpr double kDepthRelTolerance = 1e-3;
 
 enum class ContactType {
   kNone = 0,
@@ -57,15 +61,17 @@ struct Contact {
 double contact_tolerance(const Shape& a, const Shape& b);
 
 /// Exact overlap test of a and b with intersection type, depth, direction and point.
-Contact intersect(const Shape& a, const Shape& b);
+Contact intersect(const Shape& a, const Shape& b, double depth_rel = kDepthRelTolerance);
 
 // The individual tests, exposed for tests and benchmarks. Argument order matters for the
 // normal (from the first towards the second).
 Contact intersect_sphere_sphere(const Shape& s1, const Shape& s2);
-Contact intersect_sphere_cylinder(const Shape& s, const Shape& c);      // Algorithm 1
-Contact intersect_cylinder_cylinder(const Shape& c1, const Shape& c2);  // Algorithms 2-4
-Contact intersect_perram_wertheim(const Shape& e1, const Shape& e2);    // ellipsoids, spheres
-Contact intersect_convex(const Shape& a, const Shape& b);               // GJK/EPA
+Contact intersect_sphere_cylinder(const Shape& s, const Shape& c);  // Algorithm 1
+Contact intersect_cylinder_cylinder(const Shape& c1, const Shape& c2,
+                                    double depth_rel = kDepthRelTolerance);  // Algorithms 2-4
+Contact intersect_perram_wertheim(const Shape& e1, const Shape& e2);         // ellipsoids, spheres
+Contact intersect_convex(const Shape& a, const Shape& b,
+                         double depth_rel = kDepthRelTolerance);  // GJK/EPA
 
 /// Perram-Wertheim contact function max_lambda F(lambda) for two ellipsoids (spheres allowed):
 /// < 1 overlap, = 1 tangent, > 1 disjoint. sqrt(F) is the factor by which both must be scaled

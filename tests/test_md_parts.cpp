@@ -96,6 +96,51 @@ TEST(MdParts, VerletListHoldsEveryOverlapUntilItIsStale) {
   EXPECT_TRUE(list.stale(b, s));
 }
 
+// update() refreshes the bodies that left their skin one by one, against the others' reference
+// capsules, and rebuilds everything when many did: through moves of a few bodies far, of all
+// a little, and growth, every overlapping pair stays listed, in periodic and closed boxes.
+TEST(MdParts, VerletListUpdatedBodyByBodyHoldsEveryOverlap) {
+  for (const bool periodic : {true, false}) {
+    std::string json = kMixed;
+    if (!periodic) json.replace(json.find("true"), 4, "false");
+    md::Bodies bodies = bodies_of(json);
+    const Box box = parse_scene(json).box;
+    std::vector<Body>& b = bodies.all;
+    md::VerletList list;
+    double s = 0.8;
+    list.update(&b, box, s, nullptr);
+    Random rng(3);
+    size_t overlaps = 0;
+    for (int round = 0; round < 60; ++round) {
+      for (size_t i = 0; i < b.size(); ++i) {
+        const Vec3 d(rng.uniform() - 0.5, rng.uniform() - 0.5, rng.uniform() - 0.5);
+        b[i].shape.center += (rng.uniform() < 0.02 ? 0.06 : 0.002) * d;
+      }
+      s *= 1.002;
+      list.update(&b, box, s, nullptr);
+      std::set<std::tuple<int, int, int, int, int>> listed;
+      for (const md::PairEntry& e : list.pairs()) {
+        const int kx = static_cast<int>(std::lround(e.shift[0] / box.size[0])),
+                  ky = static_cast<int>(std::lround(e.shift[1] / box.size[1])),
+                  kz = static_cast<int>(std::lround(e.shift[2] / box.size[2]));
+        EXPECT_LE(e.a, e.b);
+        listed.insert({e.a, e.b, kx, ky, kz});
+        if (e.a == e.b) listed.insert({e.a, e.b, -kx, -ky, -kz});
+      }
+      const auto over = overlapping(b, box, s);
+      overlaps += over.size();
+      for (const auto& p : over) {
+        ASSERT_TRUE(listed.count(p))
+            << "periodic " << periodic << " round " << round << ": pair " << std::get<0>(p) << ", "
+            << std::get<1>(p) << " overlaps and is not listed";
+      }
+    }
+    EXPECT_GT(overlaps, 200u);
+    EXPECT_GT(list.refreshed(), 20) << "periodic " << periodic;  // body by body, mostly
+    EXPECT_LT(list.rebuilds(), 30) << "periodic " << periodic;
+  }
+}
+
 TEST(MdParts, ContactPassCertifiesTheTouchingScale) {
   // Two spheres of radius 0.1 at distance 0.15: they touch at scale 0.75; in a closed box, a
   // third one pokes out of the wall at x = 0.

@@ -276,8 +276,8 @@ struct Polytope {
 // Expanding polytope algorithm from a tetrahedron that contains the origin (possibly on its
 // boundary). Fills depth, normal and witness points of q. The depth is the least directional
 // depth h_D(n) met, so translating b by it along its n separates the pair whatever the
-// convergence; the search stops once it is within max(tol, rel depth) of the polytope's
-// nearest face, a lower bound.
+// convergence. The polytope's nearest face is a lower bound: the search stops when the
+// decision is certain and the depth within rel of it, or the bounds are within tol / 100.
 void epa(const PairSupport& support, const Simplex& s, double tol, double rel, ConvexQuery* q) {
   Polytope P;
   for (int k = 0; k < 4; ++k) P.v[k] = s.v[k];
@@ -311,7 +311,12 @@ void epa(const PairSupport& support, const Simplex& s, double tol, double rel, C
       best_n = n;
       best_face = P.f[fi];
     }
-    if (upper - dmin <= std::max(tol, rel * std::abs(upper))) break;
+    // Stop once the decision (depth > tol) is certain and the depth within rel of the lower
+    // bound, or once the bounds are within tol / 100 of each other (a depth that close to tol
+    // is decided by the upper bound).
+    if (upper <= tol || (dmin > tol && upper - dmin <= rel * upper) || upper - dmin <= 0.01 * tol) {
+      break;
+    }
     // Expand: remove the faces that see w, stitch the horizon to w.
     const int wi = P.nv;
     P.v[P.nv++] = w;

@@ -160,7 +160,7 @@ PackingResult MdPacker::run() {
       // The first pass runs whatever the clock says (placing planar fibres in layers may have
       // taken the budget): its configuration, at the start scale, is the least a run returns.
       const std::function<void()>& tick = steps_ == 0 ? no_tick_ : tick_;
-      if (list_.stale(bodies, s_out_)) list_.build(&bodies, box_, s_out_, tick);
+      list_.update(&bodies, box_, s_out_, tick);
       s_in = contact_pass(bodies, bodies_.oriented, list_.pairs(), box_, s_out_, &sums_, tick);
     } catch (const OutOfTime&) {
       why = StopReason::kTimeBudget;

@@ -20,8 +20,9 @@ struct PairEntry {
 
 class VerletList {
  public:
-  /// True when the list was never built, or when some body could have moved since the build
-  /// (translation, turn times its capsule size, growth to s_out) by more than half its skin.
+  /// True when the list was never built, or when some body could have moved since it was last
+  /// referenced (translation, turn times its capsule size, growth to s_out) by more than half
+  /// its skin.
   bool stale(const std::vector<Body>& bodies, double s_out) const;
   /// Wraps the centres into a periodic box, then lists every pair whose capsules at s_out,
   /// inflated by their half skins, intersect. Bodies are covered by strings of spheres for the
@@ -29,23 +30,74 @@ class VerletList {
   /// in long loops (a time budget may throw from it).
   void build(std::vector<Body>* bodies, const Box& box, double s_out,
              const std::function<void()>& tick);
+  /// Keeps the list valid for the current configuration. Only the bodies that could have left
+  /// their skin are referenced again (wrapped, their capsule and skin taken at s_out) and
+  /// their pairs found again against the other bodies' reference capsules, through a grid of
+  /// the covering spheres that is kept between calls. A pair left out is one whose inflated
+  /// reference capsules are disjoint, and each body stays within its half skin of its
+  /// reference, so no overlapping pair is ever missing. Everything is rebuilt when many bodies
+  /// are stale (over a quarter), when a new covering sphere no longer fits the grid's cells,
+  /// and where the grid is not kept (covering spheres of very different sizes, or a box under
+  /// three cells wide).
+  void update(std::vector<Body>* bodies, const Box& box, double s_out,
+              const std::function<void()>& tick);
   const std::vector<PairEntry>& pairs() const { return pairs_; }
   /// Records that body i turned by `angle` radians since the last build.
   void turned(int i, double angle) { turned_since_build_[i] += angle; }
+  /// Full builds, and bodies referenced again one by one.
   long long rebuilds() const { return rebuilds_; }
+  long long refreshed() const { return refreshed_; }
+  long long refreshed_bodies() const { return refreshed_bodies_; }
 
  private:
+  bool stale_body(const Body& b, size_t i, double s_out) const;
+  // References body i at s_out: wraps it, sets its reference centre, scale, skin and inflated
+  // capsule, and strings its covering spheres (appended to sub_c/sub_r/sub_body).
+  void reference(Body* b, size_t i, const Box& box, double s_out);
+  bool refresh(std::vector<Body>* bodies, const Box& box, double s_out,
+               const std::vector<int>& stale_ids, const std::function<void()>& tick);
+  void keep_grid(const Box& box);
+  void insert_spheres(int i);
+  void remove_spheres(int i);
+  void emit_pairs(const Box& box);
+
   std::vector<PairEntry> pairs_;
-  // The state the list was built for. Centres are wrapped into a periodic box only when the
-  // list is rebuilt, so the stored shifts stay right between rebuilds.
+  // Per body, the state it was referenced in. Centres are wrapped into a periodic box only
+  // when a body is referenced, so the stored shifts stay right until then.
   std::vector<Vec3> built_center_;
   std::vector<double> half_skin_;
   std::vector<double> turned_since_build_;
-  double built_scale_ = -1.0;
-  long long rebuilds_ = 0;
-  // Work space of build(), kept for its capacity.
+  std::vector<double> built_scale_;
+  std::vector<Vec3> seg_p_, seg_q_;  // reference capsule axis and radius (with the half skin)
+  std::vector<double> cap_r_;
+  long long rebuilds_ = 0, refreshed_ = 0;
+  // Covering spheres of the last build or refresh: spheres of body i are sub_first_[i] ..
+  // sub_first_[i] + sub_count_[i] - 1 of its own block (a refreshed body gets a new block).
+  std::vector<Vec3> sub_c_;
+  std::vector<double> sub_r_;
+  std::vector<int> sub_body_, sub_first_, sub_count_;
+  // The kept grid (absent when grid_cell_ is 0): cell size, cells per axis, sphere ids by cell.
+  double grid_cell_ = 0.0;
+  double grid_reach_ = 0.0;  // the largest covering sphere the grid takes
+  int grid_n_[3] = {0, 0, 0};
+  std::vector<std::vector<int>> cells_;
+  // Pairs by body, both ways: (other body, lattice shift k of the other body).
+  struct Link {
+    int other;
+    std::array<int, 3> k;
+  };
+  std::vector<std::vector<Link>> links_;
+  // Work space, kept for its capacity.
   std::vector<SpherePair> sphere_pairs_;
   std::vector<std::array<int, 5>> keys_;
+  std::vector<int> stamp_;
+  std::vector<std::array<int, 3>> stamp_k_;
+  std::vector<Link> seen_;
+  std::vector<int> stale_ids_;
+  std::vector<char> is_stale_;
+  size_t dead_spheres_ = 0;
+  long long refreshed_bodies_ = 0;
+  Box box_;
 };
 
 }  // namespace rvegen::md

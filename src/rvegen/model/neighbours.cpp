@@ -45,16 +45,19 @@ NeighbourGrid::NeighbourGrid(const Box& box, double reach, size_t expected_count
   (void)total;
 }
 
-int NeighbourGrid::cell_of(const Vec3& c, int k) const {
-  const double x = (c[k] - box_.origin[k]) / cell_[k];
-  int i = static_cast<int>(std::floor(x));
-  if (box_.periodic) {
-    i %= n_[k];
-    if (i < 0) i += n_[k];
+int cell_coordinate(const Box& box, int n, double width, double x, int axis) {
+  int i = static_cast<int>(std::floor((x - box.origin[axis]) / width));
+  if (box.periodic) {
+    i %= n;
+    if (i < 0) i += n;
   } else {
-    i = std::clamp(i, 0, n_[k] - 1);
+    i = std::clamp(i, 0, n - 1);
   }
   return i;
+}
+
+int NeighbourGrid::cell_of(const Vec3& c, int k) const {
+  return cell_coordinate(box_, n_[k], cell_[k], c[k], k);
 }
 
 size_t NeighbourGrid::cell_index(const Vec3& c) const {

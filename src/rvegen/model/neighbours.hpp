@@ -18,6 +18,11 @@ namespace rvegen {
 void for_each_image(const Box& box, const Vec3& ca, double ra, const Vec3& cb, double rb,
                     const std::function<void(const Vec3&)>& f);
 
+/// Cell coordinate of x along `axis` in a grid of n cells of `width` from the box origin:
+/// wrapped in a periodic box, clamped otherwise (clamping keeps points within a cell width of
+/// each other in the same or adjacent cells).
+int cell_coordinate(const Box& box, int n, double width, double x, int axis);
+
 /// Uniform grid over inclusion centres for neighbour queries; periodic-aware.
 /// `reach` must be at least the largest sum of two bounding radii that will be queried.
 /// `expected_count` bounds the number of cells (about two per stored inclusion).

@@ -175,41 +175,25 @@ void VerletList::keep_grid(const Box& box) {
   for (size_t i = 0; i < sub_first_.size(); ++i) insert_spheres(static_cast<int>(i));
 }
 
-namespace {
-// Cell coordinate of x along axis a: wrapped in a periodic box, clamped otherwise (clamping
-// keeps spheres within reach in the same or adjacent cells).
-int cell_coord(const Box& box, const int n[3], double x, int a) {
-  const double t = (x - box.origin[a]) / box.size[a] * n[a];
-  int c = static_cast<int>(std::floor(t));
-  if (box.periodic) {
-    c %= n[a];
-    if (c < 0) c += n[a];
-  } else {
-    c = std::clamp(c, 0, n[a] - 1);
-  }
-  return c;
+int VerletList::grid_coord(double x, int a) const {
+  return cell_coordinate(box_, grid_n_[a], box_.size[a] / grid_n_[a], x, a);
 }
-}  // namespace
+
+size_t VerletList::grid_cell(const Vec3& c) const {
+  return (static_cast<size_t>(grid_coord(c[2], 2)) * grid_n_[1] + grid_coord(c[1], 1)) *
+             grid_n_[0] +
+         grid_coord(c[0], 0);
+}
 
 void VerletList::insert_spheres(int i) {
   for (int q = sub_first_[i]; q < sub_first_[i] + sub_count_[i]; ++q) {
-    const Vec3& c = sub_c_[q];
-    const size_t cell = (static_cast<size_t>(cell_coord(box_, grid_n_, c[2], 2)) * grid_n_[1] +
-                         cell_coord(box_, grid_n_, c[1], 1)) *
-                            grid_n_[0] +
-                        cell_coord(box_, grid_n_, c[0], 0);
-    cells_[cell].push_back(q);
+    cells_[grid_cell(sub_c_[q])].push_back(q);
   }
 }
 
 void VerletList::remove_spheres(int i) {
   for (int q = sub_first_[i]; q < sub_first_[i] + sub_count_[i]; ++q) {
-    const Vec3& c = sub_c_[q];
-    const size_t cell = (static_cast<size_t>(cell_coord(box_, grid_n_, c[2], 2)) * grid_n_[1] +
-                         cell_coord(box_, grid_n_, c[1], 1)) *
-                            grid_n_[0] +
-                        cell_coord(box_, grid_n_, c[0], 0);
-    std::vector<int>& v = cells_[cell];
+    std::vector<int>& v = cells_[grid_cell(sub_c_[q])];
     const auto it = std::find(v.begin(), v.end(), q);
     *it = v.back();
     v.pop_back();
@@ -261,7 +245,7 @@ bool VerletList::refresh(std::vector<Body>* all, const Box& box, double s_out,
       const Vec3& c = sub_c_[p];
       int lo[3], hi[3];
       for (int a = 0; a < 3; ++a) {
-        const int m = cell_coord(box, grid_n_, c[a], a);
+        const int m = grid_coord(c[a], a);
         const int range =
             static_cast<int>(std::ceil((sub_r_[p] + grid_reach_) * grid_n_[a] / box.size[a]));
         lo[a] = m - range;

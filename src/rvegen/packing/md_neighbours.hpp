@@ -57,6 +57,8 @@ class VerletList {
   bool refresh(std::vector<Body>* bodies, const Box& box, double s_out,
                const std::vector<int>& stale_ids, const std::function<void()>& tick);
   void keep_grid(const Box& box);
+  int grid_coord(double x, int a) const;  // kept grid: cell coordinate, cell index
+  size_t grid_cell(const Vec3& c) const;
   void insert_spheres(int i);
   void remove_spheres(int i);
   void emit_pairs(const Box& box);

@@ -45,6 +45,17 @@ NeighbourGrid::NeighbourGrid(const Box& box, double reach, size_t expected_count
   (void)total;
 }
 
+std::array<int, 3> to_nearest_image(const Box& box, Vec3* d) {
+  std::array<int, 3> k = {0, 0, 0};
+  if (!box.periodic) return k;
+  for (int a = 0; a < 3; ++a) {
+    const int m = static_cast<int>(std::floor((*d)[a] / box.size[a] + 0.5));
+    (*d)[a] -= m * box.size[a];
+    k[a] = -m;
+  }
+  return k;
+}
+
 int cell_coordinate(const Box& box, int n, double width, double x, int axis) {
   int i = static_cast<int>(std::floor((x - box.origin[axis]) / width));
   if (box.periodic) {
@@ -173,14 +184,7 @@ void sphere_pairs(const Box& box, const std::vector<Vec3>& c, const std::vector<
     if (q == p) return;  // a small sphere cannot reach its own image (3 cells per axis)
     // Only the nearest image of q can be within reach: the box is at least 3 reaches wide.
     Vec3 d = c[q] - c[p];
-    std::array<int, 3> k = {0, 0, 0};
-    if (box.periodic) {
-      for (int a = 0; a < 3; ++a) {
-        const int m = static_cast<int>(std::floor(d[a] / box.size[a] + 0.5));
-        d[a] -= m * box.size[a];
-        k[a] = -m;
-      }
-    }
+    const std::array<int, 3> k = to_nearest_image(box, &d);
     const double rr = r[p] + r[q];
     if (d.squaredNorm() <= rr * rr) out.push_back({p, q, k});
   };

@@ -18,6 +18,10 @@ namespace rvegen {
 void for_each_image(const Box& box, const Vec3& ca, double ra, const Vec3& cb, double rb,
                     const std::function<void(const Vec3&)>& f);
 
+/// Moves the difference d = c_b - c_a to b's nearest periodic image (unchanged in a closed box)
+/// and returns that image's lattice shift k, in box sizes: b is taken at c_b + k * size.
+std::array<int, 3> to_nearest_image(const Box& box, Vec3* d);
+
 /// Cell coordinate of x along `axis` in a grid of n cells of `width` from the box origin:
 /// wrapped in a periodic box, clamped otherwise (clamping keeps points within a cell width of
 /// each other in the same or adjacent cells).

@@ -141,7 +141,7 @@ void VerletList::build(std::vector<Body>* all, const Box& box, double s_out,
 // (kGridRoom times the largest now). In a periodic box only the nearest image of a sphere may
 // reach another (reach under half the box), and a search never wraps onto itself.
 void VerletList::keep_grid(const Box& box) {
-  grid_cell_ = 0.0;
+  grid_kept_ = false;
   cells_.clear();
   if (sub_r_.empty()) return;
   std::vector<double> r(sub_r_);
@@ -170,7 +170,7 @@ void VerletList::keep_grid(const Box& box) {
       if (4.0 * grid_reach_ >= box.size[a] || 2 * range + 1 > grid_n_[a]) return;
     }
   }
-  grid_cell_ = cell;
+  grid_kept_ = true;
   cells_.assign(total, {});
   for (size_t i = 0; i < sub_first_.size(); ++i) insert_spheres(static_cast<int>(i));
 }
@@ -212,7 +212,6 @@ bool VerletList::refresh(std::vector<Body>* all, const Box& box, double s_out,
   }
   for (int i : ids) insert_spheres(i);
   ++refreshed_;
-  refreshed_bodies_ += static_cast<long long>(ids.size());
   std::vector<char>& is_stale = is_stale_;
   is_stale.assign(n, 0);
   for (int i : ids) is_stale[i] = 1;
@@ -265,14 +264,7 @@ bool VerletList::refresh(std::vector<Body>* all, const Box& box, double s_out,
               const int j = sub_body_[q];
               if (j < i && is_stale[j]) continue;
               Vec3 d = sub_c_[q] - c;
-              std::array<int, 3> k = {0, 0, 0};
-              if (box.periodic) {
-                for (int a = 0; a < 3; ++a) {
-                  const int m = static_cast<int>(std::floor(d[a] / box.size[a] + 0.5));
-                  d[a] -= m * box.size[a];
-                  k[a] = -m;
-                }
-              }
+              std::array<int, 3> k = to_nearest_image(box, &d);
               if (j == i && k[0] == 0 && k[1] == 0 && k[2] == 0) continue;
               const double rr = sub_r_[p] + sub_r_[q];
               if (d.squaredNorm() > rr * rr) continue;
@@ -334,7 +326,7 @@ void VerletList::update(std::vector<Body>* all, const Box& box, double s_out,
   // Refreshed bodies leave their old covering spheres behind: rebuild once they outnumber the
   // live ones three to one.
   const bool crowded = sub_c_.size() > 4 * (sub_c_.size() - dead_spheres_) + 4096;
-  if (grid_cell_ == 0.0 || kRefreshShare * ids.size() > n || crowded) {
+  if (!grid_kept_ || kRefreshShare * ids.size() > n || crowded) {
     return build(all, box, s_out, tick);
   }
   for (int i : ids) dead_spheres_ += sub_count_[i];

@@ -47,7 +47,6 @@ class VerletList {
   /// Full builds, and bodies referenced again one by one.
   long long rebuilds() const { return rebuilds_; }
   long long refreshed() const { return refreshed_; }
-  long long refreshed_bodies() const { return refreshed_bodies_; }
 
  private:
   bool stale_body(const Body& b, size_t i, double s_out) const;
@@ -78,8 +77,9 @@ class VerletList {
   std::vector<Vec3> sub_c_;
   std::vector<double> sub_r_;
   std::vector<int> sub_body_, sub_first_, sub_count_;
-  // The kept grid (absent when grid_cell_ is 0): cell size, cells per axis, sphere ids by cell.
-  double grid_cell_ = 0.0;
+  // The kept grid (when grid_kept_): the largest sphere it takes, cells per axis, sphere ids by
+  // cell.
+  bool grid_kept_ = false;
   double grid_reach_ = 0.0;  // the largest covering sphere the grid takes
   int grid_n_[3] = {0, 0, 0};
   std::vector<std::vector<int>> cells_;
@@ -98,7 +98,6 @@ class VerletList {
   std::vector<int> stale_ids_;
   std::vector<char> is_stale_;
   size_t dead_spheres_ = 0;
-  long long refreshed_bodies_ = 0;
   Box box_;
 };
 

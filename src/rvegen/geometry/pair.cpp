@@ -208,8 +208,7 @@ double projected_half_width(const Shape& cyl, double h, const Vec3& m) {
 // direction do not meet. Tried on the direction joining the closest points of the axis
 // segments (disjoint capsules are caught there too), each axis and the line of centres.
 // Finding none proves nothing; GJK/EPA then decides.
-bool separating_axis_found(const Shape& c1, const Shape& c2) {
-  const double h1 = c1.half_axis.norm(), h2 = c2.half_axis.norm();
+bool separating_axis_found(const Shape& c1, double h1, const Shape& c2, double h2) {
   const Vec3 d = c2.center - c1.center;
   double s, t;
   const Vec3 p1 = c1.center - c1.half_axis, p2 = c2.center - c2.half_axis;
@@ -289,7 +288,7 @@ Contact intersect_cylinder_cylinder(const Shape& c1, const Shape& c2, double dep
     c.point = pt1 + c.normal * (r1 - 0.5 * c.depth);
     return c;
   }
-  if (separating_axis_found(c1, c2)) return c;
+  if (separating_axis_found(c1, h1, c2, h2)) return c;
   const ConvexQuery q = convex_query(c1, c2, tol, false, depth_rel);
   if (q.separated || !(q.depth > tol)) return c;
   c.overlap = true;
@@ -306,8 +305,8 @@ namespace {
 // (x in E <=> (x - p)^T M^{-1} (x - p) <= 1) and r = p2 - p1,
 //   F(l) = l (1 - l) r^T G(l)^{-1} r,   G(l) = (1 - l) A + l B,   l in [0, 1].
 // In the frame where e1 is the unit ball, G = A^{1/2} ((1 - l) I + l B') A^{1/2} with
-// B' = A^{-1/2} B A^{-1/2} = Q diag(beta) Q^T, so with c = Q^T A^{-1/2} r and D_i = 1 - l + l
-// beta_i
+// B' = A^{-1/2} B A^{-1/2} = Q diag(beta) Q^T, so with c = Q^T A^{-1/2} r and
+// D_i = 1 - l + l beta_i
 //   F = l (1 - l) sum c_i^2 / D_i,  F' = sum c_i^2 ((1 - l)^2 - l^2 beta_i) / D_i^2,
 //   F'' = -2 sum c_i^2 beta_i / D_i^3 < 0,
 // three terms each: F is concave and its maximum is found by safeguarded Newton steps.
@@ -358,11 +357,7 @@ struct PwFrame {
     }
     c2 = c.cwiseProduct(c);
   }
-  // l in the frame's own order (e1 of the frame first).
-  double F(double l) const {
-    const Vec3 D = Vec3::Constant(1.0 - l) + l * beta;
-    return l * (1.0 - l) * c2.cwiseQuotient(D).sum();
-  }
+  // F, F' and F'' at l in the frame's own order (e1 of the frame first).
   void derivatives(double l, double* F, double* d1, double* d2) const {
     double s0 = 0.0, s1 = 0.0, s2 = 0.0;
     for (int i = 0; i < 3; ++i) {

@@ -83,6 +83,7 @@ vtkRVEGenerator::vtkRVEGenerator() {
   this->ShellsMayTouch = false;
   this->FibreWaveAmplitude = 0.0;
   this->FibreWavelength = 0.2;
+  this->FibreCurvatureRadius = 0.0;
   this->SphereDeformation = 0.0;
   this->EllipsoidDeformation = 0.0;
   this->DeformationSmoothness = 1.0;
@@ -164,6 +165,7 @@ rvegen::Scene SceneFromProperties(const vtkRVEGenerator* g) {
   }
   fib.modifiers.wave_amplitude = self->GetFibreWaveAmplitude();
   fib.modifiers.wave_length = self->GetFibreWavelength();
+  fib.modifiers.bend_radius = self->GetFibreCurvatureRadius();
   sph.modifiers.deform_amplitude = self->GetSphereDeformation();
   ell.modifiers.deform_amplitude = self->GetEllipsoidDeformation();
   sph.modifiers.debond_fraction = self->GetSphereDebondFraction();
@@ -438,6 +440,7 @@ void vtkRVEGenerator::PrintSelf(ostream& os, vtkIndent indent) {
   os << indent << "FibreCoating: " << this->FibreCoating << "\n";
   os << indent << "FibreWaveAmplitude: " << this->FibreWaveAmplitude << "\n";
   os << indent << "FibreWavelength: " << this->FibreWavelength << "\n";
+  os << indent << "FibreCurvatureRadius: " << this->FibreCurvatureRadius << "\n";
   v3("EllipsoidSemiAxes", this->EllipsoidSemiAxes);
   os << indent << "EllipsoidVolumeFraction: " << this->EllipsoidVolumeFraction << "\n";
   os << indent << "EllipsoidCount: " << this->EllipsoidCount << "\n";

@@ -103,6 +103,8 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   vtkGetMacro(FibreWaveAmplitude, double);
   vtkSetMacro(FibreWavelength, double);
   vtkGetMacro(FibreWavelength, double);
+  vtkSetMacro(FibreCurvatureRadius, double);
+  vtkGetMacro(FibreCurvatureRadius, double);
   vtkSetMacro(SphereDeformation, double);
   vtkGetMacro(SphereDeformation, double);
   vtkSetMacro(EllipsoidDeformation, double);
@@ -187,6 +189,7 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   bool ShellsMayTouch;
   double FibreWaveAmplitude;
   double FibreWavelength;
+  double FibreCurvatureRadius;
   double SphereDeformation;
   double EllipsoidDeformation;
   double DeformationSmoothness;

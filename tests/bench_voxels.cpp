@@ -37,7 +37,7 @@ int main(int argc, char** argv) {
     double exact = 0.0;  // volume of what the grids describe: wavy/deformed cores, shells
     for (const auto& inc : r.set.inclusions) {
       const rvegen::RegionVolumes v = rvegen::region_volumes(inc);
-      if (inc.mod.wavy() || inc.mod.deformed()) exact += v.core;
+      if (inc.mod.curved() || inc.mod.deformed()) exact += v.core;
       if (inc.mod.coated()) exact += v.shell;
     }
     exact /= r.set.box.volume();

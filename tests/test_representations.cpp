@@ -175,6 +175,9 @@ TEST(Bodies, ClearanceIsALowerBoundOnTheDistanceToRegionBoundaries) {
   debond.debond_axis = Vec3(1, 1, 0).normalized();
   Modifiers wavy_coated = wave;
   wavy_coated.coating = 0.03;
+  Modifiers bent_wavy_coated = wavy_coated;  // a bend to 1.5 lengths on top of the wave
+  bent_wavy_coated.bend_radius = 1.0;
+  bent_wavy_coated.bend_angle = 2.5;
   const std::vector<Inclusion> cases = {
       single(Shape::sphere({0.5, 0.5, 0.5}, 0.2), coat).inclusions[0],
       single(Shape::cylinder({0.5, 0.5, 0.5}, 0.1, Vec3(0.1, 0.2, 0.1)), coat).inclusions[0],
@@ -182,6 +185,8 @@ TEST(Bodies, ClearanceIsALowerBoundOnTheDistanceToRegionBoundaries) {
           .inclusions[0],
       single(Shape::cylinder({0.5, 0.5, 0.5}, 0.08, Vec3(0.0, 0.1, 0.3)), wave).inclusions[0],
       single(Shape::cylinder({0.5, 0.5, 0.5}, 0.08, Vec3(0.2, 0.1, 0.1)), wavy_coated)
+          .inclusions[0],
+      single(Shape::cylinder({0.5, 0.5, 0.5}, 0.06, Vec3(0.1, 0.25, -0.1)), bent_wavy_coated)
           .inclusions[0],
       single(Shape::sphere({0.5, 0.5, 0.5}, 0.2), debond).inclusions[0],
       single(Shape::sphere({0.5, 0.5, 0.5}, 0.2), deformation(0.3, 0.5, 3)).inclusions[0],
@@ -218,6 +223,10 @@ TEST(Bodies, RegionVolumesMatchTheVoxelImage) {
   Modifiers wave;
   wave.wave_amplitude = 0.05;
   wave.wave_length = 0.25;
+  Modifiers bend;  // to one fibre length, coated
+  bend.bend_radius = 0.65;
+  bend.bend_angle = 0.7;
+  bend.coating = 0.03;
   const std::vector<InclusionSet> sets = {
       single(Shape::sphere({0.5, 0.5, 0.5}, 0.2), coat),
       single(Shape::cylinder({0.5, 0.5, 0.5}, 0.1, Vec3(0.1, 0.2, 0.1)), coat),
@@ -226,6 +235,7 @@ TEST(Bodies, RegionVolumesMatchTheVoxelImage) {
       single(Shape::cylinder({0.5, 0.5, 0.5}, 0.08, Vec3(0.0, 0.1, 0.3)), wave),
       single(Shape::ellipsoid({0.5, 0.5, 0.5}, Vec3(0.25, 0.15, 0.1), some_rotation()),
              deformation(0.25, 0.7, 5)),
+      single(Shape::cylinder({0.5, 0.5, 0.5}, 0.07, Vec3(0.1, 0.3, 0.0)), bend),
   };
   for (size_t s = 0; s < sets.size(); ++s) {
     const RegionVolumes v = region_volumes(sets[s].inclusions[0]);
@@ -388,6 +398,24 @@ TEST(Modifiers, BadInputNamesTheKey) {
   EXPECT_NE(
       err(R"({"shape": "cylinder", "radius": 0.02, "aspect_ratio": 4, "volume_fraction": 0.1, "debonding": {"fraction": 0.2, "gap": 0.01}})")
           .find("families[0].debonding"),
+      std::string::npos);
+  EXPECT_NE(
+      err(R"({"shape": "sphere", "radius": 0.05, "volume_fraction": 0.1, "curvature": {"radius": 1}})")
+          .find("families[0].curvature: curvature applies to cylinders only"),
+      std::string::npos);
+  // A radius of curvature below the fibre's length (0.16 + 2 x 0.01 with the coating).
+  EXPECT_NE(
+      err(R"({"shape": "cylinder", "radius": 0.02, "aspect_ratio": 4, "volume_fraction": 0.1, "coating": {"thickness": 0.01}, "curvature": {"radius": 0.17}})")
+          .find("families[0].curvature.radius: must be at least the longest fibre's length with "
+                "its coating (0.18)"),
+      std::string::npos);
+  EXPECT_NE(
+      err(R"({"shape": "cylinder", "radius": 0.02, "aspect_ratio": 4, "volume_fraction": 0.1, "curvature": {"radius": -1}})")
+          .find("families[0].curvature.radius"),
+      std::string::npos);
+  EXPECT_NE(
+      err(R"({"shape": "cylinder", "radius": 0.02, "aspect_ratio": 4, "volume_fraction": 0.1, "curvature": {"radius": 1, "plane": 0}})")
+          .find("families[0].curvature.plane: unknown key"),
       std::string::npos);
   // Thick coatings: 0.5 of cores, but the envelopes would fill more than any packing allows.
   EXPECT_NE(

@@ -229,6 +229,21 @@ props.FibreOrientationTensor = [0.6, 0.3, 0.2, 0.0, 0.0, 0.0]  # trace 1.1
 props.UpdatePipeline()
 props.UpdatePropertyInformation()
 check(props.GetProperty("Status").GetElement(0) == "invalid", "tensor of trace 1.1 accepted")
+# A bend from the panel: the fibres (family 1) are modified, so their surfaces join the
+# spheres' on the Surfaces port; a radius of curvature below the fibre length is refused.
+props.FibreOrientationTensor = [0.6, 0.3, 0.1, 0.1, 0.0, 0.0]
+props.FibreCurvatureRadius = 0.5
+bent_mesh = servermanager.Fetch(props, idx=3)
+props.UpdatePropertyInformation()
+fam = bent_mesh.GetCellData().GetArray("family")
+check(props.GetProperty("Status").GetElement(0) == "ok" and fam is not None
+      and fam.GetRange() == (0.0, 1.0), "bent fibres: status %s, surfaces port families %s"
+      % (props.GetProperty("Status").GetElement(0), fam.GetRange() if fam is not None else None))
+props.FibreCurvatureRadius = 0.1
+props.UpdatePipeline()
+props.UpdatePropertyInformation()
+check(props.GetProperty("Status").GetElement(0) == "invalid", "radius of curvature 0.1 accepted")
+props.FibreCurvatureRadius = 0.0
 props.FibreOrientation = 1
 props.SphereDeformation = 0.1
 props.UpdatePipeline()

@@ -15,8 +15,8 @@ Modifiers read_modifiers(const json_util::Json& j, const Shape& shape, const std
   using namespace json_util;
   only_keys(j,
             {"coating", "shells_may_touch", "wave_amplitude", "wave_length", "wave_phase",
-             "wave_angle", "deform_amplitude", "deform_scale", "deform_waves", "debond_fraction",
-             "debond_gap", "debond_axis", "packing_pad"},
+             "wave_angle", "bend_radius", "bend_angle", "deform_amplitude", "deform_scale",
+             "deform_waves", "debond_fraction", "debond_gap", "debond_axis", "packing_pad"},
             p);
   Modifiers m;
   auto num = [&](const char* key, double* out) {
@@ -32,6 +32,14 @@ Modifiers read_modifiers(const json_util::Json& j, const Shape& shape, const std
     m.wave_length = positive(require(j, "wave_length", p), p + ".wave_length");
     num("wave_phase", &m.wave_phase);
     num("wave_angle", &m.wave_angle);
+  }
+  if (j.contains("bend_radius")) {
+    if (shape.kind != ShapeKind::Cylinder) fail(p + ".bend_radius", "cylinders only");
+    m.bend_radius = positive(j["bend_radius"], p + ".bend_radius");
+    // The arc must hold the fibre and its shell (the offsets are defined up to |s| < radius).
+    if (!(m.bend_radius > shape.half_axis.norm() + m.coating))
+      fail(p + ".bend_radius", "must exceed the fibre's half length plus its coating");
+    num("bend_angle", &m.bend_angle);
   }
   if (j.contains("deform_amplitude")) {
     if (shape.kind == ShapeKind::Cylinder)
@@ -215,6 +223,10 @@ std::string write_inclusions_json(const InclusionSet& set) {
         mj["wave_length"] = m.wave_length;
         mj["wave_phase"] = m.wave_phase;
         mj["wave_angle"] = m.wave_angle;
+      }
+      if (m.bent()) {
+        mj["bend_radius"] = m.bend_radius;
+        mj["bend_angle"] = m.bend_angle;
       }
       if (m.deformed()) {
         mj["deform_amplitude"] = m.deform_amplitude;

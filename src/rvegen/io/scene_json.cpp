@@ -102,6 +102,12 @@ FamilyModifiers parse_modifiers(const Json& j, const std::string& p) {
     m.wave_amplitude = positive(require(w, "amplitude", q), q + ".amplitude");
     m.wave_length = positive(require(w, "wavelength", q), q + ".wavelength");
   }
+  if (j.contains("curvature")) {
+    const std::string q = p + ".curvature";
+    const Json& c = j["curvature"];
+    only_keys(c, {"radius"}, q);
+    m.bend_radius = positive(require(c, "radius", q), q + ".radius");
+  }
   if (j.contains("deformation")) {
     const std::string q = p + ".deformation";
     const Json& d = j["deformation"];
@@ -147,7 +153,7 @@ Family parse_family(const Json& j, const std::string& p, double box_volume) {
     case ShapeKind::Sphere:
       only_keys(j,
                 {"name", "shape", "radius", "volume_fraction", "count", "coating", "waviness",
-                 "deformation", "debonding"},
+                 "curvature", "deformation", "debonding"},
                 p);
       if (derived) {
         if (j.contains("radius"))
@@ -161,7 +167,7 @@ Family parse_family(const Json& j, const std::string& p, double box_volume) {
     case ShapeKind::Cylinder:
       only_keys(j,
                 {"name", "shape", "radius", "aspect_ratio", "volume_fraction", "count",
-                 "orientation", "coating", "waviness", "deformation", "debonding"},
+                 "orientation", "coating", "waviness", "curvature", "deformation", "debonding"},
                 p);
       f.aspect_ratio = parse_size(require(j, "aspect_ratio", p), p + ".aspect_ratio");
       if (derived) {
@@ -176,7 +182,7 @@ Family parse_family(const Json& j, const std::string& p, double box_volume) {
     case ShapeKind::Ellipsoid: {
       only_keys(j,
                 {"name", "shape", "semi_axes", "axis_ratios", "volume_fraction", "count",
-                 "orientation", "coating", "waviness", "deformation", "debonding"},
+                 "orientation", "coating", "waviness", "curvature", "deformation", "debonding"},
                 p);
       if (derived) {
         if (j.contains("semi_axes"))
@@ -444,6 +450,7 @@ OJson packing_json(const PackingSpec& s) {
       j["coating"] = {{"thickness", m.coating}, {"shells_may_touch", m.shells_may_touch}};
     if (m.wave_amplitude > 0.0)
       j["waviness"] = {{"amplitude", m.wave_amplitude}, {"wavelength", m.wave_length}};
+    if (m.bend_radius > 0.0) j["curvature"] = {{"radius", m.bend_radius}};
     if (m.deform_amplitude > 0.0)
       j["deformation"] = {{"amplitude", m.deform_amplitude}, {"smoothness", m.smoothness}};
     if (m.debond_gap > 0.0)

@@ -8,9 +8,9 @@
 namespace rvegen {
 namespace {
 
-// Frame of a cylinder: unit axis u and the unit direction v of its wave (orthogonal to u).
+// Frame of a cylinder: unit axis u, half length h.
 struct FibreFrame {
-  Vec3 u, v;
+  Vec3 u;
   double h;
 };
 
@@ -18,14 +18,7 @@ FibreFrame fibre_frame(const Inclusion& inc) {
   FibreFrame f;
   f.h = inc.shape.half_axis.norm();
   f.u = inc.shape.half_axis / f.h;
-  const Vec3 e1 = any_orthogonal(f.u), e2 = f.u.cross(e1);
-  f.v = std::cos(inc.mod.wave_angle) * e1 + std::sin(inc.mod.wave_angle) * e2;
   return f;
-}
-
-// Lipschitz bound of the shear x -> x - A sin(k s + phase) v (and of its inverse): 1 + A k.
-double shear_lipschitz(const Modifiers& m) {
-  return m.wavy() ? 1.0 + m.wave_amplitude * 2.0 * M_PI / m.wave_length : 1.0;
 }
 
 // Grows a straight shape: sphere and ellipsoid by the factor `f` (f >= 1), cylinders by dr in
@@ -47,7 +40,7 @@ Shape grown(const Inclusion& inc, double t) {
       return Shape::sphere(s.center, r + t);
     }
     case ShapeKind::Cylinder:
-      return grown_cylinder(s, m.wave_amplitude + t, t);
+      return grown_cylinder(s, lateral_reach(inc) + t, t);
     case ShapeKind::Ellipsoid: {
       Shape e = s;
       if (m.deformed()) e = e.scaled(m.deform_scale * (1.0 + m.deform_amplitude * m.deform_peak));
@@ -93,11 +86,41 @@ double deformation_volume_scale(const Modifiers& m) {
   return std::cbrt(4.0 * M_PI / v);
 }
 
-Vec3 wave_offset(const Inclusion& inc, double s) {
+double bend_reach(double bend_radius, double h, double s_max) {
+  const double R = bend_radius;
+  return (R - std::sqrt(R * R - s_max * s_max)) - 0.5 * (R - std::sqrt(R * R - h * h));
+}
+
+CentreLine::CentreLine(const Inclusion& inc) {
   const Modifiers& m = inc.mod;
-  if (!m.wavy()) return Vec3::Zero();
+  if (inc.shape.kind != ShapeKind::Cylinder || !m.curved()) return;
   const FibreFrame f = fibre_frame(inc);
-  return m.wave_amplitude * std::sin(2.0 * M_PI * s / m.wave_length + m.wave_phase) * f.v;
+  const Vec3 e1 = any_orthogonal(f.u), e2 = f.u.cross(e1);
+  if (m.wavy()) {
+    A = m.wave_amplitude;
+    k = 2.0 * M_PI / m.wave_length;
+    phase = m.wave_phase;
+    v = std::cos(m.wave_angle) * e1 + std::sin(m.wave_angle) * e2;
+  }
+  if (m.bent()) {
+    Rc = m.bend_radius;
+    s_max = f.h + m.coating;
+    mid = 0.5 * (Rc - std::sqrt(Rc * Rc - f.h * f.h));
+    w = std::cos(m.bend_angle) * e1 + std::sin(m.bend_angle) * e2;
+  }
+}
+
+double CentreLine::reach() const {
+  // The bend's offset grows with |s| from -mid at s = 0 to at least +mid at |s| = h.
+  return A + (Rc > 0.0 ? (Rc - std::sqrt(Rc * Rc - s_max * s_max)) - mid : 0.0);
+}
+
+double CentreLine::slope() const {
+  return A * k + (Rc > 0.0 ? s_max / std::sqrt(Rc * Rc - s_max * s_max) : 0.0);
+}
+
+double CentreLine::curvature() const {
+  return A * k * k + (Rc > 0.0 ? Rc * Rc / std::pow(Rc * Rc - s_max * s_max, 1.5) : 0.0);
 }
 
 Shape envelope(const Inclusion& inc) {
@@ -109,12 +132,13 @@ Shape envelope(const Inclusion& inc) {
 
 namespace {
 // What a chain is cut from: the sheared straight cylinder of radius R, half length H (the core
-// with its shell unless shells may touch), n pieces of axial length ds and sagitta sag.
+// with its shell unless shells may touch), n pieces of axial length ds and sagitta sag; the
+// offsets' bounds: reach, slope.
 struct ChainPlan {
-  double R, H, pad, A, k, ds, sag;
+  double R, H, pad, reach, slope, ds, sag;
   int n;
 };
-ChainPlan chain_plan(const Inclusion& inc) {
+ChainPlan chain_plan(const Inclusion& inc, const CentreLine& line) {
   const Modifiers& m = inc.mod;
   ChainPlan c;
   // The shell is the sheared image of the straight fibre's offset, which the straight cylinder of
@@ -123,40 +147,40 @@ ChainPlan chain_plan(const Inclusion& inc) {
   c.pad = m.packing_pad;
   c.R = inc.shape.radius + shell;
   c.H = inc.shape.half_axis.norm() + shell;
-  c.A = m.wave_amplitude;
-  c.k = 2.0 * M_PI / m.wave_length;
-  // Pieces of length ds with A k^2 ds^2 / 8 <= kChainSagitta R (the count is a ratio of lengths,
+  c.reach = line.reach();
+  c.slope = line.slope();
+  const double K = line.curvature();
+  // Pieces of length ds with K ds^2 / 8 <= kChainSagitta R (the count is a ratio of lengths,
   // the same at every scale; the 1e-9 keeps an exact integer from rounding either way).
-  const double span = 2.0 * c.H * c.k * std::sqrt(c.A / (8.0 * kChainSagitta * c.R));
+  const double span = 2.0 * c.H * std::sqrt(K / (8.0 * kChainSagitta * c.R));
   c.n = std::max(1, static_cast<int>(std::ceil(span * (1.0 - 1e-9))));
   c.ds = 2.0 * c.H / c.n;
-  c.sag = std::min(c.A, c.A * c.k * c.k * c.ds * c.ds / 8.0);
+  c.sag = std::min(2.0 * c.reach, K * c.ds * c.ds / 8.0);
   return c;
 }
 }  // namespace
 
 Shape chain_bound(const Inclusion& inc) {
-  const ChainPlan c = chain_plan(inc);
+  const CentreLine line(inc);
+  const ChainPlan c = chain_plan(inc, line);
   const FibreFrame f = fibre_frame(inc);
   // A piece's points lie within R + sag + pad of its chord extended by e = (R + sag) sin(alpha)
-  // + pad at each end; chord points are within A of the axis and the extension moves e sin(alpha)
-  // sideways and e along the axis (sin(alpha) <= A k / sqrt(1 + (A k)^2), the largest slope).
-  const double sin_a = c.A * c.k / std::sqrt(1.0 + c.A * c.k * c.A * c.k);
+  // + pad at each end; chord points are within `reach` of the axis and the extension moves
+  // e sin(alpha) sideways and e along the axis (sin(alpha) <= slope / sqrt(1 + slope^2)).
+  const double sin_a = c.slope / std::sqrt(1.0 + c.slope * c.slope);
   const double e = (c.R + c.sag) * sin_a + c.pad, reach = c.R + c.sag + c.pad;
-  const double radius = (c.A + e * sin_a + reach) * (1.0 + 1e-12);
+  const double radius = (c.reach + e * sin_a + reach) * (1.0 + 1e-12);
   const double half = (c.H + e + reach) * (1.0 + 1e-12);
   return Shape::cylinder(inc.shape.center, radius, f.u * half);
 }
 
 void chain_pieces(const Inclusion& inc, std::vector<Shape>* out) {
-  const Modifiers& m = inc.mod;
   const FibreFrame f = fibre_frame(inc);
-  const ChainPlan c = chain_plan(inc);
-  const double R = c.R, H = c.H, pad = c.pad, A = c.A, k = c.k, ds = c.ds, sag = c.sag;
+  const CentreLine line(inc);
+  const ChainPlan c = chain_plan(inc, line);
+  const double R = c.R, H = c.H, pad = c.pad, ds = c.ds, sag = c.sag;
   const int n = c.n;
-  auto point = [&](double s) {
-    return inc.shape.center + s * f.u + A * std::sin(k * s + m.wave_phase) * f.v;
-  };
+  auto point = [&](double s) -> Vec3 { return inc.shape.center + s * f.u + line.offset(s); };
   for (int i = 0; i < n; ++i) {
     const double s0 = -H + i * ds, s1 = (i + 1 == n) ? H : s0 + ds;
     const Vec3 p0 = point(s0), p1 = point(s1), chord = p1 - p0;
@@ -187,12 +211,13 @@ Inclusion place_like(const Inclusion& drawn, const Shape& packed, double scale) 
   m.coating *= scale;
   m.wave_amplitude *= scale;
   m.wave_length *= scale;
+  m.bend_radius *= scale;
   m.debond_gap *= scale;
   m.packing_pad *= scale;
   return out;
 }
 
-BodyQuery::BodyQuery(const Inclusion& inc) : m_(inc.mod), s_(inc.shape) {
+BodyQuery::BodyQuery(const Inclusion& inc) : m_(inc.mod), s_(inc.shape), line_(inc) {
   c_ = s_.center;
   switch (s_.kind) {
     case ShapeKind::Sphere:
@@ -207,10 +232,9 @@ BodyQuery::BodyQuery(const Inclusion& inc) : m_(inc.mod), s_(inc.shape) {
     case ShapeKind::Cylinder: {
       const FibreFrame f = fibre_frame(inc);
       u_ = f.u;
-      v_ = f.v;
       h_ = f.h;
-      lipschitz_ = shear_lipschitz(m_);
-      if (m_.wavy()) k_ = 2.0 * M_PI / m_.wave_length;
+      // The shear x -> x - offset(s) and its inverse stretch distances by at most 1 + slope.
+      lipschitz_ = 1.0 + line_.slope();
       break;
     }
   }
@@ -225,7 +249,7 @@ double BodyQuery::cylinder_sdf(const Vec3& x) const {
   const Vec3 d = x - c_;
   const double s = d.dot(u_);
   Vec3 t = d - s * u_;
-  if (k_ > 0.0) t -= m_.wave_amplitude * std::sin(k_ * s + m_.wave_phase) * v_;
+  if (m_.curved()) t -= line_.offset(s);
   const double d_ax = std::abs(s) - h_, d_rad = t.norm() - s_.radius;
   if (d_ax > 0.0 || d_rad > 0.0) {
     return std::hypot(std::max(d_ax, 0.0), std::max(d_rad, 0.0));
@@ -311,7 +335,7 @@ double BodyQuery::clearance(const Vec3& x) const {
       return c;
     }
     case ShapeKind::Cylinder: {
-      // Exact for straight fibres; the shear of a wavy one stretches distances by at most L.
+      // Exact for straight fibres; the shear of a curved one stretches distances by at most L.
       const double d = cylinder_sdf(x);
       double c = std::abs(d);
       if (m_.coated()) c = std::min(c, std::abs(d - m_.coating));

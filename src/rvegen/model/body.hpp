@@ -8,6 +8,8 @@
 // do not overlap guarantee bodies that do not overlap.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -25,26 +27,65 @@ Shape envelope(const Inclusion& inc);
 /// A convex shape holding every region of the inclusion (the envelope with the whole shell).
 Shape outer_bound(const Inclusion& inc);
 
-/// Wavy fibres of large amplitude are packed and audited as chains of straight cylinders, not by
-/// the envelope (the cylinder of radius r + A, four times the fibre's volume when A = r). The fibre
-/// (with its shell unless shells may touch: the sheared straight cylinder of radius R = r + t, half
-/// length H = h + t) is cut along its axis into n equal pieces; over a piece the cross-sections'
-/// offset A sin(k s + phase) departs from its chord by at most the sagitta A k^2 ds^2 / 8, so a
-/// point of the piece lies within R + sagitta of the chord's line and at most (R + sagitta)
-/// sin(alpha) beyond its ends (alpha: the chord's angle to the axis). Each piece is that cylinder,
-/// grown by the packing pad: together they hold what the envelope holds. n keeps the sagitta below
-/// kChainSagitta of R.
-/// Chains pay where the envelope is far larger than the fibre: from a wave amplitude of
+/// Wavy and bent fibres are sheared straight cylinders: the cross-section at axial coordinate s
+/// (|s| <= h, the half length) is displaced sideways by centre_offset(s), the sum of
+///  - the wave A sin(k s + phase) v, and
+///  - the bend (Rc - sqrt(Rc^2 - s^2) - m) w: the centre line is a circular arc of radius Rc
+///    (its radius of curvature), m = (Rc - sqrt(Rc^2 - h^2)) / 2 centres the arc's offsets on
+///    the axis (they lie in [-m, m] over the fibre). The offset is held constant beyond
+///    |s| = h + coating (where the shell ends), so the shear is Lipschitz everywhere.
+/// The offsets over the fibre and its shell stay within lateral_reach of the axis; their
+/// slope within A k + s_max / sqrt(Rc^2 - s_max^2) and their second derivative within
+/// A k^2 + Rc^2 / (Rc^2 - s_max^2)^(3/2) (s_max = h + coating).
+struct CentreLine {
+  explicit CentreLine(const Inclusion& inc);
+  Vec3 offset(double s) const {
+    Vec3 o = Vec3::Zero();
+    if (A > 0.0) o += A * std::sin(k * s + phase) * v;
+    if (Rc > 0.0) {
+      const double c = std::clamp(s, -s_max, s_max);
+      o += (Rc - std::sqrt(Rc * Rc - c * c) - mid) * w;
+    }
+    return o;
+  }
+  double reach() const;                       // bound on |offset|
+  double slope() const;                       // bound on |offset'|
+  double curvature() const;                   // bound on |offset''|
+  Vec3 v = Vec3::UnitX(), w = Vec3::UnitX();  // wave and bend directions (unit, across the axis)
+  double A = 0.0, k = 0.0, phase = 0.0;       // wave
+  double Rc = 0.0, mid = 0.0, s_max = 0.0;    // bend
+};
+inline Vec3 centre_offset(const Inclusion& inc, double s) {
+  return CentreLine(inc).offset(s);
+}
+inline double lateral_reach(const Inclusion& inc) {
+  return CentreLine(inc).reach();
+}
+/// Largest |bend offset| over |s| <= s_max of a fibre of half length h bent to radius Rc.
+double bend_reach(double bend_radius, double h, double s_max);
+
+/// Wavy and bent fibres whose offsets reach far are packed and audited as chains of straight
+/// cylinders, not by the envelope (the cylinder of radius r + reach, four times the fibre's
+/// volume when a wave's A = r). The fibre (with its shell unless shells may touch: the sheared
+/// straight cylinder of radius R = r + t, half length H = h + t) is cut along its axis into n
+/// equal pieces; over a piece the offsets depart from their chord by at most the sagitta
+/// K ds^2 / 8 (K the bound on their second derivative above), so a point of the piece lies within
+/// R + sagitta of the chord's line and at most (R + sagitta) sin(alpha) beyond its ends (alpha:
+/// the chord's angle to the axis). Each piece is that cylinder, grown by the packing pad:
+/// together they hold what the envelope holds. n keeps the sagitta below kChainSagitta of R.
+/// Chains pay where the envelope is far larger than the fibre: for waves from a lateral reach of
 /// kChainFrom times R (measured, samples/bench_deformed.py: at A = r / 2 the envelope packed as
-/// densely, at A = r chains reached 0.27 where the envelope jammed at 0.14).
+/// densely, at A = r chains reached 0.27 where the envelope jammed at 0.14), and for every bend
+/// (a few pieces follow it; planar fibres of a = 20 bent to 10 lengths: the envelope, 1.27 times
+/// the fibre, jammed at 0.150, chains of 3 pieces reached 0.20).
 constexpr double kChainSagitta = 0.03, kChainFrom = 0.75;
 inline bool packs_as_chain(const Inclusion& inc) {
   const Modifiers& m = inc.mod;
-  return inc.shape.kind == ShapeKind::Cylinder && m.wavy() &&
-         m.wave_amplitude >=
-             kChainFrom * (inc.shape.radius + (m.shells_may_touch ? 0.0 : m.coating));
+  return inc.shape.kind == ShapeKind::Cylinder && m.curved() &&
+         (m.bent() || lateral_reach(inc) >=
+                          kChainFrom * (inc.shape.radius + (m.shells_may_touch ? 0.0 : m.coating)));
 }
-/// The pieces of a wavy fibre's chain (world coordinates), appended to *out.
+/// The pieces of a wavy or bent fibre's chain (world coordinates), appended to *out.
 void chain_pieces(const Inclusion& inc, std::vector<Shape>* out);
 /// A straight cylinder about the fibre's axis holding every piece of its chain (the bound the
 /// broad phases and walls use).
@@ -66,8 +107,8 @@ class BodyQuery {
   /// inclusion (including the outer boundary): a ball of that radius about x lies in one region.
   double clearance(const Vec3& x) const;
   /// Signed distance to the core's surface (negative inside): exact for spheres, straight
-  /// cylinders and outside ellipsoids; for wavy fibres measured in their sheared frame, for
-  /// deformed shapes radially (|y| - R(n)) a_min, inside ellipsoids (q - 1) a_min. The sign is
+  /// cylinders and outside ellipsoids; for wavy and bent fibres measured in their sheared frame,
+  /// for deformed shapes radially (|y| - R(n)) a_min, inside ellipsoids (q - 1) a_min. The sign is
   /// always exact (it agrees with region()).
   double core_distance(const Vec3& x) const;
   /// Signed distance to the interphase shell (negative inside it): max(d - t, -d) with d the
@@ -78,23 +119,24 @@ class BodyQuery {
   }
   /// True for an inclusion without modifiers (a core only, exact line intersections).
   bool plain() const { return !m_.any(); }
-  /// True when the core is the straight convex shape (not wavy, not deformed): x_interval
+  /// True when the core is the straight convex shape (not wavy or bent, not deformed): x_interval
   /// applies to it whatever shell or void surrounds it.
-  bool straight_core() const { return !m_.wavy() && !m_.deformed(); }
+  bool straight_core() const { return !m_.curved() && !m_.deformed(); }
   /// Straight cores: the parameters [t0, t1] where the line p + t e_x lies in the core;
   /// false when it misses the core.
   bool x_interval(const Vec3& p, double* t0, double* t1) const;
 
  private:
-  double cylinder_sdf(const Vec3& x) const;  // in the sheared frame of a wavy fibre
+  double cylinder_sdf(const Vec3& x) const;  // in the sheared frame of a wavy or bent fibre
   double cone_distance(const Vec3& d, double rho) const;
   const Modifiers& m_;
   const Shape& s_;
   Vec3 c_;
   Mat3 to_unit_ = Mat3::Identity();  // sphere, ellipsoid: y = to_unit (x - c)
   double amin_ = 0.0, amax_ = 0.0;
-  Vec3 u_ = Vec3::UnitZ(), v_ = Vec3::UnitX();  // cylinder axis and wave direction
-  double h_ = 0.0, k_ = 0.0, lipschitz_ = 1.0;
+  Vec3 u_ = Vec3::UnitZ();  // cylinder axis
+  CentreLine line_;
+  double h_ = 0.0, lipschitz_ = 1.0;
   double kmax_ = 0.0;  // largest deformation wavenumber
   double cos_cap_ = 1.0, theta_cap_ = 0.0;
 };
@@ -116,8 +158,5 @@ double deformation_field(const Modifiers& m, const Vec3& n);
 double deformed_radius(const Modifiers& m, const Vec3& n);
 /// Scale that gives a deformed shape (|y| <= scale (1 + e g)) the volume of the unit ball.
 double deformation_volume_scale(const Modifiers& m);
-
-/// Lateral displacement of a wavy fibre's cross-section at axial coordinate s (world vector).
-Vec3 wave_offset(const Inclusion& inc, double s);
 
 }  // namespace rvegen

@@ -43,6 +43,10 @@ struct Modifiers {
   /// wave_amplitude sin(2 pi s / wave_length + wave_phase) along the direction at angle
   /// wave_angle about the axis from any_orthogonal(axis).
   double wave_amplitude = 0.0, wave_length = 0.0, wave_phase = 0.0, wave_angle = 0.0;
+  /// Cylinders: a bend of the centre line into a circular arc of radius bend_radius (the
+  /// radius of curvature), in the plane of the axis and the direction at angle bend_angle
+  /// about the axis from any_orthogonal(axis); see body.hpp (centre_offset). 0: straight.
+  double bend_radius = 0.0, bend_angle = 0.0;
   /// Spheres and ellipsoids: in the normalised frame y = M^-1 (x - c) (M = rotation diag(semi
   /// axes)), the surface is |y| = deform_scale (1 + deform_amplitude g(y / |y|)), |g| <= 1;
   /// deform_scale keeps the volume of the undeformed shape.
@@ -63,16 +67,19 @@ struct Modifiers {
 
   bool coated() const { return coating > 0.0; }
   bool wavy() const { return wave_amplitude > 0.0; }
+  bool bent() const { return bend_radius > 0.0; }
+  /// The fibre's centre line is not straight (wavy or bent).
+  bool curved() const { return wavy() || bent(); }
   bool deformed() const { return deform_amplitude > 0.0; }
   bool debonded() const { return debond_fraction > 0.0 && debond_gap > 0.0; }
-  bool any() const { return coated() || wavy() || deformed() || debonded(); }
+  bool any() const { return coated() || curved() || deformed() || debonded(); }
 };
 
 struct Inclusion {
   int id = 0;
   int family = 0;
   /// The straight convex core (for a deformed inclusion: the undeformed shape whose volume it
-  /// keeps; for a wavy fibre: the straight fibre it is sheared from).
+  /// keeps; for a wavy or bent fibre: the straight fibre it is sheared from).
   Shape shape;
   Modifiers mod;
 };

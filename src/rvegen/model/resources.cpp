@@ -39,9 +39,10 @@ double triangles(const Family& f, double box_min) {
     case ShapeKind::Cylinder: {
       const double r = f.radius.mean(), s = segments(2.0 * M_PI * r);
       const FamilyModifiers& m = f.modifiers;
-      const double rings = m.wave_amplitude > 0.0
-                               ? std::ceil(16.0 * 2.0 * r * f.aspect_ratio.mean() / m.wave_length)
-                               : 1.0;
+      const double len = 2.0 * r * f.aspect_ratio.mean();
+      double rings = m.wave_amplitude > 0.0 ? std::ceil(16.0 * len / m.wave_length) : 1.0;
+      if (m.bend_radius > 0.0)
+        rings = std::max(rings, std::ceil(len / std::sqrt(0.08 * r * m.bend_radius)));
       n = 2.0 * s * rings + 2.0 * s;
       break;
     }
@@ -96,15 +97,16 @@ ResourceEstimate estimate_resources(const Scene& scene) {
     }
     const FamilyModifiers& m = f.modifiers;
     // Meshed: every inclusion with "mesh", otherwise the modified ones (not glyphs).
-    const bool meshed = scene.outputs.mesh || m.wave_amplitude > 0.0 || m.deform_amplitude > 0.0 ||
-                        m.coating > 0.0 || m.debond_fraction > 0.0;
+    const bool meshed = scene.outputs.mesh || m.wave_amplitude > 0.0 || m.bend_radius > 0.0 ||
+                        m.deform_amplitude > 0.0 || m.coating > 0.0 || m.debond_fraction > 0.0;
     if (meshed) e.surface_bytes += n * triangles(f, scene.box.size.minCoeff()) * kBytesPerTriangle;
     // Glyph points (inclusions.vtp): arrays and file, periodic images included.
     if (scene.outputs.inclusions) e.surface_bytes += n * kBytesPerGlyphPoint;
     const double area =
-        mean_area(f) * (m.wave_amplitude > 0.0 || m.deform_amplitude > 0.0 ? 1.5 : 1.0);
+        mean_area(f) *
+        (m.wave_amplitude > 0.0 || m.bend_radius > 0.0 || m.deform_amplitude > 0.0 ? 1.5 : 1.0);
     double surfaces = 0.0;
-    if (m.wave_amplitude > 0.0 || m.deform_amplitude > 0.0) surfaces += 1.0;
+    if (m.wave_amplitude > 0.0 || m.bend_radius > 0.0 || m.deform_amplitude > 0.0) surfaces += 1.0;
     if (m.coating > 0.0) surfaces += 2.0;
     e.band_voxels += n * surfaces * area * 2.0 * scene.levelset_half_width / (vs * vs);
   }

@@ -30,6 +30,14 @@ double grown_size(const FamilyModifiers& m, double size) {
   const double e = m.deform_amplitude;
   return size * (1.0 + e) / (1.0 - e) + m.coating + m.wave_amplitude + m.debond_gap;
 }
+// Largest sideways reach of a fibre's centre line (wave and bend) over the family's fibres:
+// the bend's grows with the half length.
+double fibre_reach(const FamilyModifiers& m, double longest_half) {
+  double reach = m.wave_amplitude;
+  if (m.bend_radius > 0.0)
+    reach += bend_reach(m.bend_radius, longest_half, longest_half + m.coating);
+  return reach;
+}
 }  // namespace
 
 double Family::max_bounding_radius() const {
@@ -38,8 +46,8 @@ double Family::max_bounding_radius() const {
     case ShapeKind::Sphere:
       return grown_size(m, radius.upper());
     case ShapeKind::Cylinder:
-      return std::hypot(radius.upper() + m.coating + m.wave_amplitude,
-                        radius.upper() * aspect_ratio.upper() + m.coating);
+      return std::hypot(radius.upper() + m.coating + fibre_reach(m, longest_half()),
+                        longest_half() + m.coating);
     case ShapeKind::Ellipsoid: {
       const double big =
           std::max({semi_axes[0].upper(), semi_axes[1].upper(), semi_axes[2].upper()});
@@ -58,8 +66,8 @@ double Family::max_min_width() const {
     case ShapeKind::Sphere:
       return 2.0 * grown_size(m, radius.upper());
     case ShapeKind::Cylinder:
-      return 2.0 * std::min(radius.upper() + m.coating + m.wave_amplitude,
-                            radius.upper() * aspect_ratio.upper() + m.coating);
+      return 2.0 * std::min(radius.upper() + m.coating + fibre_reach(m, longest_half()),
+                            longest_half() + m.coating);
     case ShapeKind::Ellipsoid: {
       const double small =
           std::min({semi_axes[0].upper(), semi_axes[1].upper(), semi_axes[2].upper()});
@@ -75,7 +83,8 @@ double Family::envelope_ratio() const {
   // A representative inclusion of mean sizes. Deformation is not counted: a deformed sphere is
   // packed by its own support function (deformed_support.hpp), whose hull has about the volume
   // of the core, and how far a deformed ellipsoid's bound grows depends on the draw. Nor is a
-  // large waviness: such fibres are packed as chains that follow them (body.hpp, chain_pieces).
+  // large waviness or bend: such fibres are packed as chains that follow them (body.hpp,
+  // chain_pieces).
   Random rng(0);
   Inclusion inc;
   Family mean = *this;
@@ -85,7 +94,7 @@ double Family::envelope_ratio() const {
   inc.shape = mean.draw(Vec3::Zero(), rng);
   inc.mod = m.draw(rng);
   inc.mod.deform_amplitude = 0.0;
-  if (packs_as_chain(inc)) inc.mod.wave_amplitude = 0.0;
+  if (packs_as_chain(inc)) inc.mod.wave_amplitude = inc.mod.bend_radius = 0.0;
   return envelope(inc).volume() / inc.shape.volume();
 }
 
@@ -98,6 +107,10 @@ Modifiers FamilyModifiers::draw(Random& rng) const {
     m.wave_length = wave_length;
     m.wave_phase = 2.0 * M_PI * rng.uniform();
     m.wave_angle = 2.0 * M_PI * rng.uniform();
+  }
+  if (bend_radius > 0.0) {
+    m.bend_radius = bend_radius;
+    m.bend_angle = 2.0 * M_PI * rng.uniform();
   }
   if (deform_amplitude > 0.0) {
     // Eight waves of angular half-wavelength `smoothness` radians, weights summing to 1.

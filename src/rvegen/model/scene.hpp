@@ -18,10 +18,12 @@ struct FamilyModifiers {
   double coating = 0.0;  // interphase thickness
   bool shells_may_touch = false;
   double wave_amplitude = 0.0, wave_length = 0.0;   // cylinders
+  double bend_radius = 0.0;                         // cylinders: radius of curvature
   double deform_amplitude = 0.0, smoothness = 1.0;  // spheres, ellipsoids; amplitude < 0.5
   double debond_fraction = 0.0, debond_gap = 0.0;   // spheres
   bool any() const {
-    return coating > 0.0 || wave_amplitude > 0.0 || deform_amplitude > 0.0 || debond_gap > 0.0;
+    return coating > 0.0 || wave_amplitude > 0.0 || bend_radius > 0.0 || deform_amplitude > 0.0 ||
+           debond_gap > 0.0;
   }
   /// Draws the per-inclusion modifiers (random phases, planes, waves, cap axes).
   Modifiers draw(Random& rng) const;
@@ -40,6 +42,8 @@ struct Family {
 
   /// Expected volume of one inclusion.
   double mean_volume() const;
+  /// Largest half length of a cylinder of the family.
+  double longest_half() const { return radius.upper() * aspect_ratio.upper(); }
   /// Largest bounding radius any inclusion of the family can have.
   double max_bounding_radius() const;
   /// Largest smallest-width of any inclusion (the least box size every inclusion passes through).

@@ -178,6 +178,20 @@ void validate_scene(const Scene& s) {
       if (!(m.wave_length > 0.0) || !std::isfinite(m.wave_length))
         fail(p + ".waviness.wavelength", "must be positive");
     }
+    if (!finite_at_least_0(m.bend_radius)) fail(p + ".curvature.radius", "must be positive");
+    if (m.bend_radius > 0.0) {
+      if (f.shape != ShapeKind::Cylinder)
+        fail(p + ".curvature", "curvature applies to cylinders only");
+      // The arc of the longest fibre (with its shell) turns by at most about a radian.
+      const double longest = 2.0 * (f.longest_half() + m.coating);
+      if (!(m.bend_radius >= longest)) {
+        char buf[200];
+        std::snprintf(buf, sizeof buf,
+                      "must be at least the longest fibre's length with its coating (%.4g)",
+                      longest);
+        fail(p + ".curvature.radius", buf);
+      }
+    }
     if (!(m.deform_amplitude >= 0.0 && m.deform_amplitude <= 0.5))
       fail(p + ".deformation.amplitude", "must be in (0, 0.5]");
     if (m.deform_amplitude > 0.0) {

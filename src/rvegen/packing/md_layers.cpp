@@ -319,12 +319,11 @@ class Layering {
 
 }  // namespace
 
-void layer_planar_fibres(const PackingSpec& spec, const std::vector<Inclusion>& pop, Random& rng,
-                         Bodies* bodies) {
+void layer_planar_fibres(const PackingSpec& spec, Random& rng, Bodies* bodies) {
   std::vector<Fibre> by_axis[3];
   for (size_t i = 0; i < bodies->all.size(); ++i) {
     const Body& b = bodies->all[i];
-    if (b.shape.kind != ShapeKind::Cylinder || pop[i].mod.any() || b.radial) continue;
+    if (b.shape.kind != ShapeKind::Cylinder || b.radial) continue;
     const int k = plane_normal_axis(spec.families[b.family].orientation);
     if (k < 0 || std::abs(b.shape.half_axis[k]) > 1e-9 * b.shape.half_axis.norm()) continue;
     Vec3 half = b.shape.half_axis * (1.0 + b.pad);

@@ -24,7 +24,8 @@
 //   3. a few sweeps move each fibre to a uniformly random height within the room its crossing
 //      neighbours leave (exactly, on the periodic circle), so heights are not on a lattice where
 //      there is room.
-// Only plain cylinders (no modifiers) whose law confines their axes to a plane normal to a box
+// Only cylinders (a coated, wavy or bent one by the straight cylinder it is packed in: its
+// envelope or the bound of its chain) whose law confines their axes to a plane normal to a box
 // axis are placed so; the others keep their random centres.
 #pragma once
 
@@ -35,8 +36,7 @@ namespace rvegen::md {
 
 /// Sets the heights (and where a layer is full, the in-plane centres) of the planar fibres of
 /// `bodies` as above.
-void layer_planar_fibres(const PackingSpec& spec, const std::vector<Inclusion>& pop, Random& rng,
-                         Bodies* bodies);
+void layer_planar_fibres(const PackingSpec& spec, Random& rng, Bodies* bodies);
 
 /// Aligned fibres (growing in radius only, at full length; see md_bodies.hpp) along a box axis
 /// where the box holds K = floor(H / L) >= 2 of the longest end to end: with random positions

@@ -73,23 +73,24 @@ void mesh_ellipsoid(SurfaceMesh& m, const Inclusion& inc, const Vec3& center, co
   for (int j = 0; j < nseg; ++j) add_tri(m, ring(nlat - 1, j), south, ring(nlat - 1, j + 1), inc);
 }
 
-// Cylinder with `rings` + 1 rings along the axis, each displaced by the fibre's wave.
+// Cylinder with `rings` + 1 rings along the axis, each displaced by the fibre's wave and bend.
 void mesh_cylinder(SurfaceMesh& m, const Inclusion& inc, const Vec3& center, int nseg, int rings) {
   const Shape& s = inc.shape;
   const double h = s.half_axis.norm();
   const Vec3 u = s.half_axis / h;
   const Vec3 e1 = any_orthogonal(u), e2 = u.cross(e1);
+  const CentreLine line(inc);
   const int64_t base = static_cast<int64_t>(m.points.size());
   for (int r = 0; r <= rings; ++r) {
     const double a = -h + 2.0 * h * r / rings;
-    const Vec3 c = center + a * u + wave_offset(inc, a);
+    const Vec3 c = center + a * u + line.offset(a);
     for (int j = 0; j < nseg; ++j) {
       const double ph = 2.0 * M_PI * j / nseg;
       m.points.push_back(c + s.radius * (std::cos(ph) * e1 + std::sin(ph) * e2));
     }
   }
-  m.points.push_back(center - s.half_axis + wave_offset(inc, -h));
-  m.points.push_back(center + s.half_axis + wave_offset(inc, h));
+  m.points.push_back(center - s.half_axis + line.offset(-h));
+  m.points.push_back(center + s.half_axis + line.offset(h));
   const int64_t cb = base + static_cast<int64_t>(rings + 1) * nseg, ct = cb + 1;
   for (int r = 0; r < rings; ++r) {
     for (int j = 0; j < nseg; ++j) {
@@ -121,10 +122,17 @@ void mesh_one(SurfaceMesh& m, const Inclusion& inc, const Vec3& center, const Me
                      segments_for(s.semi_axes.maxCoeff(), o, box_min), radial);
       break;
     case ShapeKind::Cylinder: {
-      // Straight: one segment along the axis; wavy: 16 rings per wavelength.
+      // Straight: one segment along the axis; wavy: 16 rings per wavelength; bent: rings whose
+      // chords depart from the arc by at most 1 % of the radius.
       const double len = 2.0 * s.half_axis.norm();
-      const int rings =
-          mod.wavy() ? std::max(1, static_cast<int>(std::ceil(16.0 * len / mod.wave_length))) : 1;
+      int rings = 1;
+      if (mod.wavy())
+        rings = std::max(1, static_cast<int>(std::ceil(16.0 * len / mod.wave_length)));
+      if (mod.bent()) {
+        const int bend =
+            static_cast<int>(std::ceil(len / std::sqrt(0.08 * s.radius * mod.bend_radius)));
+        rings = std::max(rings, bend);
+      }
       mesh_cylinder(m, inc, center, segments_for(s.radius, o, box_min), rings);
       break;
     }

@@ -15,7 +15,9 @@ envelope cylinder of radius r + A, 60 s budget).
 Wall time and peak memory are those of the whole command (/usr/bin/time). Two runs go side by
 side (one per core).
 
-usage: /usr/bin/python3 samples/bench_deformed.py [BUILD_DIR] [--baseline BIN] [--quick]
+With --table only the density table runs (printed, charts and table file left as they are).
+
+usage: /usr/bin/python3 samples/bench_deformed.py [BUILD_DIR] [--baseline BIN] [--quick] [--table]
 """
 import concurrent.futures
 import json
@@ -37,6 +39,7 @@ if "--baseline" in argv:
     baseline = os.path.abspath(argv[k + 1])
     del argv[k:k + 2]
 quick = "--quick" in argv
+table_only = "--table" in argv
 args = [a for a in argv if not a.startswith("--")]
 build = args[0] if args else "build"
 exe = os.path.abspath(os.path.join(build, "bin", "rvegen"))
@@ -147,6 +150,9 @@ for i, (name, target, _) in enumerate(TABLE):
         lines.append("| %s | %.2f | %d | %.4f | %s | %.1f | %.1f | %.0f |" %
                      (name, target, r["exit"], r["vf"], r["audit"], r["packing"], r["wall"],
                       r["peak_mb"]))
+if table_only:
+    print("\n".join(lines))
+    sys.exit(0)
 
 # Densest packing against amplitude: targets above jamming. A binary that packs by the ball
 # (1 + e) refuses targets whose balls would fill more than 0.7405: it gets 0.70 / (1 + e)^3.

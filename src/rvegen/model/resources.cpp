@@ -108,7 +108,8 @@ ResourceEstimate estimate_resources(const Scene& scene) {
     double surfaces = 0.0;
     if (m.wave_amplitude > 0.0 || m.bend_radius > 0.0 || m.deform_amplitude > 0.0) surfaces += 1.0;
     if (m.coating > 0.0) surfaces += 2.0;
-    e.band_voxels += n * surfaces * area * 2.0 * scene.levelset_half_width / (vs * vs);
+    if (scene.outputs.levelsets)
+      e.band_voxels += n * surfaces * area * 2.0 * scene.levelset_half_width / (vs * vs);
   }
   e.voxels = static_cast<double>(scene.resolution[0]) * scene.resolution[1] * scene.resolution[2];
   e.voxel_bytes = e.voxels * (scene.partial_volume ? 9.0 : 5.0) * 1.1;

@@ -184,6 +184,22 @@ TEST(Parsing, InclusionIdsInRangeAndUnique) {
   EXPECT_THROW(read_inclusions_json(
                    list(R"({"id":0,"shape":"sphere","center":[1e200,0.5,0.5],"radius":0.1})")),
                InputError);
+  // A bend tighter than the fibre's length (0.2 with its coating): refused, naming the key.
+  const std::string bent =
+      R"({"id":0,"shape":"cylinder","center":[0.5,0.5,0.5],"radius":0.02,"half_axis":[0.09,0,0],)"
+      R"("modifiers":{"coating":0.01,"bend_radius":%s,"bend_angle":1}})";
+  auto with = [&](const char* radius) {
+    std::string t = bent;
+    t.replace(t.find("%s"), 2, radius);
+    return list(t);
+  };
+  EXPECT_NO_THROW(read_inclusions_json(with("0.2")));
+  try {
+    read_inclusions_json(with("0.19"));
+    FAIL() << "bend radius below the fibre length accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("inclusions[0].modifiers.bend_radius"), std::string::npos);
+  }
 }
 
 TEST(Files, ReadFileRefusesDevicesAndOversizedFiles) {

@@ -36,9 +36,10 @@ Modifiers read_modifiers(const json_util::Json& j, const Shape& shape, const std
   if (j.contains("bend_radius")) {
     if (shape.kind != ShapeKind::Cylinder) fail(p + ".bend_radius", "cylinders only");
     m.bend_radius = positive(j["bend_radius"], p + ".bend_radius");
-    // The arc must hold the fibre and its shell (the offsets are defined up to |s| < radius).
-    if (!(m.bend_radius > shape.half_axis.norm() + m.coating))
-      fail(p + ".bend_radius", "must exceed the fibre's half length plus its coating");
+    // As in scenes: at least the fibre's length with its coating (the arc turns by at most
+    // about a radian, and the chain's pieces stay few).
+    if (!(m.bend_radius >= 2.0 * (shape.half_axis.norm() + m.coating) * (1.0 - 1e-9)))
+      fail(p + ".bend_radius", "must be at least the fibre's length with its coating");
     num("bend_angle", &m.bend_angle);
   }
   if (j.contains("deform_amplitude")) {

@@ -79,10 +79,11 @@ struct Bodies {
   bool chains = false;                   // some bodies are chains (wavy, bent fibres)
   double start_scale = 1.0;              // where few bodies touch (see make_bodies)
   // Steps over which a stalled valid scale halves the pressure: md.patience, times the mean
-  // elongation / 2.5 (between 1 and 5) of the bodies, as long bodies rearrange more slowly
+  // elongation / 2.5 (between 1 and 6) of the bodies, as long bodies rearrange more slowly
   // (measured, 2,500 fibres: isotropic L/D 10 at 0.40 jammed at 0.387-0.393 with 150-250
-  // steps and reached 0.40 with 400; anisotropic L/D 20 took twice as long with 600 as with
-  // 300, 1.2 times with 500).
+  // steps and reached 0.40 with 400; anisotropic L/D 20 took 42 s with 600 where it took 22 s
+  // with 300, still well within budget; L/D 40 at 0.14 is within a few seconds of a 120 s
+  // budget with either 500 or 600, depending on the trajectory).
   long long patience = 100;
 };
 Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, Random& rng);

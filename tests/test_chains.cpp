@@ -60,6 +60,39 @@ void expect_no_true_overlap(const InclusionSet& set) {
   EXPECT_GT(tested, static_cast<int>(inc.size()));
 }
 
+// Random points of a cube of half side `half` about the fibre: every point of the fibre and
+// its shell (classified by the true geometry) lies in a piece and in the envelope, every point
+// of a piece in the chain's bound. Returns the points inside, and the volumes of the chain and
+// of the envelope over the fibre's (with its shell).
+struct Cover {
+  int inside = 0;
+  double chain = 0.0, envelope = 0.0;
+};
+Cover sample_cover(const Inclusion& inc, double half, int samples, Random& rng) {
+  std::vector<Shape> pieces;
+  chain_pieces(inc, &pieces);
+  const Shape bound = chain_bound(inc), env = envelope(inc);
+  const BodyQuery q(inc);
+  Cover c;
+  int in_chain = 0, in_env = 0, misses = 0;
+  const Vec3 lo = inc.shape.center - Vec3::Constant(half), size = Vec3::Constant(2.0 * half);
+  for (int t = 0; t < samples && misses < 5; ++t) {
+    const Vec3 x = lo + Vec3(rng.uniform(), rng.uniform(), rng.uniform()).cwiseProduct(size);
+    bool held = false;
+    for (const Shape& p : pieces) held = held || p.contains(x);
+    in_chain += held ? 1 : 0;
+    in_env += env.contains(x) ? 1 : 0;
+    if (held && !bound.contains(x))
+      ++misses, ADD_FAILURE() << "outside the bound " << x.transpose();
+    if (q.region(x) == Region::kOutside) continue;
+    ++c.inside;
+    if (!held || !env.contains(x)) ++misses, ADD_FAILURE() << "not held " << x.transpose();
+  }
+  c.chain = double(in_chain) / c.inside;
+  c.envelope = double(in_env) / c.inside;
+  return c;
+}
+
 // Every point of the fibre and of its shell (random points, classified by the true geometry)
 // lies in a piece; the chain is far smaller than the envelope.
 TEST(Chains, PiecesHoldTheTrueFibreAndShell) {
@@ -68,28 +101,14 @@ TEST(Chains, PiecesHoldTheTrueFibreAndShell) {
     for (double coating : {0.0, 0.005}) {
       const Inclusion inc =
           wavy_fibre(Vec3(0.3, 0.2, 0.1), Vec3(1, 2, -0.5), 0.02, 0.16, amplitude, 0.2, coating, 7);
+      const Cover c = sample_cover(inc, 0.25, 200000, rng);
+      EXPECT_GT(c.inside, 500);
       std::vector<Shape> pieces;
       chain_pieces(inc, &pieces);
-      const Shape bound = chain_bound(inc), env = envelope(inc);
-      const BodyQuery q(inc);
-      int inside = 0, in_chain = 0, in_env = 0;
-      const Vec3 lo = inc.shape.center - Vec3::Constant(0.25), size = Vec3::Constant(0.5);
-      for (int t = 0; t < 200000; ++t) {
-        const Vec3 x = lo + Vec3(rng.uniform(), rng.uniform(), rng.uniform()).cwiseProduct(size);
-        bool held = false;
-        for (const Shape& p : pieces) held = held || p.contains(x);
-        in_chain += held ? 1 : 0;
-        in_env += env.contains(x) ? 1 : 0;
-        if (held) ASSERT_TRUE(bound.contains(x));
-        if (q.region(x) == Region::kOutside) continue;
-        ++inside;
-        ASSERT_TRUE(held) << amplitude << " " << coating << " " << x.transpose();
-      }
-      EXPECT_GT(inside, 500);
       // Sagitta below 3 % of the radius: the pieces' radius.
       EXPECT_LE(pieces[0].radius, (0.02 + coating) * 1.03 * (1 + 1e-9));
       // Volume overhead of the chain over the fibre (with its shell), against the envelope's.
-      const double chain = double(in_chain) / inside, enve = double(in_env) / inside;
+      const double chain = c.chain, enve = c.envelope;
       // (measured: 1.07-1.09 at A = r / 4, 1.23-1.28 at A = r, 1.59 at A = 2 r; the envelope
       // 1.4-1.6, 3.2-3.9 and 8.7)
       EXPECT_LT(chain, amplitude <= 0.02 ? 1.3 : 1.7) << amplitude << " " << coating;
@@ -185,24 +204,9 @@ TEST(Chains, BentFibreIsAnArcHeldByItsPieces) {
       chain_pieces(inc, &pieces);
       EXPECT_TRUE(packs_as_chain(inc));
       EXPECT_LE(pieces[0].radius, (0.01 + coating) * 1.03 * (1 + 1e-9));
-      const BodyQuery q(inc);
-      const Shape env = envelope(inc), bound = chain_bound(inc);
-      int inside = 0, in_chain = 0, in_env = 0;
-      const Vec3 lo = inc.shape.center - Vec3::Constant(0.2), size = Vec3::Constant(0.4);
-      for (int t = 0; t < 400000; ++t) {
-        const Vec3 x = lo + Vec3(rng.uniform(), rng.uniform(), rng.uniform()).cwiseProduct(size);
-        bool held = false;
-        for (const Shape& p : pieces) held = held || p.contains(x);
-        in_chain += held ? 1 : 0;
-        in_env += env.contains(x) ? 1 : 0;
-        if (held) ASSERT_TRUE(bound.contains(x));
-        if (q.region(x) == Region::kOutside) continue;
-        ++inside;
-        ASSERT_TRUE(env.contains(x));
-        ASSERT_TRUE(held) << bend << " " << coating << " " << x.transpose();
-      }
-      EXPECT_GT(inside, 300);
-      const double chain = double(in_chain) / inside, enve = double(in_env) / inside;
+      const Cover c = sample_cover(inc, 0.2, 400000, rng);
+      EXPECT_GT(c.inside, 300);
+      const double chain = c.chain, enve = c.envelope;
       EXPECT_LT(chain, 1.25) << bend << " " << coating;
       if (bend < 1.0) EXPECT_LT(chain, 0.5 * enve) << bend << " " << coating;
       std::printf("bend radius %.2f coating %.3f: %zu pieces, chain %.3f, envelope %.3f\n", bend,

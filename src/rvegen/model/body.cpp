@@ -87,6 +87,7 @@ double deformation_volume_scale(const Modifiers& m) {
 }
 
 double bend_reach(double bend_radius, double h, double s_max) {
+  // The bend's offset grows with |s| from -m at s = 0 to at least +m at |s| = h.
   const double R = bend_radius;
   return (R - std::sqrt(R * R - s_max * s_max)) - 0.5 * (R - std::sqrt(R * R - h * h));
 }
@@ -104,6 +105,7 @@ CentreLine::CentreLine(const Inclusion& inc) {
   }
   if (m.bent()) {
     Rc = m.bend_radius;
+    h = f.h;
     s_max = f.h + m.coating;
     mid = 0.5 * (Rc - std::sqrt(Rc * Rc - f.h * f.h));
     w = std::cos(m.bend_angle) * e1 + std::sin(m.bend_angle) * e2;
@@ -111,8 +113,7 @@ CentreLine::CentreLine(const Inclusion& inc) {
 }
 
 double CentreLine::reach() const {
-  // The bend's offset grows with |s| from -mid at s = 0 to at least +mid at |s| = h.
-  return A + (Rc > 0.0 ? (Rc - std::sqrt(Rc * Rc - s_max * s_max)) - mid : 0.0);
+  return A + (Rc > 0.0 ? bend_reach(Rc, h, s_max) : 0.0);
 }
 
 double CentreLine::slope() const {

@@ -53,16 +53,20 @@ struct CentreLine {
   double curvature() const;                   // bound on |offset''|
   Vec3 v = Vec3::UnitX(), w = Vec3::UnitX();  // wave and bend directions (unit, across the axis)
   double A = 0.0, k = 0.0, phase = 0.0;       // wave
-  double Rc = 0.0, mid = 0.0, s_max = 0.0;    // bend
+  double Rc = 0.0, h = 0.0, mid = 0.0, s_max = 0.0;  // bend
 };
 inline Vec3 centre_offset(const Inclusion& inc, double s) {
   return CentreLine(inc).offset(s);
 }
-inline double lateral_reach(const Inclusion& inc) {
-  return CentreLine(inc).reach();
-}
 /// Largest |bend offset| over |s| <= s_max of a fibre of half length h bent to radius Rc.
 double bend_reach(double bend_radius, double h, double s_max);
+/// CentreLine(inc).reach() without the frame (0 for shapes other than cylinders).
+inline double lateral_reach(const Inclusion& inc) {
+  const Modifiers& m = inc.mod;
+  if (inc.shape.kind != ShapeKind::Cylinder) return 0.0;
+  const double h = inc.shape.half_axis.norm();
+  return m.wave_amplitude + (m.bent() ? bend_reach(m.bend_radius, h, h + m.coating) : 0.0);
+}
 
 /// Wavy and bent fibres whose offsets reach far are packed and audited as chains of straight
 /// cylinders, not by the envelope (the cylinder of radius r + reach, four times the fibre's
@@ -81,9 +85,10 @@ double bend_reach(double bend_radius, double h, double s_max);
 constexpr double kChainSagitta = 0.03, kChainFrom = 0.75;
 inline bool packs_as_chain(const Inclusion& inc) {
   const Modifiers& m = inc.mod;
-  return inc.shape.kind == ShapeKind::Cylinder && m.curved() &&
-         (m.bent() || lateral_reach(inc) >=
-                          kChainFrom * (inc.shape.radius + (m.shells_may_touch ? 0.0 : m.coating)));
+  return inc.shape.kind == ShapeKind::Cylinder &&
+         (m.bent() ||
+          (m.wavy() && m.wave_amplitude >= kChainFrom * (inc.shape.radius +
+                                                         (m.shells_may_touch ? 0.0 : m.coating))));
 }
 /// The pieces of a wavy or bent fibre's chain (world coordinates), appended to *out.
 void chain_pieces(const Inclusion& inc, std::vector<Shape>* out);

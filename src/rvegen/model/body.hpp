@@ -90,6 +90,16 @@ inline bool packs_as_chain(const Inclusion& inc) {
           (m.wavy() && m.wave_amplitude >= kChainFrom * (inc.shape.radius +
                                                          (m.shells_may_touch ? 0.0 : m.coating))));
 }
+/// Rings along a fibre of length `length` and radius r for its surface mesh: 1 when straight,
+/// 16 per wavelength when wavy (wave_length > 0), and for a bend (bend_radius > 0) enough that
+/// the chords depart from the arc by at most 1 % of r.
+inline double fibre_rings(double length, double r, double wave_length, double bend_radius) {
+  double rings = 1.0;
+  if (wave_length > 0.0) rings = std::max(rings, std::ceil(16.0 * length / wave_length));
+  if (bend_radius > 0.0)
+    rings = std::max(rings, std::ceil(length / std::sqrt(0.08 * r * bend_radius)));
+  return rings;
+}
 /// The pieces of a wavy or bent fibre's chain (world coordinates), appended to *out.
 void chain_pieces(const Inclusion& inc, std::vector<Shape>* out);
 /// A straight cylinder about the fibre's axis holding every piece of its chain (the bound the

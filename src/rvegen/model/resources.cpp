@@ -6,6 +6,8 @@
 #include <fstream>
 #include <string>
 
+#include "rvegen/model/body.hpp"
+
 namespace rvegen {
 namespace {
 
@@ -39,10 +41,8 @@ double triangles(const Family& f, double box_min) {
     case ShapeKind::Cylinder: {
       const double r = f.radius.mean(), s = segments(2.0 * M_PI * r);
       const FamilyModifiers& m = f.modifiers;
-      const double len = 2.0 * r * f.aspect_ratio.mean();
-      double rings = m.wave_amplitude > 0.0 ? std::ceil(16.0 * len / m.wave_length) : 1.0;
-      if (m.bend_radius > 0.0)
-        rings = std::max(rings, std::ceil(len / std::sqrt(0.08 * r * m.bend_radius)));
+      const double rings = fibre_rings(2.0 * r * f.aspect_ratio.mean(), r,
+                                       m.wave_amplitude > 0.0 ? m.wave_length : 0.0, m.bend_radius);
       n = 2.0 * s * rings + 2.0 * s;
       break;
     }

@@ -122,17 +122,8 @@ void mesh_one(SurfaceMesh& m, const Inclusion& inc, const Vec3& center, const Me
                      segments_for(s.semi_axes.maxCoeff(), o, box_min), radial);
       break;
     case ShapeKind::Cylinder: {
-      // Straight: one segment along the axis; wavy: 16 rings per wavelength; bent: rings whose
-      // chords depart from the arc by at most 1 % of the radius.
-      const double len = 2.0 * s.half_axis.norm();
-      int rings = 1;
-      if (mod.wavy())
-        rings = std::max(1, static_cast<int>(std::ceil(16.0 * len / mod.wave_length)));
-      if (mod.bent()) {
-        const int bend =
-            static_cast<int>(std::ceil(len / std::sqrt(0.08 * s.radius * mod.bend_radius)));
-        rings = std::max(rings, bend);
-      }
+      const int rings = static_cast<int>(fibre_rings(
+          2.0 * s.half_axis.norm(), s.radius, mod.wavy() ? mod.wave_length : 0.0, mod.bend_radius));
       mesh_cylinder(m, inc, center, segments_for(s.radius, o, box_min), rings);
       break;
     }

@@ -21,8 +21,9 @@ class SupportMap {
  public:
   explicit SupportMap(const Shape& s) : s_(s) {
     if (s.kind == ShapeKind::Cylinder) {
-      h_ = s.half_axis.norm();
-      u_ = s.half_axis / h_;
+      u_ = s.half_axis / s.half_axis.norm();
+      top_ = s.center + s.half_axis;
+      bottom_ = s.center - s.half_axis;
     } else if (s.kind == ShapeKind::Ellipsoid) {
       a2_ = s.semi_axes.cwiseProduct(s.semi_axes);
     }
@@ -33,11 +34,11 @@ class SupportMap {
         return s_.center + (s_.radius / d.norm()) * d;
       case ShapeKind::Cylinder: {
         const double du = d.dot(u_);
-        Vec3 x = du >= 0.0 ? Vec3(s_.center + s_.half_axis) : Vec3(s_.center - s_.half_axis);
+        Vec3 x = du >= 0.0 ? top_ : bottom_;
         Vec3 radial = d - du * u_;
         radial -= radial.dot(u_) * u_;  // second Gram-Schmidt pass, as in Shape::support
-        const double rn = radial.norm();
-        if (rn > 1e-14 * d.norm()) x += (s_.radius / rn) * radial;
+        const double rn2 = radial.squaredNorm();
+        if (rn2 > 1e-28 * d.squaredNorm()) x += (s_.radius / std::sqrt(rn2)) * radial;
         return x;
       }
       case ShapeKind::Ellipsoid: {
@@ -52,7 +53,7 @@ class SupportMap {
  private:
   const Shape& s_;
   Vec3 u_ = Vec3::Zero(), a2_ = Vec3::Zero();
-  double h_ = 0.0;
+  Vec3 top_ = Vec3::Zero(), bottom_ = Vec3::Zero();  // end disk centres of a cylinder
 };
 
 // The pair's supports: a's in direction d, b's in -d.
@@ -227,49 +228,112 @@ bool grow_to_tetrahedron(const PairSupport& support, Simplex& s, double eps) {
 
 // EPA works in fixed storage (no heap allocation): a polytope grown from a tetrahedron by at
 // most kEpaIterations support points has at most kEpaVertices vertices and, being convex and
-// triangulated, at most 2 V - 4 faces. Only live faces are stored (a dead face is overwritten by
-// the last one), so the nearest-face scan and the visibility pass see live faces only.
+// triangulated, at most 2 V - 4 live faces; the faces made in one expansion are added before the
+// ones they replace are freed, hence the margin.
 constexpr int kEpaIterations = 124;
 constexpr int kEpaVertices = kEpaIterations + 4;
-constexpr int kEpaFaces = 2 * kEpaVertices;
-constexpr int kEpaEdges = 3 * kEpaFaces;
+constexpr int kEpaFaces = 2 * kEpaVertices + 64;
 
+// A face keeps its neighbours (as Bullet's and libccd's EPA do), so an expansion visits only
+// the faces that see the new vertex and their rim, not every face of the polytope.
 struct Face {
-  int i[3];
-  Vec3 n;
-  double d;
+  int i[3];         // vertices, counter-clockwise seen from outside
+  int adj[3];       // the face across edge e = (i[e], i[e + 1])
+  int adj_edge[3];  // that edge's index in the adjacent face
+  Vec3 n;           // outward unit normal (zero for a degenerate face)
+  double d;         // distance of the face's plane to the origin (+inf for a degenerate face)
+  int pass;         // last expansion that visited the face
 };
 
 struct Polytope {
   std::array<Vertex, kEpaVertices> v;
   std::array<Face, kEpaFaces> f;
-  struct Edge {
-    int from, to;
-  };
-  std::array<Edge, kEpaEdges> edge;
-  int nv = 0, nf = 0, ne = 0;
+  // Plane distance of each slot's face, +inf for a free slot: the nearest-face scan reads only
+  // this array.
+  std::array<double, kEpaFaces> dist;
+  std::array<int, kEpaFaces> free_slots;
+  std::array<int, kEpaFaces> dead;
+  int nv = 0, nslots = 0, nfree = 0, ndead = 0;
+  Vec3 centre = Vec3::Zero();
+  // The horizon of the expansion under way: its first and latest new faces.
+  int first = -1, last = -1, made = 0;
 
-  // Face (i0, i1, i2) with its outward unit normal and its plane's distance to the origin.
-  // A degenerate (zero-area) face gets an infinite distance and is never the nearest.
-  Face make(int i0, int i1, int i2) const {
-    Face fc{{i0, i1, i2}, Vec3::Zero(), std::numeric_limits<double>::infinity()};
-    const Vec3 n = (v[i1].w - v[i0].w).cross(v[i2].w - v[i0].w);
-    const double len = n.norm();
-    if (len > 0.0) {
-      fc.n = n / len;
-      fc.d = fc.n.dot(v[i0].w);
+  // Face (i0, i1, i2) with its outward unit normal and its plane's distance to the origin, in
+  // a free slot; -1 when the storage is full. A degenerate (zero-area) face gets an infinite
+  // distance and is never the nearest, nor seen by a vertex.
+  int make(int i0, int i1, int i2) {
+    int k;
+    if (nfree > 0) {
+      k = free_slots[--nfree];
+    } else if (nslots < kEpaFaces) {
+      k = nslots++;
+    } else {
+      return -1;
     }
-    return fc;
-  }
-  // Horizon bookkeeping: an edge seen twice (once each way) is interior and cancels.
-  void toggle_edge(int e0, int e1) {
-    for (int k = 0; k < ne; ++k) {
-      if (edge[k].from == e1 && edge[k].to == e0) {
-        edge[k] = edge[--ne];
-        return;
+    Face& fc = f[k];
+    fc.i[0] = i0;
+    fc.i[1] = i1;
+    fc.i[2] = i2;
+    fc.pass = 0;
+    fc.n = Vec3::Zero();
+    fc.d = std::numeric_limits<double>::infinity();
+    const Vec3 n = (v[i1].w - v[i0].w).cross(v[i2].w - v[i0].w);
+    const double len2 = n.squaredNorm();
+    if (len2 > 0.0) {
+      fc.n = n * (1.0 / std::sqrt(len2));
+      fc.d = fc.n.dot(v[i0].w);
+      // Keep the normal outward even for slivers (the winding stays, for the neighbours).
+      if (fc.n.dot(v[i0].w - centre) < 0.0) {
+        fc.n = -fc.n;
+        fc.d = -fc.d;
       }
     }
-    edge[ne++] = {e0, e1};
+    dist[k] = fc.d;
+    return k;
+  }
+  void bind(int fa, int ea, int fb, int eb) {
+    f[fa].adj[ea] = fb;
+    f[fa].adj_edge[ea] = eb;
+    f[fb].adj[eb] = fa;
+    f[fb].adj_edge[eb] = ea;
+  }
+  // Walks from face fk, entered through its edge e, over the faces that see vertex wi: those
+  // are marked dead, and each edge of the rim (a face that does not see wi) gets a new face to
+  // wi, linked to its neighbours along the horizon. False when the storage is full.
+  bool expand(int pass, int wi, int fk, int e) {
+    if (f[fk].pass == pass) return true;
+    const int e1 = (e + 1) % 3;
+    const Face& g = f[fk];
+    const Vec3& w = v[wi].w;
+    if (!(g.n.dot(w) - g.d > 1e-14 * (1.0 + std::abs(g.d)))) {
+      const int nf = make(g.i[e1], g.i[e], wi);
+      if (nf < 0) return false;
+      bind(nf, 0, fk, e);
+      if (last >= 0) {
+        bind(last, 1, nf, 2);
+      } else {
+        first = nf;
+      }
+      last = nf;
+      ++made;
+      return true;
+    }
+    const int e2 = (e + 2) % 3;
+    f[fk].pass = pass;
+    dead[ndead++] = fk;
+    return expand(pass, wi, f[fk].adj[e1], f[fk].adj_edge[e1]) &&
+           expand(pass, wi, f[fk].adj[e2], f[fk].adj_edge[e2]);
+  }
+  int nearest() const {
+    int best = -1;
+    double dmin = std::numeric_limits<double>::infinity();
+    for (int k = 0; k < nslots; ++k) {
+      if (dist[k] < dmin) {
+        dmin = dist[k];
+        best = k;
+      }
+    }
+    return best;
   }
 };
 
@@ -281,28 +345,29 @@ struct Polytope {
 void epa(const PairSupport& support, const Simplex& s, double tol, double rel, ConvexQuery* q) {
   Polytope P;
   for (int k = 0; k < 4; ++k) P.v[k] = s.v[k];
-  P.nv = 4;
-  const Vec3 centre = 0.25 * (P.v[0].w + P.v[1].w + P.v[2].w + P.v[3].w);
-  // Outward winding for the initial tetrahedron.
-  static const int tet[4][4] = {{0, 1, 2, 3}, {0, 3, 1, 2}, {0, 2, 3, 1}, {1, 3, 2, 0}};
-  for (const auto& t : tet) {
-    const Vec3 n = (P.v[t[1]].w - P.v[t[0]].w).cross(P.v[t[2]].w - P.v[t[0]].w);
-    P.f[P.nf++] = n.dot(P.v[t[3]].w - P.v[t[0]].w) > 0.0 ? P.make(t[0], t[2], t[1])
-                                                         : P.make(t[0], t[1], t[2]);
+  // Positive orientation, so that the faces below wind counter-clockwise seen from outside.
+  if ((P.v[0].w - P.v[3].w).dot((P.v[1].w - P.v[3].w).cross(P.v[2].w - P.v[3].w)) < 0.0) {
+    std::swap(P.v[0], P.v[1]);
   }
+  P.nv = 4;
+  P.centre = 0.25 * (P.v[0].w + P.v[1].w + P.v[2].w + P.v[3].w);
+  P.make(0, 1, 2);
+  P.make(1, 0, 3);
+  P.make(2, 1, 3);
+  P.make(0, 2, 3);
+  P.bind(0, 0, 1, 0);
+  P.bind(0, 1, 2, 0);
+  P.bind(0, 2, 3, 0);
+  P.bind(1, 1, 3, 2);
+  P.bind(1, 2, 2, 1);
+  P.bind(2, 2, 3, 1);
   double upper = std::numeric_limits<double>::infinity();
   Vec3 best_n = Vec3::UnitX();
-  Face best_face{{-1, -1, -1}, Vec3::Zero(), 0.0};
+  Face best_face{{-1, -1, -1}, {0, 0, 0}, {0, 0, 0}, Vec3::Zero(), 0.0, 0};
   for (int iter = 0; iter < kEpaIterations; ++iter) {
-    int fi = -1;
-    double dmin = std::numeric_limits<double>::infinity();
-    for (int k = 0; k < P.nf; ++k) {
-      if (P.f[k].d < dmin) {
-        dmin = P.f[k].d;
-        fi = k;
-      }
-    }
+    const int fi = P.nearest();
     if (fi < 0) break;
+    const double dmin = P.dist[fi];
     const Vec3 n = P.f[fi].n;
     const Vertex w = support(n);
     const double hw = w.w.dot(n);  // directional depth along n: an upper bound on the depth
@@ -317,29 +382,25 @@ void epa(const PairSupport& support, const Simplex& s, double tol, double rel, C
     if (upper <= tol || (dmin > tol && upper - dmin <= rel * upper) || upper - dmin <= 0.01 * tol) {
       break;
     }
-    // Expand: remove the faces that see w, stitch the horizon to w.
+    // w does not see the nearest face beyond round-off: numerically converged.
+    if (!(hw - dmin > 1e-14 * (1.0 + std::abs(dmin)))) break;
+    // Expand: the faces that see w die, the horizon is stitched to w.
     const int wi = P.nv;
     P.v[P.nv++] = w;
-    P.ne = 0;
-    for (int k = 0; k < P.nf;) {
-      const Face& f = P.f[k];
-      if (f.n.dot(w.w) - f.d > 1e-14 * (1.0 + std::abs(f.d))) {
-        for (int e = 0; e < 3; ++e) P.toggle_edge(f.i[e], f.i[(e + 1) % 3]);
-        P.f[k] = P.f[--P.nf];
-      } else {
-        ++k;
-      }
-    }
-    if (P.ne == 0 || P.nf + P.ne > kEpaFaces) break;  // w sees no face: numerically converged
-    for (int k = 0; k < P.ne; ++k) {
-      const auto [e0, e1] = P.edge[k];
-      Face f = P.make(e0, e1, wi);
-      // Keep the outward orientation even for slivers.
-      if (f.d < std::numeric_limits<double>::infinity() && f.n.dot(P.v[e0].w - centre) < 0.0) {
-        f.n = -f.n;
-        f.d = -f.d;
-      }
-      P.f[P.nf++] = f;
+    P.first = P.last = -1;
+    P.made = 0;
+    P.ndead = 0;
+    const int pass = iter + 1;
+    Face& root = P.f[fi];
+    root.pass = pass;
+    P.dead[P.ndead++] = fi;
+    bool ok = true;
+    for (int e = 0; e < 3 && ok; ++e) ok = P.expand(pass, wi, root.adj[e], root.adj_edge[e]);
+    if (!ok || P.made < 3) break;  // storage full or no proper horizon: keep what is known
+    P.bind(P.last, 1, P.first, 2);
+    for (int k = 0; k < P.ndead; ++k) {
+      P.dist[P.dead[k]] = std::numeric_limits<double>::infinity();
+      P.free_slots[P.nfree++] = P.dead[k];
     }
   }
   q->depth = std::max(0.0, upper);

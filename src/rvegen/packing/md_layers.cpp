@@ -2,7 +2,9 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <deque>
 #include <memory>
 #include <numeric>
 
@@ -19,10 +21,15 @@ constexpr int kSlideFibres = 3;  // at most that many,
 constexpr int kSlideSteps = 8;   // in that many pushes; then it takes the least crowded layer
 constexpr long long kSlideBudget = 200;  // slide places per fibre, in all
 constexpr double kCrowdedShare = 0.01;   // no slides once that share of fibres is crowded
+constexpr int kSlidesFirst = 100;        // slide places before evictions are tried there too
+constexpr int kEvictPlaces = 200;        // then places where it takes a layer from the few
+constexpr int kEvictFibres = 2;          // (at most that many) fibres that meet it there,
+constexpr double kEvictShare = 0.05;     // which are placed again (that share of all fibres)
 constexpr int kSweeps = 16;              // height sweeps after layering
 constexpr double kLinesFull = 0.7;       // aligned fibres: slots where sections fill more
 constexpr double kShrink = 0.95;         // layers for smaller sizes ...
 constexpr double kMinScale = 0.7;        // ... down to this scale
+constexpr double kTimeShare = 0.5;       // of md.max_seconds at most, then no slides or shrinking
 
 // The box axis k normal to the plane the family's law confines axes to, or -1.
 int plane_normal_axis(const OrientationLaw& law) {
@@ -69,8 +76,8 @@ class Layering {
 
   // Steps 1 and 2 (see md_layers.hpp): layers, largest first.
   // Returns false, unfinished, once more than kCrowdedShare of the fibres are crowded, unless
-  // `finish` (then they go on without slides).
-  bool place(Random& rng, bool finish) {
+  // `finish` or past `deadline` (then they go on without slides or evictions).
+  bool place(Random& rng, bool finish, std::chrono::steady_clock::time_point deadline) {
     std::vector<int> order(fibres_.size());
     std::iota(order.begin(), order.end(), 0);
     std::stable_sort(order.begin(), order.end(),
@@ -81,13 +88,20 @@ class Layering {
     std::vector<int> held(layers_), hits, perm(layers_);
     std::iota(perm.begin(), perm.end(), 0);
     // The work is bounded: kSlideBudget slide places per fibre in all, and none once
-    // kCrowdedShare of the fibres are crowded (the target is then out of reach of layers).
+    // kCrowdedShare of the fibres are crowded (the target is then out of reach of layers);
+    // kEvictShare of the fibres evicted in all.
     long long slides = kSlideBudget * static_cast<long long>(fibres_.size());
+    long long evictions = std::llround(kEvictShare * static_cast<double>(fibres_.size()));
     size_t crowded = 0;
-    for (int f : order) {
-      if (crowded > kCrowdedShare * fibres_.size()) {
-        if (!finish) return false;
-        slides = 0;
+    std::deque<int> queue(order.begin(), order.end());
+    while (!queue.empty()) {
+      const int f = queue.front();
+      queue.pop_front();
+      if (crowded > kCrowdedShare * fibres_.size() ||
+          ((slides > 0 || evictions > 0) && std::chrono::steady_clock::now() > deadline)) {
+        if (!finish && crowded > kCrowdedShare * fibres_.size()) return false;
+        finish = true;
+        slides = evictions = 0;
       }
       int layer = -1;
       for (int move = 0; move <= kMoves && layer < 0; ++move) {
@@ -111,9 +125,22 @@ class Layering {
             all_[fibres_[f].body].shape.center = at;
           }
         }
+        if (layer < 0 && slid >= kSlidesFirst)
+          layer = evict_for(hits, held, rng, &perm, &queue, &evictions);
       }
-      conflicts(f, &hits);
+      // Still no room: a place where some layer holds at most kEvictFibres fibres that meet
+      // it; it takes that layer and they go back to the queue, to be placed anew (as in
+      // cuckoo hashing: the last fibres of a nearly full stack of layers find room this way
+      // where random places and slides no longer do).
+      for (int tries = 0; tries < kEvictPlaces && layer < 0 && evictions > 0; ++tries) {
+        draw_center(f, rng);
+        conflicts(f, &hits);
+        std::fill(held.begin(), held.end(), 0);
+        for (int g : hits) ++held[layer_[g]];
+        layer = evict_for(hits, held, rng, &perm, &queue, &evictions);
+      }
       if (layer < 0) {  // crowded: the layer fewest neighbours hold
+        conflicts(f, &hits);
         std::fill(held.begin(), held.end(), 0);
         for (int g : hits) ++held[layer_[g]];
         layer = static_cast<int>(std::min_element(held.begin(), held.end()) - held.begin());
@@ -121,11 +148,20 @@ class Layering {
       }
       layer_[f] = layer;
       members_[layer].push_back(f);
+      grid_->insert(f, projected(f));
+    }
+    // Crossing neighbours (any layer), for the height sweeps. The grid holds every fibre at
+    // its place (and, for fibres placed again, stale entries that conflicts() skips).
+    for (size_t f = 0; f < fibres_.size(); ++f) {
+      conflicts(static_cast<int>(f), &hits);
       for (int g : hits) {
         adj_[f].push_back(g);
-        adj_[g].push_back(f);
+        adj_[g].push_back(static_cast<int>(f));
       }
-      grid_->insert(f, projected(f));
+    }
+    for (std::vector<int>& a : adj_) {
+      std::sort(a.begin(), a.end());
+      a.erase(std::unique(a.begin(), a.end()), a.end());
     }
     const double pitch = height_ / layers_;
     for (size_t f = 0; f < fibres_.size(); ++f) {
@@ -171,13 +207,40 @@ class Layering {
   // A uniformly random layer where f meets no fibre (the first free one in a random order), or
   // -1.
   int free_layer(int f, Random& rng, std::vector<int>* perm) const {
-    for (int q = layers_ - 1; q > 0; --q) {
-      std::swap((*perm)[q], (*perm)[std::min<int>(q, rng.uniform() * (q + 1))]);
-    }
+    shuffle(rng, perm);
     for (int c : *perm) {
       if (!meets_layer(f, c, -1)) return c;
     }
     return -1;
+  }
+
+  // At f's place, where `hits` meet it and held[c] of them are in layer c: the layer that
+  // fewest hold, with its fibres sent back to the queue, when they are at most kEvictFibres and
+  // the budget allows; -1 otherwise.
+  int evict_for(const std::vector<int>& hits, const std::vector<int>& held, Random& rng,
+                std::vector<int>* perm, std::deque<int>* queue, long long* evictions) {
+    if (*evictions <= 0) return -1;
+    shuffle(rng, perm);
+    int c = (*perm)[0];
+    for (int q : *perm) {
+      if (held[q] < held[c]) c = q;
+    }
+    if (held[c] > kEvictFibres) return -1;
+    for (int g : hits) {
+      if (layer_[g] != c) continue;
+      std::vector<int>& m = members_[c];
+      m.erase(std::find(m.begin(), m.end(), g));
+      layer_[g] = -1;
+      queue->push_back(g);
+      --*evictions;
+    }
+    return c;
+  }
+
+  static void shuffle(Random& rng, std::vector<int>* perm) {
+    for (int q = static_cast<int>(perm->size()) - 1; q > 0; --q) {
+      std::swap((*perm)[q], (*perm)[std::min<int>(q, rng.uniform() * (q + 1))]);
+    }
   }
 
   // f meets a fibre of layer c other than `except`.
@@ -188,12 +251,14 @@ class Layering {
     return false;
   }
 
-  // Fibres already placed whose projections may meet f's.
+  // Fibres placed (other than f) whose projections meet f's, each once.
   void conflicts(int f, std::vector<int>* hits) const {
     hits->clear();
     grid_->for_each_candidate(projected(f), [&](int g) {
-      if (meets(f, g)) hits->push_back(g);
+      if (g != f && layer_[g] >= 0 && meets(f, g)) hits->push_back(g);
     });
+    std::sort(hits->begin(), hits->end());
+    hits->erase(std::unique(hits->begin(), hits->end()), hits->end());
   }
 
   // The projections of f and g (capsules of radius t about their axes, in the plane) meet, for
@@ -216,7 +281,9 @@ class Layering {
       for (int x = 0; x < 3; ++x) {
         if (x == k_) continue;
         const double L = box_.size[x];
-        d[x] -= std::round(d[x] / L) * L;
+        // Nearest image; an inlined round (this is the layering's innermost loop).
+        const double k = d[x] / L;
+        d[x] -= static_cast<double>(static_cast<long long>(k + (k >= 0.0 ? 0.5 : -0.5))) * L;
         if (unique_image_) continue;
         lo[x] = static_cast<int>(std::ceil((-reach - d[x]) / L));
         hi[x] = static_cast<int>(std::floor((reach - d[x]) / L));
@@ -320,6 +387,9 @@ class Layering {
 }  // namespace
 
 void layer_planar_fibres(const PackingSpec& spec, Random& rng, Bodies* bodies) {
+  const auto deadline = std::chrono::steady_clock::now() +
+                        std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                            std::chrono::duration<double>(kTimeShare * spec.md.max_seconds));
   std::vector<Fibre> by_axis[3];
   for (size_t i = 0; i < bodies->all.size(); ++i) {
     const Body& b = bodies->all[i];
@@ -336,7 +406,7 @@ void layer_planar_fibres(const PackingSpec& spec, Random& rng, Bodies* bodies) {
     if (by_axis[k].size() < 2) continue;
     // Layers for the drawn sizes; where more than kCrowdedShare of the fibres find no room in
     // them (a target beyond what layers hold), for sizes kShrink smaller, down to kMinScale.
-    for (double scale = 1.0;; scale *= kShrink) {
+    for (double scale = 1.0;;) {
       std::vector<Fibre> fibres = by_axis[k];
       for (Fibre& f : fibres) {
         f.t *= scale;
@@ -345,9 +415,12 @@ void layer_planar_fibres(const PackingSpec& spec, Random& rng, Bodies* bodies) {
       }
       Layering layering(spec.box, k, &bodies->all, std::move(fibres));
       if (layering.layers() < 2) break;
-      if (!layering.place(rng, scale * kShrink < kMinScale)) continue;
-      layering.shake(rng);
-      break;
+      const bool last = scale * kShrink < kMinScale || std::chrono::steady_clock::now() > deadline;
+      if (layering.place(rng, last, deadline)) {
+        layering.shake(rng);
+        break;
+      }
+      scale = std::max(kMinScale, scale * kShrink);
     }
   }
 }

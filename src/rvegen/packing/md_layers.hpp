@@ -16,11 +16,18 @@
 //      kept) when every layer is taken there; after kMoves moves it tries places where it meets
 //      at most kSlideFibres fibres of some layer and slides out of them in its plane (each
 //      pushes it along the line of the axes' closest points by the overlap), which fills the
-//      layers well beyond random placement; after kSlides such places it takes the least
-//      crowded layer and the packing sorts it out. The slide work is bounded (kSlideBudget
-//      places per fibre in all). Where more than kCrowdedShare of the fibres find no room (a
-//      target beyond what layers hold), the layers are built for sizes kShrink smaller, down to
-//      kMinScale, and the packing grows from there;
+//      layers well beyond random placement; after kSlidesFirst such places, a place where
+//      some layer holds at most kEvictFibres fibres that meet it is taken too: the fibre takes
+//      that layer and those fibres go back to the queue to be placed anew (as in cuckoo
+//      hashing). Crossing fibres push each other only along the normal, so the packing cannot
+//      sort out a fibre left crowded: the evictions place the last fibres of nearly full layers
+//      (2,500 fibres of L/D 20 at 0.28 jammed at 0.266 with 5 crowded fibres, and reach 0.28
+//      with a few dozen evictions). A fibre that still finds no room takes the least crowded
+//      layer. The work is bounded: kSlideBudget slide places per fibre and kEvictShare of the
+//      fibres evicted, in all, and kTimeShare of md.max_seconds, after which the fibres left go
+//      on without slides or evictions. Where more than kCrowdedShare of the fibres find no
+//      room (a target beyond what layers hold), the layers are built for sizes kShrink smaller,
+//      down to kMinScale, and the packing grows from there;
 //   3. a few sweeps move each fibre to a uniformly random height within the room its crossing
 //      neighbours leave (exactly, on the periodic circle), so heights are not on a lattice where
 //      there is room.

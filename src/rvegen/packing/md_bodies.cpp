@@ -180,7 +180,7 @@ Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, R
   for (const Body& b : bodies) elongation += b.volume * b.bound / b.shape.min_size();
   elongation /= std::max(total, 1e-300);
   out.patience =
-      std::llround(spec.md.patience * std::clamp(1.0 + (elongation - 3.5) / 2.17, 1.0, 6.0));
+      std::llround(spec.md.patience * std::clamp(1.0 + (elongation - 3.5) / 1.3, 1.0, 6.0));
   const double vf = crowding / box.volume();
   out.start_scale = std::min(1.0, std::cbrt(kStartFraction / std::max(vf, 1e-12)));
   if (radial > 0.0)

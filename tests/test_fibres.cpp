@@ -292,6 +292,24 @@ TEST(PlanarFibres, EvictionsPlaceTheLastFibresOfFullLayers) {
   EXPECT_LT(tensor_error(r, s), 1e-8);
 }
 
+// Layering comes before the packing's first step and can take seconds: each try (a scale of
+// the layers) is reported as progress, the last one as placed.
+TEST(PlanarFibres, LayeringIsReportedAsProgress) {
+  const Scene s = fibre_scene(R"({"law":"planar","normal":[0,0,1]})", 0.20, 20.0, 1000);
+  std::vector<std::string> lines;
+  const PackingResult r = pack_md(s, [&](const std::string& m) { lines.push_back(m); });
+  ASSERT_EQ(r.status, PackingStatus::kOk);
+  std::vector<std::string> layering;
+  for (const std::string& m : lines) {
+    if (m.find("planar fibres in") != std::string::npos) layering.push_back(m);
+  }
+  ASSERT_FALSE(layering.empty());
+  EXPECT_NE(layering.back().find("1000 planar fibres"), std::string::npos) << layering.back();
+  EXPECT_NE(layering.back().find(": placed"), std::string::npos) << layering.back();
+  // Before the packing's first progress line.
+  EXPECT_EQ(lines.front(), layering.front());
+}
+
 // Where there is room, the heights are spread uniformly, not left on the layers: at 0.05 every
 // fibre has its own height and tenths of the box hold about a tenth of them each. In a box
 // with walls the layers lie inside it, and a plane normal to x works as z does.

@@ -92,7 +92,7 @@ class MdPacker {
 void MdPacker::init() {
   Random rng(scene_.seed);
   pop_ = draw_population(scene_, rng);
-  bodies_ = md::make_bodies(scene_, pop_, rng);
+  bodies_ = md::make_bodies(scene_, pop_, rng, progress_);
   drawn_.resize(bodies_.all.size());
   for (size_t i = 0; i < drawn_.size(); ++i) drawn_[i] = static_cast<int>(i);
   if (bodies_.all.size() >= md::kSpaceOrderFrom) drawn_ = md::order_in_space(box_, &bodies_);

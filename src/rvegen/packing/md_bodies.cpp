@@ -96,7 +96,8 @@ void wrap(const Box& box, Body* b) {
   }
 }
 
-Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, Random& rng) {
+Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, Random& rng,
+                   const ProgressFn& progress) {
   Bodies out;
   std::vector<Body>& bodies = out.all;
   const Box& box = spec.box;
@@ -164,7 +165,7 @@ Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, R
     for (int a = 0; a < 3; ++a) b.shape.center[a] = box.origin[a] + box.size[a] * rng.uniform();
   }
   // Planar fibres start at heights in layers (md_layers.hpp).
-  layer_planar_fibres(spec, rng, &out);
+  layer_planar_fibres(spec, rng, &out, progress);
   slot_aligned_fibres(spec, rng, &out);
   // Deformed spheres are kept apart by their support functions (tables built in parallel).
   tbb::parallel_for(size_t(0), pop.size(), [&](size_t i) {

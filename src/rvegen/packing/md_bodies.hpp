@@ -10,6 +10,7 @@
 #include "rvegen/model/deformed_support.hpp"
 #include "rvegen/model/scene.hpp"
 #include "rvegen/packing/contacts.hpp"
+#include "rvegen/packing/packing.hpp"
 
 namespace rvegen::md {
 
@@ -88,7 +89,8 @@ struct Bodies {
   // with a = 5 cylinders, e = 3.05, took 20 % more steps with 122).
   long long patience = 100;
 };
-Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, Random& rng);
+Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, Random& rng,
+                   const ProgressFn& progress = nullptr);
 
 /// Bodies from this many on are put in space order (order_in_space): below, they fit in the
 /// caches and the order makes no difference (and the packing stays as it always was).

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <deque>
 #include <memory>
 #include <numeric>
@@ -73,6 +74,8 @@ class Layering {
   }
 
   int layers() const { return layers_; }
+  /// Fibres the last place() left crowded (in the least crowded layer).
+  size_t crowded() const { return crowded_; }
 
   // Steps 1 and 2 (see md_layers.hpp): layers, largest first.
   // Returns false, unfinished, once more than kCrowdedShare of the fibres are crowded, unless
@@ -92,7 +95,8 @@ class Layering {
     // kEvictShare of the fibres evicted in all.
     long long slides = kSlideBudget * static_cast<long long>(fibres_.size());
     long long evictions = std::llround(kEvictShare * static_cast<double>(fibres_.size()));
-    size_t crowded = 0;
+    size_t& crowded = crowded_;
+    crowded = 0;
     std::deque<int> queue(order.begin(), order.end());
     while (!queue.empty()) {
       const int f = queue.front();
@@ -382,11 +386,14 @@ class Layering {
   std::unique_ptr<NeighbourGrid> grid_;
   std::vector<int> layer_;
   std::vector<std::vector<int>> adj_;
+  size_t crowded_ = 0;
 };
 
 }  // namespace
 
-void layer_planar_fibres(const PackingSpec& spec, Random& rng, Bodies* bodies) {
+void layer_planar_fibres(const PackingSpec& spec, Random& rng, Bodies* bodies,
+                         const ProgressFn& progress) {
+  const auto start = std::chrono::steady_clock::now();
   const auto deadline = std::chrono::steady_clock::now() +
                         std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                             std::chrono::duration<double>(kTimeShare * spec.md.max_seconds));
@@ -416,7 +423,18 @@ void layer_planar_fibres(const PackingSpec& spec, Random& rng, Bodies* bodies) {
       Layering layering(spec.box, k, &bodies->all, std::move(fibres));
       if (layering.layers() < 2) break;
       const bool last = scale * kShrink < kMinScale || std::chrono::steady_clock::now() > deadline;
-      if (layering.place(rng, last, deadline)) {
+      const bool done = layering.place(rng, last, deadline);
+      if (progress) {
+        char buf[200];
+        std::snprintf(
+            buf, sizeof buf,
+            "md: %zu planar fibres in %d layers at scale %.4f: %s (%zu crowded), %.1f s",
+            by_axis[k].size(), layering.layers(), scale, done ? "placed" : "no room, smaller",
+            layering.crowded(),
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+        progress(buf);
+      }
+      if (done) {
         layering.shake(rng);
         break;
       }

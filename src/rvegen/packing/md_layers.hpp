@@ -42,8 +42,9 @@
 namespace rvegen::md {
 
 /// Sets the heights (and where a layer is full, the in-plane centres) of the planar fibres of
-/// `bodies` as above.
-void layer_planar_fibres(const PackingSpec& spec, Random& rng, Bodies* bodies);
+/// `bodies` as above; says after each try (a scale of the layers) how it went.
+void layer_planar_fibres(const PackingSpec& spec, Random& rng, Bodies* bodies,
+                         const ProgressFn& progress = nullptr);
 
 /// Aligned fibres (growing in radius only, at full length; see md_bodies.hpp) along a box axis
 /// where the box holds K = floor(H / L) >= 2 of the longest end to end: with random positions

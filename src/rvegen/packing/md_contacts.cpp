@@ -10,6 +10,9 @@ namespace rvegen::md {
 
 namespace {
 constexpr double kRelaxation = 1.0;  // scale of the summed contact impulses
+// Axes closer to parallel than this (squared sine) skip the line test: their lines' distance
+// says little about their segments'.
+constexpr double kLineTestMinSine2 = 1e-6;
 
 // A capsule holding a shape: segment p-q and radius.
 struct Capsule {
@@ -224,6 +227,11 @@ double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& ori
       const double ha = ba.cap_half_at(s_out), hb = bb.cap_half_at(s_out);
       const double reach = rr + ha + hb;
       if ((cb - ba.shape.center).squaredNorm() >= reach * reach) continue;
+      // The distance between the axes' lines bounds the segments' from below: most listed
+      // pairs of long crossing fibres are told apart here, without the segment distance.
+      const Vec3 d = cb - ba.shape.center, n = axis[e.a].cross(axis[e.b]);
+      const double dn = d.dot(n);
+      if (dn * dn >= rr * rr * n.squaredNorm() && n.squaredNorm() > kLineTestMinSine2) continue;
       const Vec3 ea = axis[e.a] * ha, eb = axis[e.b] * hb;
       if (segment_distance2(ba.shape.center - ea, ba.shape.center + ea, cb - eb, cb + eb) >=
           rr * rr) {

@@ -229,9 +229,9 @@ double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& ori
       if ((cb - ba.shape.center).squaredNorm() >= reach * reach) continue;
       // The distance between the axes' lines bounds the segments' from below: most listed
       // pairs of long crossing fibres are told apart here, without the segment distance.
-      const Vec3 d = cb - ba.shape.center, n = axis[e.a].cross(axis[e.b]);
-      const double dn = d.dot(n);
-      if (dn * dn >= rr * rr * n.squaredNorm() && n.squaredNorm() > kLineTestMinSine2) continue;
+      const Vec3 n = axis[e.a].cross(axis[e.b]);
+      const double n2 = n.squaredNorm(), dn = (cb - ba.shape.center).dot(n);
+      if (n2 > kLineTestMinSine2 && dn * dn >= rr * rr * n2) continue;
       const Vec3 ea = axis[e.a] * ha, eb = axis[e.b] * hb;
       if (segment_distance2(ba.shape.center - ea, ba.shape.center + ea, cb - eb, cb + eb) >=
           rr * rr) {

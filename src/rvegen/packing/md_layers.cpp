@@ -117,9 +117,7 @@ class Layering {
       // Crowded: tries layers where the fibre meets a few others, sliding it out of them.
       for (int slid = 0; slid < kSlides && layer < 0 && slides > 0; ++slid, --slides) {
         draw_center(f, rng);
-        conflicts(f, &hits);
-        std::fill(held.begin(), held.end(), 0);
-        for (int g : hits) ++held[layer_[g]];
+        conflicts(f, &hits, &held);
         const Vec3 at = all_[fibres_[f].body].shape.center;
         for (int c = 0; c < layers_ && layer < 0; ++c) {
           if (held[c] > kSlideFibres) continue;
@@ -138,15 +136,11 @@ class Layering {
       // where random places and slides no longer do).
       for (int tries = 0; tries < kEvictPlaces && layer < 0 && evictions > 0; ++tries) {
         draw_center(f, rng);
-        conflicts(f, &hits);
-        std::fill(held.begin(), held.end(), 0);
-        for (int g : hits) ++held[layer_[g]];
+        conflicts(f, &hits, &held);
         layer = evict_for(hits, held, rng, &perm, &queue, &evictions);
       }
       if (layer < 0) {  // crowded: the layer fewest neighbours hold
-        conflicts(f, &hits);
-        std::fill(held.begin(), held.end(), 0);
-        for (int g : hits) ++held[layer_[g]];
+        conflicts(f, &hits, &held);
         layer = static_cast<int>(std::min_element(held.begin(), held.end()) - held.begin());
         ++crowded;
       }
@@ -263,6 +257,12 @@ class Layering {
     });
     std::sort(hits->begin(), hits->end());
     hits->erase(std::unique(hits->begin(), hits->end()), hits->end());
+  }
+  // The same, and how many of them each layer holds.
+  void conflicts(int f, std::vector<int>* hits, std::vector<int>* held) const {
+    conflicts(f, hits);
+    std::fill(held->begin(), held->end(), 0);
+    for (int g : *hits) ++(*held)[layer_[g]];
   }
 
   // The projections of f and g (capsules of radius t about their axes, in the plane) meet, for

@@ -95,15 +95,14 @@ class Layering {
     // kEvictShare of the fibres evicted in all.
     long long slides = kSlideBudget * static_cast<long long>(fibres_.size());
     long long evictions = std::llround(kEvictShare * static_cast<double>(fibres_.size()));
-    size_t& crowded = crowded_;
-    crowded = 0;
+    crowded_ = 0;
     std::deque<int> queue(order.begin(), order.end());
     while (!queue.empty()) {
       const int f = queue.front();
       queue.pop_front();
-      if (crowded > kCrowdedShare * fibres_.size() ||
+      if (crowded_ > kCrowdedShare * fibres_.size() ||
           ((slides > 0 || evictions > 0) && std::chrono::steady_clock::now() > deadline)) {
-        if (!finish && crowded > kCrowdedShare * fibres_.size()) return false;
+        if (!finish && crowded_ > kCrowdedShare * fibres_.size()) return false;
         finish = true;
         slides = evictions = 0;
       }
@@ -142,7 +141,7 @@ class Layering {
       if (layer < 0) {  // crowded: the layer fewest neighbours hold
         conflicts(f, &hits, &held);
         layer = static_cast<int>(std::min_element(held.begin(), held.end()) - held.begin());
-        ++crowded;
+        ++crowded_;
       }
       layer_[f] = layer;
       members_[layer].push_back(f);

@@ -155,7 +155,8 @@ TEST(MdParts, ContactPassCertifiesTheTouchingScale) {
   md::VerletList list;
   list.build(&b, box, 1.0, nullptr);
   md::ContactSums sums;
-  const double s_in = md::contact_pass(b, bodies.oriented, list.pairs(), box, 1.0, &sums, nullptr);
+  const double s_in =
+      md::contact_pass(b, bodies.oriented, list.pairs(), box, 1.0, 0.0, &sums, nullptr);
   EXPECT_NEAR(s_in, 0.5, 1e-12);    // the wall: sphere 2 is inside up to radius 0.05
   EXPECT_LT(sums.move[0][0], 0.0);  // pushed apart along x
   EXPECT_GT(sums.move[1][0], 0.0);
@@ -165,8 +166,8 @@ TEST(MdParts, ContactPassCertifiesTheTouchingScale) {
   // Without the wall's sphere, the pair alone: valid up to their touching scale.
   b[2].shape.center = Vec3(0.5, 0.8, 0.8);
   list.build(&b, box, 1.0, nullptr);
-  EXPECT_NEAR(md::contact_pass(b, bodies.oriented, list.pairs(), box, 1.0, &sums, nullptr), 0.75,
-              1e-12);
+  EXPECT_NEAR(md::contact_pass(b, bodies.oriented, list.pairs(), box, 1.0, 0.0, &sums, nullptr),
+              0.75, 1e-12);
 }
 
 // The contact plane's scale is not the pair's: a tilted fibre whose rim presses on another's
@@ -189,7 +190,8 @@ TEST(MdParts, ContactPassRefinesTheScaleOfTheLimitingPairs) {
   md::VerletList list;
   list.build(&b, box, 1.0, nullptr);
   md::ContactSums sums;
-  const double s_in = md::contact_pass(b, bodies.oriented, list.pairs(), box, 1.0, &sums, nullptr);
+  const double s_in =
+      md::contact_pass(b, bodies.oriented, list.pairs(), box, 1.0, 0.0, &sums, nullptr);
   const auto overlap_at = [&](double s) {
     return intersect(b[0].at_scale(s), b[1].at_scale(s)).overlap;
   };

@@ -48,7 +48,8 @@ namespace {
 using md::Body;
 
 constexpr double kMinPressure = 1e-6;
-constexpr double kStall = 0.1;  // m halves when the valid scale grew by less than kStall m
+constexpr double kChainDrop = 2.0;  // with chains, s_out drops by at most kChainDrop m a step
+constexpr double kStall = 0.1;      // m halves when the valid scale grew by less than kStall m
 
 class MdPacker {
  public:
@@ -161,7 +162,8 @@ PackingResult MdPacker::run() {
       // taken the budget): its configuration, at the start scale, is the least a run returns.
       const std::function<void()>& tick = steps_ == 0 ? no_tick_ : tick_;
       list_.update(&bodies, box_, s_out_, tick);
-      s_in = contact_pass(bodies, bodies_.oriented, list_.pairs(), box_, s_out_, &sums_, tick);
+      s_in = contact_pass(bodies, bodies_.oriented, list_.pairs(), box_, s_out_, best_scale_,
+                          &sums_, tick);
     } catch (const OutOfTime&) {
       why = StopReason::kTimeBudget;
       break;
@@ -187,12 +189,21 @@ PackingResult MdPacker::run() {
         break;
       }
     }
-    // (No valid scale this step: the contacts keep acting at the same scale, never at 0.)
-    // With chains the contacts' scale never exceeds 1, where the chains are placed: a chain is
-    // not convex, and valid at a scale above 1 need not mean valid at 1.
-    if (s_in > 0.0) {
+    if (bodies_.chains) {
+      // Chains: the contacts act at a scale never above 1, where the chains are placed (a chain
+      // is not convex, and valid at a scale above 1 need not mean valid at 1). It follows the
+      // valid scale, but drops by at most kChainDrop m a step: a chain pair's certificate may
+      // lie far below s_out (shrunk, its pieces move across each other's waves), and following
+      // it dragged the scale of all down and undid the compression (Figure 5 scene: jammed at
+      // 0.19 of 0.35). With no new valid scale, it is held: the contacts part the overlaps at
+      // that scale until one is certified there.
+      if (s_in > 0.0) {
+        const double s = std::max(s_in, s_out_ * (1.0 - kChainDrop * m_));
+        s_out_ = std::min(1.0, std::max(s_start_, s * (1.0 + m_)));
+      }
+    } else if (s_in > 0.0) {
+      // (No valid scale this step: the contacts keep acting at the same scale, never at 0.)
       s_out_ = std::max(s_start_, s_in * (1.0 + m_));
-      if (bodies_.chains) s_out_ = std::min(s_out_, 1.0);
     }
     if (steps_ >= scene_.md.max_steps) {
       why = StopReason::kStepBudget;

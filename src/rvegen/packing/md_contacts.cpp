@@ -139,7 +139,7 @@ double refined_scale(const std::vector<Body>& bodies, double s_out,
 }  // namespace
 
 double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& oriented,
-                    const std::vector<PairEntry>& pairs, const Box& box, double s_out,
+                    const std::vector<PairEntry>& pairs, const Box& box, double s_out, double keep,
                     ContactSums* sums, const std::function<void()>& tick) {
   const size_t n = bodies.size();
   std::vector<Vec3>&move = sums->move, &turn = sums->turn, &axis = sums->axis;
@@ -333,16 +333,16 @@ double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& ori
       }
       return true;
     };
-    // The largest of min(s_in, 1, s_out (1 - d)) that passes, d = 0 (without an overlap at
-    // s_out), then 0.001 2^k (k = 0..9); 0 when none does.
-    double s = 0.0;
-    for (int k = chain_depth > 0.0 ? 0 : -1; k <= 9; ++k) {
-      const double d = k < 0 ? 0.0 : 0.001 * std::ldexp(1.0, k);
-      s = std::min({s_in, 1.0, s_out * (1.0 - d)});
-      if (clear_at(s)) break;
-      s = 0.0;
+    // The largest of s0 (1 - d) that passes, d = 0, then 0.001 2^k (k = 0..9), with s0 the
+    // least of s_in, 1 and s_out less the deepest chain overlap (relative to the smaller body,
+    // about the scale at which that pair's pieces part); 0 when none above `keep` does.
+    const double s0 = std::min({s_in, 1.0, s_out * (1.0 - std::min(chain_depth, 0.5))});
+    for (int k = -1; k <= 9; ++k) {
+      const double at = s0 * (1.0 - (k < 0 ? 0.0 : 0.001 * std::ldexp(1.0, k)));
+      if (at <= keep) break;
+      if (clear_at(at)) return at;
     }
-    s_in = s;
+    return 0.0;
   }
   return std::max(0.0, s_in);
 }

@@ -27,8 +27,12 @@ struct ContactSums {
 /// valid below it, the others below the scale at which the plane of their contact normal
 /// separates them (for the pairs that limit it most, the scale bisected with the exact test).
 /// `tick` is called every 4096 pairs.
+///
+/// Chains are not convex: a pair apart at s_out may meet when both shrink, so their scale is
+/// tested (at a few scales just below s_out), not derived, and 0 is returned when no tested
+/// scale above `keep` (the best so far: a lower one is of no use) passes.
 double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& oriented,
-                    const std::vector<PairEntry>& pairs, const Box& box, double s_out,
+                    const std::vector<PairEntry>& pairs, const Box& box, double s_out, double keep,
                     ContactSums* sums, const std::function<void()>& tick);
 
 }  // namespace rvegen::md

@@ -8,6 +8,7 @@
 #include <tuple>
 
 #include "rvegen/io/scene_json.hpp"
+#include "rvegen/model/body.hpp"
 #include "rvegen/model/neighbours.hpp"
 #include "rvegen/packing/md_integrator.hpp"
 #include "rvegen/packing/packing.hpp"
@@ -156,7 +157,7 @@ TEST(MdParts, ContactPassCertifiesTheTouchingScale) {
   list.build(&b, box, 1.0, nullptr);
   md::ContactSums sums;
   const double s_in =
-      md::contact_pass(b, bodies.oriented, list.pairs(), box, 1.0, 0.0, &sums, nullptr);
+      md::contact_pass(b, bodies.oriented, list.pairs(), box, 1.0, 0.0, 0.0, &sums, nullptr);
   EXPECT_NEAR(s_in, 0.5, 1e-12);    // the wall: sphere 2 is inside up to radius 0.05
   EXPECT_LT(sums.move[0][0], 0.0);  // pushed apart along x
   EXPECT_GT(sums.move[1][0], 0.0);
@@ -166,8 +167,9 @@ TEST(MdParts, ContactPassCertifiesTheTouchingScale) {
   // Without the wall's sphere, the pair alone: valid up to their touching scale.
   b[2].shape.center = Vec3(0.5, 0.8, 0.8);
   list.build(&b, box, 1.0, nullptr);
-  EXPECT_NEAR(md::contact_pass(b, bodies.oriented, list.pairs(), box, 1.0, 0.0, &sums, nullptr),
-              0.75, 1e-12);
+  EXPECT_NEAR(
+      md::contact_pass(b, bodies.oriented, list.pairs(), box, 1.0, 0.0, 0.0, &sums, nullptr), 0.75,
+      1e-12);
 }
 
 // The contact plane's scale is not the pair's: a tilted fibre whose rim presses on another's
@@ -191,7 +193,7 @@ TEST(MdParts, ContactPassRefinesTheScaleOfTheLimitingPairs) {
   list.build(&b, box, 1.0, nullptr);
   md::ContactSums sums;
   const double s_in =
-      md::contact_pass(b, bodies.oriented, list.pairs(), box, 1.0, 0.0, &sums, nullptr);
+      md::contact_pass(b, bodies.oriented, list.pairs(), box, 1.0, 0.0, 0.0, &sums, nullptr);
   const auto overlap_at = [&](double s) {
     return intersect(b[0].at_scale(s), b[1].at_scale(s)).overlap;
   };
@@ -231,6 +233,91 @@ TEST(MdParts, IntegratorKeepsMomentumAndCapsTurns) {
   const Vec3 c1 = b[0].shape.center;
   integrator.step(sums, &b, &list);
   EXPECT_NEAR((b[0].shape.center - c1)[0], 0.009, 1e-15);
+}
+
+// A chain turns as a rigid body: its pieces turn with its axis, also when the turn spins it
+// about that axis or the axis crosses where the frame of CentreLine (any_orthogonal) switches
+// coordinate axis. (Before, the wave kept its angle about that frame: a spin did nothing and a
+// switch turned the wave by up to 90 degrees in one step.)
+TEST(MdParts, ChainTurnsWithItsWave) {
+  md::Bodies bodies = bodies_of(R"({"box":{"size":[1,1,1]},"seed":3,"families":[
+    {"shape":"cylinder","radius":0.02,"aspect_ratio":8,"count":1,
+     "waviness":{"amplitude":0.02,"wavelength":0.2}}]})");
+  Body& b = bodies.all[0];
+  ASSERT_TRUE(b.chain);
+  const Vec3 c = b.shape.center;
+  const std::vector<Mat3> turns = {
+      Mat3(Eigen::AngleAxisd(0.7, b.shape.half_axis.normalized())),  // a spin only
+      Mat3(Eigen::AngleAxisd(0.3, Vec3(1, 2, -1).normalized())),
+      Mat3(Eigen::AngleAxisd(2.5, Vec3(-0.2, 0.9, 0.4).normalized()))};
+  for (int axis = 0; axis < 3; ++axis) {
+    // Axes near the switches of any_orthogonal: |u_x| = |u_y|, |u_y| = |u_z|.
+    Vec3 u(1.0, 1.0 + 1e-9, 0.3);
+    u[axis] = 0.2;
+    b.shape.half_axis = u.normalized() * b.shape.half_axis.norm();
+    for (const Mat3& R : turns) {
+      std::vector<Shape> before, after;
+      chain_pieces(b.chain_at(1.0), &before);
+      Body turned = b;
+      turned.turn_by(R);
+      chain_pieces(turned.chain_at(1.0), &after);
+      ASSERT_EQ(before.size(), after.size());
+      ASSERT_GE(before.size(), 3u);
+      for (size_t k = 0; k < before.size(); ++k) {
+        EXPECT_LT((after[k].center - c - R * (before[k].center - c)).norm(), 1e-12);
+        EXPECT_LT((after[k].half_axis - R * before[k].half_axis).norm(), 1e-12);
+      }
+      EXPECT_LT((turned.shape.half_axis - R * b.shape.half_axis).norm(), 1e-12);
+    }
+  }
+}
+
+// Chain pairs push at pieces grown by the skin and are certified at the force scale when the
+// pieces as they are do not meet: a grain 0.4 skin radii from a chain is pushed away and valid
+// at scale 1; without a skin it is not pushed; 0.4 skin radii into the chain it is not valid at
+// scale 1.
+TEST(MdParts, ChainContactsActAtTheSkinAndCertifyTheForceScale) {
+  const char* json = R"({"box":{"size":[1,1,1]},"seed":4,"families":[
+    {"shape":"cylinder","radius":0.02,"aspect_ratio":8,"count":1,
+     "waviness":{"amplitude":0.02,"wavelength":0.2},"coating":{"thickness":0.005}},
+    {"shape":"sphere","radius":0.05,"count":1}]})";
+  md::Bodies bodies = bodies_of(json);
+  std::vector<Body>& b = bodies.all;
+  const int f = b[0].chain ? 0 : 1, g = 1 - f;
+  ASSERT_TRUE(b[f].chain);
+  ASSERT_FALSE(b[g].chain);
+  b[f].shape.center = Vec3(0.5, 0.5, 0.5);
+  b[f].shape.half_axis = Vec3(0, 0, b[f].shape.half_axis.norm());
+  std::vector<Shape> pieces;
+  chain_pieces(b[f].chain_at(1.0), &pieces);
+  const Vec3 dir = Vec3(1, 1, 0).normalized();
+  auto meets = [&](double d) {
+    const Shape grain = Shape::sphere(b[f].shape.center + d * dir, b[g].shape.radius);
+    for (const Shape& p : pieces) {
+      if (intersect(p, grain).overlap) return true;
+    }
+    return false;
+  };
+  // The touching distance along dir, by bisection.
+  double lo = 0.0, hi = 0.5;
+  for (int it = 0; it < 60; ++it) (meets(0.5 * (lo + hi)) ? lo : hi) = 0.5 * (lo + hi);
+  constexpr double kSkin = 0.01;
+  const double gap = 0.4 * kSkin * b[g].shape.radius;
+  const Box box = parse_scene(json).box;
+  auto pass = [&](double d, double skin, md::ContactSums* sums) {
+    b[g].shape.center = b[f].shape.center + d * dir;
+    md::VerletList list;
+    list.build(&b, box, 1.0, nullptr);
+    return md::contact_pass(b, bodies.oriented, list.pairs(), box, 1.0, 0.0, skin, sums, nullptr);
+  };
+  md::ContactSums sums;
+  EXPECT_EQ(pass(hi + gap, kSkin, &sums), 1.0);
+  EXPECT_GT(sums.move[g].dot(dir), 0.0);  // pushed away from the chain
+  EXPECT_GT(sums.max_overlap, 0.0);
+  EXPECT_EQ(pass(hi + gap, 0.0, &sums), 1.0);
+  EXPECT_EQ(sums.move[g].norm(), 0.0);
+  EXPECT_LT(pass(lo - gap, kSkin, &sums), 1.0);
+  EXPECT_GT(sums.move[g].dot(dir), 0.0);
 }
 
 TEST(MdParts, SpaceOrderKeepsEveryBodyAndPutsNeighboursTogether) {

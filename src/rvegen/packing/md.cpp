@@ -36,6 +36,8 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <tuple>
+#include <utility>
 
 #include "rvegen/model/body.hpp"
 #include "rvegen/packing/md_integrator.hpp"
@@ -48,8 +50,18 @@ namespace {
 using md::Body;
 
 constexpr double kMinPressure = 1e-6;
-constexpr double kChainDrop = 2.0;  // with chains, s_out drops by at most kChainDrop m a step
-constexpr double kStall = 0.1;      // m halves when the valid scale grew by less than kStall m
+// Chains (see run()): s_out drops by at most kChainDrop m a step; the contacts act on pieces
+// grown by a relative skin min(kChainSkin, kChainSkinPerPressure m); after kChainHold steps
+// without a valid scale, s_out drops by kChainUnjam. Measured on the Figure 5 scene
+// (samples/bench_deformed.py, 120 s): without the skin and the drop of held scales, 0.3204
+// (seed 1) and 0.2958 (seed 2); skin 0.01, 0.005, 0.002 with drops of 0.01 after 50 steps:
+// 0.3352, 0.3367, 0.3397; drops of 0.003: 0.3423 (seed 2: 0.3416); the skin following the
+// pressure: 0.3442. A skin of 0.02 jammed at 0.3261; drops after 20 steps: 0.3328.
+constexpr double kChainDrop = 2.0;
+constexpr double kChainSkin = 0.002, kChainSkinPerPressure = 0.1;
+constexpr int kChainHold = 50;
+constexpr double kChainUnjam = 0.003;
+constexpr double kStall = 0.1;  // m halves when the valid scale grew by less than kStall m
 
 class MdPacker {
  public:
@@ -75,10 +87,12 @@ class MdPacker {
   // Scale control: contacts act at s_out = max(s_start, s_in (1 + m)).
   double s_out_ = 0.0, s_start_ = 0.0, m_ = 0.0;
   long long steps_ = 0;
+  int hold_ = 0;
   // Best valid configuration.
   double best_scale_ = -1.0;
   std::vector<Vec3> best_center_;
   std::vector<Shape> best_oriented_;
+  std::vector<std::pair<double, double>> best_angles_;  // chains' wave and bend angles
   std::chrono::steady_clock::time_point t0_, last_progress_;
   // The time budget holds inside a step too (a pair-list build of a crowded scene can take
   // longer than the budget): long loops call tick_, which throws OutOfTime.
@@ -109,7 +123,12 @@ void MdPacker::snapshot(double scale) {
   for (size_t i = 0; i < bodies_.all.size(); ++i) best_center_[i] = bodies_.all[i].shape.center;
   const std::vector<int>& oriented = bodies_.oriented;
   best_oriented_.resize(oriented.size());
-  for (size_t k = 0; k < oriented.size(); ++k) best_oriented_[k] = bodies_.all[oriented[k]].shape;
+  best_angles_.resize(oriented.size());
+  for (size_t k = 0; k < oriented.size(); ++k) {
+    const Body& b = bodies_.all[oriented[k]];
+    best_oriented_[k] = b.shape;
+    best_angles_[k] = {b.wave_angle, b.bend_angle};
+  }
 }
 
 void MdPacker::report_progress(bool force) {
@@ -161,8 +180,9 @@ PackingResult MdPacker::run() {
       // The first pass runs whatever the clock says (placing planar fibres in layers may have
       // taken the budget): its configuration, at the start scale, is the least a run returns.
       const std::function<void()>& tick = steps_ == 0 ? no_tick_ : tick_;
+      const double skin = bodies_.chains ? std::min(kChainSkin, kChainSkinPerPressure * m_) : 0.0;
       list_.update(&bodies, box_, s_out_, tick);
-      s_in = contact_pass(bodies, bodies_.oriented, list_.pairs(), box_, s_out_, best_scale_,
+      s_in = contact_pass(bodies, bodies_.oriented, list_.pairs(), box_, s_out_, best_scale_, skin,
                           &sums_, tick);
     } catch (const OutOfTime&) {
       why = StopReason::kTimeBudget;
@@ -195,11 +215,17 @@ PackingResult MdPacker::run() {
       // valid scale, but drops by at most kChainDrop m a step: a chain pair's certificate may
       // lie far below s_out (shrunk, its pieces move across each other's waves), and following
       // it dragged the scale of all down and undid the compression (Figure 5 scene: jammed at
-      // 0.19 of 0.35). With no new valid scale, it is held: the contacts part the overlaps at
-      // that scale until one is certified there.
+      // 0.19 of 0.35). With no valid scale, it is held: the contacts part the overlaps at that
+      // scale until one is certified there (the skin makes them part the pieces a little more
+      // than needed, so the pass certifies the force scale itself); held kChainHold steps (a
+      // pair caught across another's wave), it drops by kChainUnjam.
       if (s_in > 0.0) {
+        hold_ = 0;
         const double s = std::max(s_in, s_out_ * (1.0 - kChainDrop * m_));
         s_out_ = std::min(1.0, std::max(s_start_, s * (1.0 + m_)));
+      } else if (++hold_ >= kChainHold) {
+        hold_ = 0;
+        s_out_ *= 1.0 - kChainUnjam;
       }
     } else if (s_in > 0.0) {
       // (No valid scale this step: the contacts keep acting at the same scale, never at 0.)
@@ -227,7 +253,11 @@ PackingResult MdPacker::run() {
   res.placed_count.assign(nf, 0);
   const std::vector<int>& oriented = bodies_.oriented;
   if (best_oriented_.size() == oriented.size()) {
-    for (size_t k = 0; k < oriented.size(); ++k) bodies[oriented[k]].shape = best_oriented_[k];
+    for (size_t k = 0; k < oriented.size(); ++k) {
+      Body& b = bodies[oriented[k]];
+      b.shape = best_oriented_[k];
+      std::tie(b.wave_angle, b.bend_angle) = best_angles_[k];
+    }
   }
   // Written in the order drawn, whatever order the bodies were packed in.
   std::vector<int> body_of(drawn_.size());
@@ -238,7 +268,8 @@ PackingResult MdPacker::run() {
     b.shape.center = best_center_[i];
     wrap(box_, &b);
     // Aligned fibres (radial) keep their length: only the radius is scaled.
-    Inclusion inc = place_like(pop_[j], b.shape, b.radial ? 1.0 : res.scale);
+    Inclusion inc =
+        b.chain ? b.chain_at(res.scale) : place_like(pop_[j], b.shape, b.radial ? 1.0 : res.scale);
     if (b.radial) inc.shape.radius *= res.scale;
     inc.id = static_cast<int>(res.set.inclusions.size());
     res.set.inclusions.push_back(inc);

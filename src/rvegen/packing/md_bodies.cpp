@@ -30,6 +30,45 @@ Shape Body::at_scale(double s) const {
   return out;
 }
 
+Inclusion Body::chain_at(double scale) const {
+  Inclusion inc = place_like(*chain, shape, scale);
+  inc.mod.wave_angle = wave_angle;
+  inc.mod.bend_angle = bend_angle;
+  return inc;
+}
+
+namespace {
+// The angle of direction R v about the frame of axis u1, v at `angle` about the frame of u0 (the
+// frame of CentreLine: e1 = any_orthogonal(u), e2 = u x e1).
+double turned_angle(const Vec3& u0, const Vec3& u1, const Mat3& R, double angle) {
+  const Vec3 a1 = any_orthogonal(u0), a2 = u0.cross(a1);
+  const Vec3 v = R * (std::cos(angle) * a1 + std::sin(angle) * a2);
+  const Vec3 b1 = any_orthogonal(u1), b2 = u1.cross(b1);
+  return std::atan2(v.dot(b2), v.dot(b1));
+}
+}  // namespace
+
+void Body::turn_by(const Mat3& R) {
+  if (shape.kind == ShapeKind::Cylinder) {
+    const double len = shape.half_axis.norm();
+    const Vec3 u0 = shape.half_axis / len;
+    const Vec3 u1 = (R * shape.half_axis).normalized();
+    shape.half_axis = u1 * len;
+    if (chain) {
+      wave_angle = turned_angle(u0, u1, R, wave_angle);
+      bend_angle = turned_angle(u0, u1, R, bend_angle);
+    }
+    return;
+  }
+  const Mat3 Q = R * shape.rotation;
+  // Re-orthonormalise (Gram-Schmidt) so rounding does not accumulate.
+  const Vec3 c0 = Q.col(0).normalized();
+  const Vec3 c1 = (Q.col(1) - c0.dot(Q.col(1)) * c0).normalized();
+  shape.rotation.col(0) = c0;
+  shape.rotation.col(1) = c1;
+  shape.rotation.col(2) = c0.cross(c1);
+}
+
 void Body::support_line(const Vec3& n, double* alpha, double* beta) const {
   if (radial) {
     // Cylinder: half length |n.u| + radius sqrt(1 - (n.u)^2), radius s r + half_gap.
@@ -114,6 +153,8 @@ Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, R
     if (packs_as_chain(pop[i])) {  // ... wavy fibres by their chains of straight pieces
       b.shape = chain_bound(pop[i]);
       b.chain = std::make_shared<const Inclusion>(pop[i]);
+      b.wave_angle = pop[i].mod.wave_angle;
+      b.bend_angle = pop[i].mod.bend_angle;
       out.chains = true;
     }
     b.family = pop[i].family;

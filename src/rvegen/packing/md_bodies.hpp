@@ -40,6 +40,15 @@ struct Body {
   // Wavy fibres (body.hpp, chain_pieces): `shape` is the straight cylinder holding their chain of
   // pieces, and the drawn fibre they are cut from, placed like `shape` at each contact.
   std::shared_ptr<const Inclusion> chain;
+  // A chain's wave and bend directions (Modifiers::wave_angle, bend_angle, about the frame of
+  // its axis): they turn with the body, so a chain also spins about its own axis.
+  double wave_angle = 0.0, bend_angle = 0.0;
+
+  /// The drawn chain placed like the body (centre, axis, wave and bend directions), scaled by
+  /// `scale` about its centre.
+  Inclusion chain_at(double scale) const;
+  /// Turns the body by the rotation R (its axis, and a chain's wave and bend directions).
+  void turn_by(const Mat3& R);
 
   /// Support value at scale 1 along unit u: the table's, or the ball's radius.
   double support_along(const Vec3& u) const {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 
 #include "rvegen/geometry/convex.hpp"
 #include "rvegen/model/body.hpp"
@@ -30,25 +31,37 @@ bool capsules_meet(const Capsule& a, const Capsule& b) {
 }
 
 // Pieces of every body at one scale, computed when first asked for (a body's chain costs a
-// place_like and a sine per piece; it meets many others).
+// place_like and a sine per piece; it meets many others), grown by a relative `grow`: radius
+// r (1 + grow), half length + grow r (they hold the pieces as they are).
 class PieceCache {
  public:
   PieceCache(const std::vector<Body>& bodies, std::vector<std::vector<Shape>>* store)
-      : bodies_(bodies), store_(*store), scale_(bodies.size(), -1.0) {
+      : bodies_(bodies), store_(*store), scale_(bodies.size(), -1.0), grow_(bodies.size(), 0.0) {
     store_.resize(bodies.size());
   }
   /// Pieces of body i at the force scale of growth s (its chain's, or its own shape).
-  const std::vector<Shape>& at(int i, double s) {
-    if (scale_[i] != s) {
+  const std::vector<Shape>& at(int i, double s, double grow) {
+    if (scale_[i] != s || grow_[i] != grow) {
       const Body& b = bodies_[i];
       std::vector<Shape>& out = store_[i];
       out.clear();
       if (b.chain) {
-        chain_pieces(place_like(*b.chain, b.shape, b.force_scale(s)), &out);
+        chain_pieces(b.chain_at(b.force_scale(s)), &out);
       } else {
         out.push_back(b.at_scale(s));
       }
+      if (grow > 0.0) {
+        for (Shape& p : out) {
+          const double dr = grow * p.radius;
+          if (p.kind == ShapeKind::Cylinder) {
+            const double h = p.half_axis.norm();
+            p.half_axis *= (h + dr) / h;
+          }
+          p.radius += dr;
+        }
+      }
       scale_[i] = s;
+      grow_[i] = grow;
     }
     return store_[i];
   }
@@ -56,31 +69,33 @@ class PieceCache {
  private:
   const std::vector<Body>& bodies_;
   std::vector<std::vector<Shape>>& store_;
-  std::vector<double> scale_;
+  std::vector<double> scale_, grow_;
 };
 
-// The overlapping pieces of the pair e at growth s: the pieces of each body near the other's
-// bounding capsule, then the exact tests between those. Appends the contacts to *found (only
-// the first when first_only) and returns whether there is any.
+// The overlapping pieces of the pair e at growth s (grown by `grow`, see PieceCache): the pieces
+// of each body near the other's bounding capsule, then the exact tests between those. Appends
+// the contacts to *found (only the first when first_only) and returns whether there is any.
 struct NearPieces {
   std::vector<const Shape*> a;
   std::vector<Shape> b;  // shifted
 };
 bool chain_overlaps(const std::vector<Body>& bodies, const std::vector<Vec3>& axis,
-                    PieceCache* pieces, const PairEntry& e, double s, bool first_only,
+                    PieceCache* pieces, const PairEntry& e, double s, double grow, bool first_only,
                     NearPieces* near, std::vector<Contact>* found) {
   const Body &ba = bodies[e.a], &bb = bodies[e.b];
   const Vec3 ca = ba.shape.center, cb = bb.shape.center + e.shift;
-  const Vec3 ha = axis[e.a] * ba.cap_half_at(s), hb = axis[e.b] * bb.cap_half_at(s);
-  const Capsule cap_a{ca - ha, ca + ha, ba.cap_radius_at(s)};
-  const Capsule cap_b{cb - hb, cb + hb, bb.cap_radius_at(s)};
+  const double ra = ba.cap_radius_at(s) * (1.0 + grow), rb = bb.cap_radius_at(s) * (1.0 + grow);
+  const Vec3 ha = axis[e.a] * (ba.cap_half_at(s) + ra - ba.cap_radius_at(s));
+  const Vec3 hb = axis[e.b] * (bb.cap_half_at(s) + rb - bb.cap_radius_at(s));
+  const Capsule cap_a{ca - ha, ca + ha, ra};
+  const Capsule cap_b{cb - hb, cb + hb, rb};
   near->a.clear();
   near->b.clear();
-  for (const Shape& p : pieces->at(e.a, s)) {
+  for (const Shape& p : pieces->at(e.a, s, grow)) {
     if (capsules_meet(capsule_of(p), cap_b)) near->a.push_back(&p);
   }
   if (near->a.empty()) return false;
-  for (const Shape& p : pieces->at(e.b, s)) {
+  for (const Shape& p : pieces->at(e.b, s, grow)) {
     const Shape q = p.translated(e.shift);
     if (capsules_meet(capsule_of(q), cap_a)) near->b.push_back(q);
   }
@@ -140,7 +155,7 @@ double refined_scale(const std::vector<Body>& bodies, double s_out,
 
 double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& oriented,
                     const std::vector<PairEntry>& pairs, const Box& box, double s_out, double keep,
-                    ContactSums* sums, const std::function<void()>& tick) {
+                    double skin, ContactSums* sums, const std::function<void()>& tick) {
   const size_t n = bodies.size();
   std::vector<Vec3>&move = sums->move, &turn = sums->turn, &axis = sums->axis;
   move.resize(n);
@@ -245,7 +260,9 @@ double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& ori
       const Vec3 ca = ba.shape.center, cb = bb.shape.center + e.shift;
       chain_pairs.push_back(&e);
       found.clear();
-      if (!chain_overlaps(bodies, axis, &pieces, e, s_out, false, &near, &found)) continue;
+      if (!chain_overlaps(bodies, axis, &pieces, e, s_out, skin, false, &near, &found)) {
+        continue;
+      }
       const Shape A = ba.at_scale(s_out), B = bb.at_scale(s_out).translated(e.shift);
       for (const Contact& c : found) {
         const double rel = c.depth / std::min(A.min_size(), B.min_size());
@@ -326,7 +343,7 @@ double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& ori
     auto clear_at = [&](double s) {
       for (size_t k = 0; k < chain_pairs.size(); ++k) {
         const size_t i = (first + k) % chain_pairs.size();
-        if (chain_overlaps(bodies, axis, &pieces, *chain_pairs[i], s, true, &near, nullptr)) {
+        if (chain_overlaps(bodies, axis, &pieces, *chain_pairs[i], s, 0.0, true, &near, nullptr)) {
           first = i;
           return false;
         }
@@ -336,6 +353,10 @@ double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& ori
     // The largest of s0 (1 - d) that passes, d = 0, then 0.001 2^k (k = 0..9), with s0 the
     // least of s_in, 1 and s_out less the deepest chain overlap (relative to the smaller body,
     // about the scale at which that pair's pieces part); 0 when none above `keep` does.
+    // The force scale itself, when the contacts of the grown pieces have parted the pieces as
+    // they are.
+    const double s_top = std::min({s_in, 1.0, s_out});
+    if (skin > 0.0 && s_top > 0.0 && clear_at(s_top)) return s_top;
     const double s0 = std::min({s_in, 1.0, s_out * (1.0 - std::min(chain_depth, 0.5))});
     for (int k = -1; k <= 9; ++k) {
       const double at = s0 * (1.0 - (k < 0 ? 0.0 : 0.001 * std::ldexp(1.0, k)));

@@ -29,10 +29,13 @@ struct ContactSums {
 /// `tick` is called every 4096 pairs.
 ///
 /// Chains are not convex: a pair apart at s_out may meet when both shrink, so their scale is
-/// tested (at a few scales just below s_out), not derived, and 0 is returned when no tested
-/// scale above `keep` (the best so far: a lower one is of no use) passes.
+/// tested, not derived. Their contacts are those of pieces grown by a relative `skin` (radius
+/// r (1 + skin), half length + skin r); the pass then certifies the scale min(s_in, 1, s_out)
+/// itself when the pieces as they are do not overlap there, else tests a few scales just below
+/// s_out and returns 0 when none above `keep` (the best so far: a lower one is of no use)
+/// passes.
 double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& oriented,
                     const std::vector<PairEntry>& pairs, const Box& box, double s_out, double keep,
-                    ContactSums* sums, const std::function<void()>& tick);
+                    double skin, ContactSums* sums, const std::function<void()>& tick);
 
 }  // namespace rvegen::md

@@ -27,19 +27,7 @@ void Integrator::step(const ContactSums& sums, std::vector<Body>* bodies, Verlet
         ang = kMaxTurn;
       }
       if (ang > 0.0) {
-        const Mat3 R = Eigen::AngleAxisd(ang, omega_[i] / ang).toRotationMatrix();
-        if (b.shape.kind == ShapeKind::Cylinder) {
-          const double len = b.shape.half_axis.norm();
-          b.shape.half_axis = (R * b.shape.half_axis).normalized() * len;
-        } else {
-          const Mat3 Q = R * b.shape.rotation;
-          // Re-orthonormalise (Gram-Schmidt) so rounding does not accumulate.
-          const Vec3 c0 = Q.col(0).normalized();
-          const Vec3 c1 = (Q.col(1) - c0.dot(Q.col(1)) * c0).normalized();
-          b.shape.rotation.col(0) = c0;
-          b.shape.rotation.col(1) = c1;
-          b.shape.rotation.col(2) = c0.cross(c1);
-        }
+        b.turn_by(Eigen::AngleAxisd(ang, omega_[i] / ang).toRotationMatrix());
         list->turned(static_cast<int>(i), ang);
       }
     }

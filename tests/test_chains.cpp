@@ -10,6 +10,7 @@
 #include "rvegen/io/report.hpp"
 #include "rvegen/io/scene_json.hpp"
 #include "rvegen/model/body.hpp"
+#include "rvegen/model/deformed_support.hpp"
 #include "rvegen/packing/audit.hpp"
 #include "rvegen/packing/packing.hpp"
 
@@ -164,6 +165,73 @@ TEST(Chains, WavyFibresPackPastTheirEnvelopesWithoutTrueOverlap) {
   EXPECT_GT(env, 0.7405);  // the envelopes alone would overfill any packing
   expect_no_true_overlap(r.set);
   EXPECT_TRUE(find_overlaps(read_inclusions_json(write_inclusions_json(r.set))).empty());
+}
+
+// A deformed grain beside a coated wavy fibre: the audit, like the packer, keeps the grain
+// apart from the fibre's pieces by its certified support function, not by its ball. It passes
+// the pair where the ball still meets a piece, the true surfaces being apart there, and fails it
+// when the grain comes closer.
+TEST(Chains, AuditSeparatesDeformedGrainsFromPiecesByTheirSupport) {
+  const Scene s = parse_scene(R"({"box":{"size":[1,1,1]},"seed":3,"families":[
+      {"shape":"cylinder","radius":0.02,"aspect_ratio":8,"count":1,
+       "waviness":{"amplitude":0.02,"wavelength":0.2},"coating":{"thickness":0.005}},
+      {"shape":"sphere","radius":0.05,"count":1,
+       "deformation":{"amplitude":0.1,"smoothness":1}}]})");
+  Random rng(s.seed);
+  InclusionSet set;
+  set.box = s.box;
+  set.inclusions = draw_population(s, rng);
+  ASSERT_EQ(set.inclusions.size(), 2u);
+  const int f = set.inclusions[0].shape.kind == ShapeKind::Cylinder ? 0 : 1, g = 1 - f;
+  Inclusion &fibre = set.inclusions[f], &grain = set.inclusions[g];
+  ASSERT_TRUE(packs_as_chain(fibre));
+  const auto table = support_table(grain);
+  ASSERT_TRUE(table);
+  // The direction in which the grain reaches least, of many.
+  const double ball = envelope(grain).radius;
+  Vec3 n = Vec3::UnitX();
+  double h_min = 1e300;
+  for (int k = 0; k < 4000; ++k) {
+    const Vec3 u = rng.unit_vector();
+    const double h = envelope_support(grain, *table, u);
+    if (h < h_min) h_min = h, n = u;
+  }
+  ASSERT_LT(h_min, 0.95 * ball);
+  grain.shape.center = Vec3(0.5, 0.5, 0.5);
+  fibre.shape.half_axis = any_orthogonal(n) * fibre.shape.half_axis.norm();
+  auto place = [&](double d) { fibre.shape.center = grain.shape.center + d * n; };
+  auto audit_passes = [&](double d) {
+    place(d);
+    return find_overlaps(set).empty();
+  };
+  auto ball_meets = [&](double d) {
+    place(d);
+    std::vector<Shape> pieces;
+    chain_pieces(fibre, &pieces);
+    for (const Shape& p : pieces) {
+      if (intersect(p, envelope(grain)).overlap) return true;
+    }
+    return false;
+  };
+  double lo = 0.0, hi = 0.3;  // the audit fails at lo, passes at hi
+  for (int it = 0; it < 50; ++it) (audit_passes(0.5 * (lo + hi)) ? hi : lo) = 0.5 * (lo + hi);
+  const double d = hi + 1e-9;
+  EXPECT_TRUE(audit_passes(d));
+  EXPECT_TRUE(ball_meets(d));
+  EXPECT_FALSE(audit_passes(d - 0.002));
+  // The true surfaces at d: no point of the grain (random points, exact inside tests) lies in
+  // the fibre or its shell.
+  place(d);
+  const BodyQuery qg(grain), qf(fibre);
+  int in_grain = 0;
+  for (int k = 0; k < 200000; ++k) {
+    const Vec3 x = grain.shape.center +
+                   ball * Vec3(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1));
+    if (qg.region(x) == Region::kOutside) continue;
+    ++in_grain;
+    ASSERT_EQ(qf.region(x), Region::kOutside) << x.transpose();
+  }
+  EXPECT_GT(in_grain, 50000);
 }
 
 Inclusion bent_fibre(double r, double h, double bend_radius, double coating, uint64_t seed) {

@@ -13,6 +13,7 @@
 #pragma once
 
 #include <algorithm>
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -53,6 +54,23 @@ inline double bounded_support(const DeformedSupport& table, double core_radius, 
                               double ball, const Vec3& u) {
   const double len = u.norm();
   return std::min(ball * len, core_radius * table(u) + extra * len);
+}
+
+/// The gap along the plane normal to the direction n from `centre` to the nearest point of the
+/// cylinder `piece`'s axis, between the piece and a body about `centre` whose support function
+/// about it is at most support(n): >= 0 when that plane separates them, -infinity when there is
+/// no such direction (not a cylinder, or the centre on its axis). *normal = n.
+template <class Support>
+double plane_gap(const Vec3& centre, const Shape& piece, const Support& support, Vec3* normal) {
+  if (piece.kind != ShapeKind::Cylinder) return -std::numeric_limits<double>::infinity();
+  const double t = std::clamp(
+      (centre - piece.center).dot(piece.half_axis) / piece.half_axis.squaredNorm(), -1.0, 1.0);
+  Vec3 n = piece.center + t * piece.half_axis - centre;
+  const double len = n.norm();
+  if (!(len > 0.0)) return -std::numeric_limits<double>::infinity();
+  n /= len;
+  *normal = n;
+  return -piece.support_value(-n) - n.dot(centre) - support(n);
 }
 
 /// The support function of such an inclusion's packing envelope about its centre along u:

@@ -44,9 +44,12 @@ Contact support_contact(const Inclusion& a, const DeformedSupport* ta, const Inc
 }
 
 // Pairs with a wavy fibre: its chain of pieces (body.hpp) against the other's chain or
-// envelope (b shifted), piece by piece with the exact tests; the first overlap found.
-Contact chain_contact(const Inclusion& a, const Shape& env_a, const Inclusion& b,
-                      const Shape& env_b, const Vec3& shift) {
+// envelope (b shifted), piece by piece with the exact tests; the first overlap found. A deformed
+// sphere's envelope is its ball: a piece it meets is apart when a plane separates it from the
+// sphere's support function (as packed).
+Contact chain_contact(const Inclusion& a, const Shape& env_a, const DeformedSupport* ta,
+                      const Inclusion& b, const Shape& env_b, const DeformedSupport* tb,
+                      const Vec3& shift) {
   std::vector<Shape> pa, pb;
   if (packs_as_chain(a)) {
     chain_pieces(a, &pa);
@@ -63,7 +66,16 @@ Contact chain_contact(const Inclusion& a, const Shape& env_a, const Inclusion& b
     for (const Shape& y : pb) {
       if ((x.center - y.center).norm() > x.bounding_radius() + y.bounding_radius()) continue;
       const Contact c = intersect(x, y);
-      if (c.overlap) return c;
+      if (!c.overlap) continue;
+      // (A grain's plane, as packed: apart when it separates.)
+      Vec3 n;
+      const auto support_a = [&](const Vec3& u) { return envelope_support(a, *ta, u); };
+      const auto support_b = [&](const Vec3& u) { return envelope_support(b, *tb, u); };
+      if (ta && !packs_as_chain(a) && plane_gap(a.shape.center, y, support_a, &n) >= 0.0) continue;
+      if (tb && !packs_as_chain(b) && plane_gap(b.shape.center + shift, x, support_b, &n) >= 0.0) {
+        continue;
+      }
+      return c;
     }
   }
   return Contact{};
@@ -107,7 +119,7 @@ std::vector<OverlapRecord> find_overlaps(const InclusionSet& set, size_t limit) 
         }
         Contact c;
         if (packs_as_chain(inc[i]) || packs_as_chain(inc[j])) {
-          c = chain_contact(inc[i], a, inc[j], b, s);
+          c = chain_contact(inc[i], a, table[i].get(), inc[j], b, table[j].get(), s);
         } else if ((table[i] || table[j]) && b.kind == ShapeKind::Sphere &&
                    a.kind == ShapeKind::Sphere) {
           c = support_contact(inc[i], table[i].get(), inc[j], table[j].get(), s);

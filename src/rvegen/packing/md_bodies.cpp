@@ -17,9 +17,9 @@ namespace {
 constexpr double kStartFraction = 0.25;  // volume fraction of the initial force scale
 // Chains get at least kChainPatience times md.patience: a chain pair caught across another's
 // wave blocks every certificate until it parts. Figure 5 scene (samples/bench_deformed.py),
-// 120 s budget: 0.3065 (jammed at 85 s) with 1, 0.3176 with 2, 0.3207 with 3; the wavy and
-// curved rows reach their targets in the same steps with 1 and 3.
-constexpr double kChainPatience = 3.0;
+// 120 s budget, seed 1: 0.3487 (jammed at 62 s) with 3, reached in 74 s with 6 and in 96 s with
+// 9 (seed 2: reached in 50 s with 6). The wavy and curved rows do not stall: same steps.
+constexpr double kChainPatience = 6.0;
 }  // namespace
 
 Shape Body::at_scale(double s) const {

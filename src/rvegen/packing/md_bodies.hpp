@@ -95,7 +95,7 @@ struct Bodies {
   // at 0.3994 with 402 (seed 1), and reaches 0.40 in 32-36 s with 600 for seeds 1-3; L/D 20 and
   // longer get 600 (anisotropic L/D 20 then takes 41 s where 300 took 22 s; L/D 40 at 0.14
   // ended on its 120 s budget once with 500); bodies up to e = 3.5 keep md.patience (spheres
-  // with a = 5 cylinders, e = 3.05, took 20 % more steps with 122). Chains: at least 3.
+  // with a = 5 cylinders, e = 3.05, took 20 % more steps with 122). Chains: at least 6.
   long long patience = 100;
 };
 Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, Random& rng,

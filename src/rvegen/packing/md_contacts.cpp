@@ -99,6 +99,14 @@ bool chain_overlaps(const std::vector<Body>& bodies, const std::vector<Vec3>& ax
     const Shape q = p.translated(e.shift);
     if (capsules_meet(capsule_of(q), cap_a)) near->b.push_back(q);
   }
+  // A deformed grain's piece is its bounding ball: a plane that separates the grain (its
+  // certified support function, grown like the pieces) from a piece separates the pair too;
+  // otherwise the contact is the plane's (its overlap along its normal), not the ball's.
+  auto grain_plane = [&](const Body& g, const Vec3& gc, const Shape& piece, Vec3* n) {
+    return plane_gap(
+        gc, piece,
+        [&](const Vec3& u) { return g.force_scale(s) * (1.0 + grow) * g.support_along(u); }, n);
+  };
   bool any = false;
   for (const Shape* pa : near->a) {
     for (const Shape& pb : near->b) {
@@ -107,8 +115,18 @@ bool chain_overlaps(const std::vector<Body>& bodies, const std::vector<Vec3>& ax
         continue;
       }
       if (!capsules_meet(capsule_of(*pa), capsule_of(pb))) continue;
-      const Contact c = intersect(*pa, pb);
+      Contact c = intersect(*pa, pb);
       if (!c.overlap) continue;
+      const bool grain_a = ba.support && !ba.chain, grain_b = bb.support && !bb.chain;
+      if (grain_a || grain_b) {
+        Vec3 n;
+        const double gap = grain_a ? grain_plane(ba, ca, pb, &n) : grain_plane(bb, cb, *pa, &n);
+        if (gap >= 0.0) continue;
+        if (gap > -c.depth) {
+          c.depth = -gap;
+          c.normal = grain_a ? n : Vec3(-n);
+        }
+      }
       any = true;
       if (found) found->push_back(c);
       if (first_only) return true;

@@ -2,8 +2,8 @@
 
 usage: xvfb-run ... pvbatch --force-offscreen-rendering test_report.py RVEGEN BASELINE_DIR WORK_DIR
 
-Generates samples/scenes/figure5.json (coated spheres and coated wavy fibres) with the command
-line, runs samples/rve_report.py on it, and compares inclusions_3d.png, voxel_slices.png and
+Generates samples/scenes/figure5.json (the 35 % Figure 5 scene: coated wavy fibres 0.20 and
+deformed grains 0.15, in a box of side 0.6) with the command line, runs samples/rve_report.py on it, and compares inclusions_3d.png, voxel_slices.png and
 interphase_slice.png with BASELINE_DIR/report_<name>.png.
 """
 import os

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 
 #include "rvegen/geometry/convex.hpp"
 #include "rvegen/model/body.hpp"

@@ -62,6 +62,8 @@ Contact chain_contact(const Inclusion& a, const Shape& env_a, const DeformedSupp
     pb.push_back(env_b);
   }
   for (Shape& p : pb) p = p.translated(shift);
+  const auto support_a = [&](const Vec3& u) { return envelope_support(a, *ta, u); };
+  const auto support_b = [&](const Vec3& u) { return envelope_support(b, *tb, u); };
   for (const Shape& x : pa) {
     for (const Shape& y : pb) {
       if ((x.center - y.center).norm() > x.bounding_radius() + y.bounding_radius()) continue;
@@ -69,8 +71,6 @@ Contact chain_contact(const Inclusion& a, const Shape& env_a, const DeformedSupp
       if (!c.overlap) continue;
       // (A grain's plane, as packed: apart when it separates.)
       Vec3 n;
-      const auto support_a = [&](const Vec3& u) { return envelope_support(a, *ta, u); };
-      const auto support_b = [&](const Vec3& u) { return envelope_support(b, *tb, u); };
       if (ta && !packs_as_chain(a) && plane_gap(a.shape.center, y, support_a, &n) >= 0.0) continue;
       if (tb && !packs_as_chain(b) && plane_gap(b.shape.center + shift, x, support_b, &n) >= 0.0) {
         continue;

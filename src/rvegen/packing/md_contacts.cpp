@@ -106,6 +106,7 @@ bool chain_overlaps(const std::vector<Body>& bodies, const std::vector<Vec3>& ax
         gc, piece,
         [&](const Vec3& u) { return g.force_scale(s) * (1.0 + grow) * g.support_along(u); }, n);
   };
+  const bool grain_a = ba.support && !ba.chain, grain_b = bb.support && !bb.chain;
   bool any = false;
   for (const Shape* pa : near->a) {
     for (const Shape& pb : near->b) {
@@ -116,7 +117,6 @@ bool chain_overlaps(const std::vector<Body>& bodies, const std::vector<Vec3>& ax
       if (!capsules_meet(capsule_of(*pa), capsule_of(pb))) continue;
       Contact c = intersect(*pa, pb);
       if (!c.overlap) continue;
-      const bool grain_a = ba.support && !ba.chain, grain_b = bb.support && !bb.chain;
       if (grain_a || grain_b) {
         Vec3 n;
         const double gap = grain_a ? grain_plane(ba, ca, pb, &n) : grain_plane(bb, cb, *pa, &n);
@@ -367,13 +367,13 @@ double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& ori
       }
       return true;
     };
-    // The largest of s0 (1 - d) that passes, d = 0, then 0.001 2^k (k = 0..9), with s0 the
-    // least of s_in, 1 and s_out less the deepest chain overlap (relative to the smaller body,
-    // about the scale at which that pair's pieces part); 0 when none above `keep` does.
     // The force scale itself, when the contacts of the grown pieces have parted the pieces as
     // they are.
     const double s_top = std::min({s_in, 1.0, s_out});
     if (skin > 0.0 && s_top > 0.0 && clear_at(s_top)) return s_top;
+    // Else the largest of s0 (1 - d) that passes, d = 0, then 0.001 2^k (k = 0..9), with s0 the
+    // least of s_in, 1 and s_out less the deepest chain overlap (relative to the smaller body,
+    // about the scale at which that pair's pieces part); 0 when none above `keep` does.
     const double s0 = std::min({s_in, 1.0, s_out * (1.0 - std::min(chain_depth, 0.5))});
     for (int k = -1; k <= 9; ++k) {
       const double at = s0 * (1.0 - (k < 0 ? 0.0 : 0.001 * std::ldexp(1.0, k)));

@@ -4,6 +4,7 @@
 #define vtkRVECommon_h
 
 #include <algorithm>
+#include <functional>
 #include <string>
 
 #include "rvegen/io/inclusions_json.hpp"
@@ -120,9 +121,14 @@ inline void RVEPolyDataFromGlyphs(const rvegen::GlyphPoints& g, vtkPolyData* out
 /// Voxelizes `set` straight into the arrays of `out` (no copy): cell data phase, inclusion_id,
 /// fraction (with partial volumes), field data phase_names; the geometry of `layout`
 /// (voxel_layout). Runs in `arena` when given (the source's Threads). Returns the conflicts.
+/// `progress`, when given, is called with the share done (0 to 1) after each of up to
+/// kVoxelChunks slabs along z; when it returns false the rest is not computed and -1 is
+/// returned (the arrays are then incomplete).
+constexpr int kVoxelChunks = 16;
 template <class Arena>
 long long RVEVoxelizeInto(const rvegen::InclusionSet& set, const rvegen::VoxelImage& layout,
-                          const rvegen::VoxelOptions& opt, vtkImageData* out, Arena& arena) {
+                          const rvegen::VoxelOptions& opt, vtkImageData* out, Arena& arena,
+                          const std::function<bool(double)>& progress = nullptr) {
   out->SetExtent(layout.extent[0], layout.extent[1], layout.extent[2], layout.extent[3],
                  layout.extent[4], layout.extent[5]);
   out->SetOrigin(layout.origin.data());
@@ -138,10 +144,22 @@ long long RVEVoxelizeInto(const rvegen::InclusionSet& set, const rvegen::VoxelIm
   fraction->SetName("fraction");
   if (opt.partial_volume) fraction->SetNumberOfValues(n);
   long long conflicts = 0;
-  arena.execute([&] {
-    conflicts = rvegen::voxelize_into(set, layout, opt, phase->GetPointer(0), ids->GetPointer(0),
-                                      opt.partial_volume ? fraction->GetPointer(0) : nullptr);
-  });
+  // Slabs of whole z planes: each is a contiguous block of the arrays ([z][y][x]).
+  const int z0 = layout.extent[4], nz = layout.size(2);
+  const int chunks = progress ? std::max(1, std::min(kVoxelChunks, nz)) : 1;
+  const size_t plane = static_cast<size_t>(layout.size(0)) * layout.size(1);
+  for (int c = 0; c < chunks; ++c) {
+    rvegen::VoxelImage slab = layout;
+    slab.extent[4] = z0 + static_cast<int>(static_cast<long long>(nz) * c / chunks);
+    slab.extent[5] = z0 + static_cast<int>(static_cast<long long>(nz) * (c + 1) / chunks);
+    const size_t offset = plane * static_cast<size_t>(slab.extent[4] - z0);
+    arena.execute([&] {
+      conflicts += rvegen::voxelize_into(
+          set, slab, opt, phase->GetPointer(0) + offset, ids->GetPointer(0) + offset,
+          opt.partial_volume ? fraction->GetPointer(0) + offset : nullptr);
+    });
+    if (progress && !progress(static_cast<double>(c + 1) / chunks)) return -1;
+  }
   out->GetCellData()->AddArray(phase);
   out->GetCellData()->AddArray(ids);
   if (opt.partial_volume) out->GetCellData()->AddArray(fraction);

@@ -41,6 +41,12 @@
 
 vtkStandardNewMacro(vtkRVEGenerator);
 
+namespace {
+// Share of the progress bar taken by the packing (the outputs take the rest).
+constexpr double kPackingShare = 0.9;
+const char* const kAbortedMessage = "aborted";
+}  // namespace
+
 struct vtkRVEGenerator::Cache {
   std::string key;  // scene JSON without the voxel resolution
   rvegen::PackingResult result;
@@ -68,11 +74,12 @@ vtkRVEGenerator::vtkRVEGenerator() {
   this->ClipSurfaces = d.clip_surfaces;
   this->Mesh = d.outputs.mesh;
   this->Method = static_cast<int>(d.method);
+  this->TimeBudget = d.md.max_seconds;
   this->SphereRadiusStd = 0.0;
-  this->SphereCount = -1;
+  this->SphereCount = 100;
   this->FibreRadiusStd = 0.0;
-  this->FibreCount = -1;
-  this->EllipsoidCount = -1;
+  this->FibreCount = 100;
+  this->EllipsoidCount = 100;
   this->FibreOrientation = 0;
   this->FibreKappa = 10.0;
   this->EllipsoidOrientation = 0;
@@ -113,6 +120,7 @@ rvegen::Scene SceneFromProperties(const vtkRVEGenerator* g) {
   s.box.size = rvegen::Vec3(self->GetBoxSize()[0], self->GetBoxSize()[1], self->GetBoxSize()[2]);
   s.box.periodic = self->GetPeriodic();
   s.min_gap = self->GetMinGap();
+  s.md.max_seconds = s.rsa_max_seconds = self->GetTimeBudget();
   s.method = static_cast<rvegen::Method>(self->GetMethod());
   auto size = [](double value, double std) {
     rvegen::SizeLaw law(value);
@@ -122,9 +130,9 @@ rvegen::Scene SceneFromProperties(const vtkRVEGenerator* g) {
     }
     return law;
   };
-  auto amount = [](rvegen::Family& f, double vf, int count) {
-    f.volume_fraction = count >= 1 ? -1.0 : vf;
-    f.count = count >= 1 ? count : -1;
+  auto amount = [](rvegen::Family& f, int by_count, double vf, int count) {
+    f.volume_fraction = by_count ? -1.0 : vf;
+    f.count = by_count ? count : -1;
   };
   auto orientation = [](int kind, const double* axis, double kappa) {
     rvegen::OrientationLaw law;
@@ -141,10 +149,18 @@ rvegen::Scene SceneFromProperties(const vtkRVEGenerator* g) {
   rvegen::Family& fib = s.families[1];
   rvegen::Family& ell = s.families[2];
   sph.radius = size(self->GetSphereRadius(), self->GetSphereRadiusStd());
-  amount(sph, self->GetSphereVolumeFraction(), self->GetSphereCount());
+  amount(sph, self->GetSphereAmount(), self->GetSphereVolumeFraction(), self->GetSphereCount());
   fib.radius = size(self->GetFibreRadius(), self->GetFibreRadiusStd());
   fib.aspect_ratio = self->GetFibreAspectRatio();
-  amount(fib, self->GetFibreVolumeFraction(), self->GetFibreCount());
+  if (self->GetFibreLengthLaw() == 1) {
+    fib.aspect_ratio.kind = rvegen::SizeLaw::Kind::kLognormal;
+    fib.aspect_ratio.p2 = self->GetFibreAspectRatioStd();
+  } else if (self->GetFibreLengthLaw() == 2) {
+    fib.aspect_ratio.kind = rvegen::SizeLaw::Kind::kWeibull;
+    fib.aspect_ratio.p1 = self->GetFibreWeibullShape();
+    fib.aspect_ratio.p2 = self->GetFibreWeibullScale();
+  }
+  amount(fib, self->GetFibreAmount(), self->GetFibreVolumeFraction(), self->GetFibreCount());
   fib.orientation =
       orientation(self->GetFibreOrientation(), self->GetFibreAxis(), self->GetFibreKappa());
   if (self->GetFibreOrientation() == 4) {
@@ -153,7 +169,8 @@ rvegen::Scene SceneFromProperties(const vtkRVEGenerator* g) {
     fib.orientation.a2 << t[0], t[3], t[4], t[3], t[1], t[5], t[4], t[5], t[2];
   }
   for (int a = 0; a < 3; ++a) ell.semi_axes[a] = self->GetEllipsoidSemiAxes()[a];
-  amount(ell, self->GetEllipsoidVolumeFraction(), self->GetEllipsoidCount());
+  amount(ell, self->GetEllipsoidAmount(), self->GetEllipsoidVolumeFraction(),
+         self->GetEllipsoidCount());
   ell.orientation = orientation(self->GetEllipsoidOrientation(), self->GetEllipsoidAxis(),
                                 self->GetEllipsoidKappa());
   const double coat[3] = {self->GetSphereCoating(), self->GetFibreCoating(),
@@ -172,7 +189,7 @@ rvegen::Scene SceneFromProperties(const vtkRVEGenerator* g) {
   sph.modifiers.debond_gap = self->GetSphereDebondGap();
   std::vector<rvegen::Family> kept;
   for (const auto& f : s.families) {
-    if (f.volume_fraction > 0.0 || f.count >= 1) kept.push_back(f);
+    if (f.volume_fraction > 0.0 || f.count > 0) kept.push_back(f);
   }
   s.families = kept;
   for (int a = 0; a < 3; ++a) s.resolution[a] = self->GetResolution()[a];
@@ -259,7 +276,7 @@ vtkTypeBool vtkRVEGenerator::ProcessRequest(vtkInformation* request, vtkInformat
   return this->Superclass::ProcessRequest(request, in, out);
 }
 
-int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
+int vtkRVEGenerator::RequestData(vtkInformation* request, vtkInformationVector**,
                                  vtkInformationVector* outVec) {
   vtkImageData* image = vtkImageData::GetData(outVec, 1);
   rvegen::Scene scene;
@@ -277,7 +294,22 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
   }
   // Output settings do not change the packing: the cache is keyed by the packing part alone.
   const std::string key = rvegen::packing_to_json(scene);
-  if (!this->Cached || this->Cached->key != key) {
+  // After an abort the flag is cleared, so the next update runs; but the other ports of the
+  // update that was aborted (ParaView updates ports 0, 1, 2, 3 in turn) must not start the
+  // packing again: a later port asked for the same scene is left empty at once.
+  const int port = request->Has(vtkDemandDrivenPipeline::FROM_OUTPUT_PORT())
+                       ? request->Get(vtkDemandDrivenPipeline::FROM_OUTPUT_PORT())
+                       : 0;
+  if (this->AbortedPort >= 0 && port > this->AbortedPort && key == this->AbortedKey) {
+    this->AbortedPort = port;
+    return this->EndAborted(outVec);
+  }
+  this->AbortedPort = -1;
+  this->AbortPending = false;
+  // A new update: an abort asked for after the last execution ended is not carried into it.
+  this->SetAbortExecute(0);
+  const bool packed = !this->Cached || this->Cached->key != key;
+  if (packed) {
     // generate() audits the packed RVE exactly; an RVE that fails is never shown. Where every
     // rank runs the pipeline in step (pvbatch --symmetric), rank 0 packs and broadcasts the
     // inclusion list. Otherwise (pvbatch driven from rank 0, a ParaView server) a collective
@@ -292,10 +324,20 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
     const int ranks = mpc && in_step ? mpc->GetNumberOfProcesses() : 1;
     const int rank = ranks > 1 ? mpc->GetLocalProcessId() : 0;
     int packed_here = 0;
+    bool aborted = false;
     if (rank == 0) {
+      // Progress: the packing takes the first kPackingShare of the bar, the outputs the rest.
+      // An abort (SetAbortExecute, the ParaView progress bar's abort) stops the packing at its
+      // next check, within a step.
+      rvegen::Monitor monitor;
+      monitor.fraction = [this](double f) { this->UpdateProgress(kPackingShare * f); };
+      monitor.cancelled = [this] { return this->GetAbortExecute() != 0; };
       try {
-        cache->result = rvegen::generate(scene);
+        cache->result = rvegen::generate(scene, monitor);
         packed_here = 1;
+      } catch (const rvegen::Cancelled&) {
+        aborted = true;
+        error = kAbortedMessage;
       } catch (const std::exception& e) {
         error = e.what();
       }
@@ -317,6 +359,7 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
           cache->result.status = static_cast<rvegen::PackingStatus>(head[1]);
         } else {
           error = text;
+          aborted = error == kAbortedMessage;
         }
       }
       int total = 0;
@@ -324,6 +367,12 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
       this->PackingRuns += total;
     } else {
       this->PackingRuns += packed_here;
+    }
+    if (aborted) {
+      vtkWarningMacro(<< "packing aborted; nothing was kept");
+      this->AbortedKey = key;
+      this->AbortedPort = port;
+      return this->EndAborted(outVec);
     }
     if (!error.empty()) {
       this->Status = "error";
@@ -346,6 +395,24 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
   vtkNew<vtkStringArray> status;
   status->SetName("status");
   status->InsertNextValue(rvegen::status_name(result.status));
+  // The outputs share what is left of the progress bar after a packing (all of it without).
+  const double base = packed ? kPackingShare : 0.0;
+  int outputs_left = 0;
+  for (int port = 0; port < this->GetNumberOfOutputPorts(); ++port) outputs_left += wanted(port);
+  const double share = (1.0 - base) / std::max(1, outputs_left);
+  double done = base;
+  auto output_done = [&] {
+    done += share;
+    this->UpdateProgress(std::min(1.0, done));
+  };
+  // An abort between or inside outputs leaves the ports not yet computed empty and not
+  // generated (the packing stays cached).
+  auto abort_rest = [&] {
+    vtkWarningMacro(<< "aborted; the outputs not yet computed are empty");
+    this->AbortedKey = key;
+    this->AbortedPort = port;
+    return this->EndAborted(outVec);
+  };
 
   if (wanted(0)) {
     // One vertex per inclusion (and periodic image) with glyph attributes, for the inclusions
@@ -359,21 +426,27 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
     inclusions->InsertNextValue(rvegen::write_inclusions_json(result.set));
     points->GetFieldData()->AddArray(inclusions);
     ++this->PortExecutions[0];
+    output_done();
   }
 
   if (wanted(3)) {
-    // The tessellated surfaces of this piece's inclusions: of every inclusion with Mesh,
-    // otherwise of the modified ones.
+    if (this->GetAbortExecute()) return abort_rest();
+    // The tessellated surfaces of this piece's inclusions: of every inclusion with Mesh or
+    // when the RVE holds at most MeshUpTo inclusions, otherwise of the modified ones.
     const rvegen::MeshOptions mopt = rvegen::mesh_options(scene, scene.box);
     vtkPolyData* surfaces = vtkPolyData::GetData(outVec, 3);
     const rvegen::InclusionSet piece = PieceOf(result.set, outVec->GetInformationObject(3));
-    RVEPolyDataFromMesh(
-        rvegen::tessellate(rvegen::meshed_inclusions(piece, scene.outputs.mesh), mopt), surfaces);
+    const bool every =
+        scene.outputs.mesh || result.set.inclusions.size() <= static_cast<size_t>(this->MeshUpTo);
+    RVEPolyDataFromMesh(rvegen::tessellate(rvegen::meshed_inclusions(piece, every), mopt),
+                        surfaces);
     surfaces->GetFieldData()->AddArray(status);
     ++this->PortExecutions[3];
+    output_done();
   }
 
   if (wanted(1)) {
+    if (this->GetAbortExecute()) return abort_rest();
     rvegen::VoxelOptions vopt;
     vopt.partial_volume = scene.partial_volume;
     vopt.subsamples = scene.subsamples;
@@ -385,12 +458,20 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
     }
     vopt.extent = {ext[0], ext[1], ext[2], ext[3], ext[4], ext[5]};
     tbb::task_arena arena(this->Threads > 0 ? this->Threads : tbb::task_arena::automatic);
-    RVEVoxelizeInto(result.set, rvegen::voxel_layout(result.set, scene.resolution, vopt), vopt,
-                    image, arena);
+    const double start = done;
+    const long long conflicts =
+        RVEVoxelizeInto(result.set, rvegen::voxel_layout(result.set, scene.resolution, vopt), vopt,
+                        image, arena, [&](double f) {
+                          this->UpdateProgress(start + share * f);
+                          return !this->GetAbortExecute();
+                        });
+    if (conflicts < 0) return abort_rest();
     ++this->PortExecutions[1];
+    output_done();
   }
 
   if (wanted(2)) {
+    if (this->GetAbortExecute()) return abort_rest();
     // Zero iso-surfaces of the level sets (wavy, deformed, coated inclusions); empty otherwise.
     rvegen::LevelSetOptions lopt;
     lopt.voxel_size = scene.levelset_voxel_size;
@@ -402,8 +483,32 @@ int vtkRVEGenerator::RequestData(vtkInformation*, vtkInformationVector**,
       RVEPolyDataFromMesh(rvegen::level_set_surfaces(ls), vtkPolyData::GetData(outVec, 2));
     }
     ++this->PortExecutions[2];
+    output_done();
   }
   return 1;
+}
+
+int vtkRVEGenerator::EndAborted(vtkInformationVector* outVec) {
+  // Nothing of this execution is kept: its outputs (those not marked not generated by
+  // ProcessRequest) are emptied; the abort flag is cleared, and until the next execution that
+  // is not part of the aborted update, GetMTime() is always newer than any output, so the next
+  // update computes everything again (the same properties give the same RVE).
+  this->Status = "aborted";
+  for (int p = 0; p < this->GetNumberOfOutputPorts(); ++p) {
+    vtkInformation* info = outVec->GetInformationObject(p);
+    if (!info->Get(vtkDemandDrivenPipeline::DATA_NOT_GENERATED())) {
+      vtkDataObject::GetData(info)->Initialize();
+    }
+  }
+  this->AbortPending = true;
+  this->SetAbortExecute(0);
+  return 1;
+}
+
+vtkMTimeType vtkRVEGenerator::GetMTime() {
+  if (this->AbortPending) this->AbortTime.Modified();
+  const vtkMTimeType t = this->Superclass::GetMTime();
+  return this->AbortPending ? std::max(t, this->AbortTime.GetMTime()) : t;
 }
 
 void vtkRVEGenerator::PrintSelf(ostream& os, vtkIndent indent) {
@@ -421,6 +526,7 @@ void vtkRVEGenerator::PrintSelf(ostream& os, vtkIndent indent) {
   os << indent << "SphereRadius: " << this->SphereRadius << "\n";
   os << indent << "SphereRadiusStd: " << this->SphereRadiusStd << "\n";
   os << indent << "SphereVolumeFraction: " << this->SphereVolumeFraction << "\n";
+  os << indent << "SphereAmount: " << this->SphereAmount << "\n";
   os << indent << "SphereCount: " << this->SphereCount << "\n";
   os << indent << "SphereCoating: " << this->SphereCoating << "\n";
   os << indent << "SphereDeformation: " << this->SphereDeformation << "\n";
@@ -429,7 +535,12 @@ void vtkRVEGenerator::PrintSelf(ostream& os, vtkIndent indent) {
   os << indent << "FibreRadius: " << this->FibreRadius << "\n";
   os << indent << "FibreRadiusStd: " << this->FibreRadiusStd << "\n";
   os << indent << "FibreAspectRatio: " << this->FibreAspectRatio << "\n";
+  os << indent << "FibreLengthLaw: " << this->FibreLengthLaw << "\n";
+  os << indent << "FibreAspectRatioStd: " << this->FibreAspectRatioStd << "\n";
+  os << indent << "FibreWeibullShape: " << this->FibreWeibullShape << "\n";
+  os << indent << "FibreWeibullScale: " << this->FibreWeibullScale << "\n";
   os << indent << "FibreVolumeFraction: " << this->FibreVolumeFraction << "\n";
+  os << indent << "FibreAmount: " << this->FibreAmount << "\n";
   os << indent << "FibreCount: " << this->FibreCount << "\n";
   os << indent << "FibreOrientation: " << this->FibreOrientation << "\n";
   v3("FibreAxis", this->FibreAxis);
@@ -443,6 +554,7 @@ void vtkRVEGenerator::PrintSelf(ostream& os, vtkIndent indent) {
   os << indent << "FibreCurvatureRadius: " << this->FibreCurvatureRadius << "\n";
   v3("EllipsoidSemiAxes", this->EllipsoidSemiAxes);
   os << indent << "EllipsoidVolumeFraction: " << this->EllipsoidVolumeFraction << "\n";
+  os << indent << "EllipsoidAmount: " << this->EllipsoidAmount << "\n";
   os << indent << "EllipsoidCount: " << this->EllipsoidCount << "\n";
   os << indent << "EllipsoidOrientation: " << this->EllipsoidOrientation << "\n";
   v3("EllipsoidAxis", this->EllipsoidAxis);
@@ -457,6 +569,8 @@ void vtkRVEGenerator::PrintSelf(ostream& os, vtkIndent indent) {
   os << indent << "Mesh: " << this->Mesh << "\n";
   os << indent << "LevelSetVoxelSize: " << this->LevelSetVoxelSize << "\n";
   os << indent << "Threads: " << this->Threads << "\n";
+  os << indent << "TimeBudget: " << this->TimeBudget << "\n";
+  os << indent << "MeshUpTo: " << this->MeshUpTo << "\n";
   os << indent << "PackingRuns: " << this->PackingRuns << "\n";
   os << indent << "PortExecutions:";
   for (int e : this->PortExecutions) os << " " << e;

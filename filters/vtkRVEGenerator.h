@@ -21,12 +21,15 @@
 
 #include "RVEGenFiltersModule.h"
 #include "vtkPolyDataAlgorithm.h"
+#include "vtkTimeStamp.h"
 
 class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
  public:
   static vtkRVEGenerator* New();
   vtkTypeMacro(vtkRVEGenerator, vtkPolyDataAlgorithm);
   void PrintSelf(ostream& os, vtkIndent indent) override;
+  /// After an abort, always newer than the outputs until the next execution (see EndAborted).
+  vtkMTimeType GetMTime() override;
 
   vtkSetMacro(Seed, int);
   vtkGetMacro(Seed, int);
@@ -65,18 +68,36 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   vtkGetMacro(ClipSurfaces, bool);
   vtkBooleanMacro(ClipSurfaces, bool);
 
-  /// Method: 0 molecular dynamics, 1 random sequential adsorption. Family amounts: a count
-  /// >= 1 replaces the volume fraction. Size spreads: lognormal standard deviation (0: fixed).
-  /// Orientation laws: 0 isotropic, 1 aligned (axis), 2 von Mises-Fisher (axis, kappa), 3 planar
-  /// (axis = the plane normal), 4 tensor (fibres only: FibreOrientationTensor, the orientation
-  /// tensor A2 as a11 a22 a33 a12 a13 a23). Modifiers: see the scene file's "coating", "waviness",
-  /// "deformation", "debonding" (0 leaves a modifier out).
+  /// Method: 0 molecular dynamics, 1 random sequential adsorption. Size spreads: lognormal standard
+  /// deviation (0: fixed). Orientation laws: 0 isotropic, 1 aligned (axis), 2 von Mises-Fisher
+  /// (axis, kappa), 3 planar (axis = the plane normal), 4 tensor (fibres only:
+  /// FibreOrientationTensor, the orientation tensor A2 as a11 a22 a33 a12 a13 a23). Modifiers: see
+  /// the scene file's "coating", "waviness", "deformation", "debonding" (0 leaves a modifier out).
   vtkSetClampMacro(Method, int, 0, 1);
   vtkGetMacro(Method, int);
   vtkSetMacro(SphereRadiusStd, double);
   vtkGetMacro(SphereRadiusStd, double);
+  /// How each family's amount is given: 0 by its volume fraction (SphereVolumeFraction, ...),
+  /// 1 by its count (SphereCount, ...). A family whose chosen amount is 0 is left out.
+  vtkSetClampMacro(SphereAmount, int, 0, 1);
+  vtkGetMacro(SphereAmount, int);
+  vtkSetClampMacro(FibreAmount, int, 0, 1);
+  vtkGetMacro(FibreAmount, int);
+  vtkSetClampMacro(EllipsoidAmount, int, 0, 1);
+  vtkGetMacro(EllipsoidAmount, int);
   vtkSetMacro(SphereCount, int);
   vtkGetMacro(SphereCount, int);
+  /// Law of the fibres' aspect ratio (their length over the radius): 0 fixed (FibreAspectRatio),
+  /// 1 lognormal (mean FibreAspectRatio, standard deviation FibreAspectRatioStd), 2 Weibull
+  /// (shape FibreWeibullShape, scale FibreWeibullScale: the usual fit of moulded fibre lengths).
+  vtkSetClampMacro(FibreLengthLaw, int, 0, 2);
+  vtkGetMacro(FibreLengthLaw, int);
+  vtkSetMacro(FibreAspectRatioStd, double);
+  vtkGetMacro(FibreAspectRatioStd, double);
+  vtkSetMacro(FibreWeibullShape, double);
+  vtkGetMacro(FibreWeibullShape, double);
+  vtkSetMacro(FibreWeibullScale, double);
+  vtkGetMacro(FibreWeibullScale, double);
   vtkSetMacro(FibreRadiusStd, double);
   vtkGetMacro(FibreRadiusStd, double);
   vtkSetMacro(FibreCount, int);
@@ -125,6 +146,16 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   vtkGetVector6Macro(FibreOrientationTensor, double);
   vtkSetVector3Macro(EllipsoidAxis, double);
   vtkGetVector3Macro(EllipsoidAxis, double);
+
+  /// Time budget of the packing in seconds (md.max_seconds and rsa.max_seconds of a scene
+  /// file); when it is spent the best valid configuration is shown (status target_not_reached).
+  vtkSetClampMacro(TimeBudget, double, 0.001, 1e7);
+  vtkGetMacro(TimeBudget, double);
+
+  /// The Surfaces output meshes every inclusion when the RVE holds at most this many (so Apply
+  /// shows the true shapes); above, only the modified ones unless Mesh is on.
+  vtkSetClampMacro(MeshUpTo, int, 0, 1000000000);
+  vtkGetMacro(MeshUpTo, int);
 
   /// Threads for the voxels (0: all cores). Under MPI with several ranks on one machine, give
   /// each rank its share (cores / ranks) rather than letting every rank use all cores.
@@ -198,6 +229,15 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   bool PartialVolume;
   double LevelSetVoxelSize;
   int Threads = 0;
+  double TimeBudget;
+  int MeshUpTo = 20000;
+  int FibreLengthLaw = 0;
+  double FibreAspectRatioStd = 1.0;
+  double FibreWeibullShape = 2.0;
+  double FibreWeibullScale = 5.0;
+  int SphereAmount = 0;
+  int FibreAmount = 0;
+  int EllipsoidAmount = 0;
   double FibreAxis[3];
   double FibreOrientationTensor[6];
   double EllipsoidAxis[3];
@@ -208,9 +248,17 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   vtkRVEGenerator(const vtkRVEGenerator&) = delete;
   void operator=(const vtkRVEGenerator&) = delete;
 
+  // Empties every output after an abort and clears the flag for the next update.
+  int EndAborted(vtkInformationVector* outVec);
+
   struct Cache;
   std::unique_ptr<Cache> Cached;
   std::string Status;
+  // The packing key and the port of the last aborted execution (-1: none pending).
+  std::string AbortedKey;
+  int AbortedPort = -1;
+  bool AbortPending = false;
+  vtkTimeStamp AbortTime;
 };
 
 #endif

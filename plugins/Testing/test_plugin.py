@@ -95,11 +95,19 @@ if points.GetPointData().GetArray("inclusion_id") is not None:
     ids = points.GetPointData().GetArray("inclusion_id")
     seen = {int(ids.GetValue(i)) for i in range(ids.GetNumberOfTuples())}
     check(seen == set(range(n_inclusions)), "point ids do not match inclusions.json")
-# Port 3: the tessellated surfaces, empty for the default scene (no modified inclusion) unless
-# Mesh is on; then every inclusion is meshed.
-check(servermanager.Fetch(gen, idx=3).GetNumberOfCells() == 0, "surfaces port not empty by default")
+# Port 3: the tessellated surfaces. Above MeshUpTo inclusions only the modified ones are
+# meshed (none in the default scene) unless Mesh is on; at or below it (the default 20,000 for
+# the default scene) every inclusion is, so Apply shows the true shapes.
+gen.MeshUpTo = n_inclusions - 1
+check(servermanager.Fetch(gen, idx=3).GetNumberOfCells() == 0,
+      "surfaces port not empty above MeshUpTo")
 gen.Mesh = 1
+mesh_all = servermanager.Fetch(gen, idx=3).GetNumberOfPolys()
+gen.Mesh = 0
+gen.MeshUpTo = n_inclusions
 mesh = servermanager.Fetch(gen, idx=3)
+check(mesh.GetNumberOfPolys() == mesh_all,
+      "MeshUpTo = count: %d triangles, Mesh on: %d" % (mesh.GetNumberOfPolys(), mesh_all))
 mesh_ids = mesh.GetCellData().GetArray("inclusion_id")
 check(mesh_ids is not None and mesh.GetNumberOfPolys() > 100 * n_inclusions,
       "Mesh on: %d triangles" % mesh.GetNumberOfPolys())
@@ -108,11 +116,12 @@ if mesh_ids is not None:
     check(seen == set(range(n_inclusions)), "mesh ids do not match inclusions.json")
 for name in ("family", "shape", "phase", "axis"):
     check(mesh.GetCellData().GetArray(name) is not None, "surface array %s missing" % name)
-gen.Mesh = 0
-# Port 0 shows as 3D glyphs without extra steps.
+gen.MeshUpTo = 20000
+# Port 0 (not shown on Apply: the surfaces are) shows as points when asked for; glyphs are
+# one call (samples/rve_view.py show_inclusions, test_glyphs.py).
 glyph_view = CreateView("RenderView")
-check(Show(OutputPort(gen, 0), glyph_view).Representation == "3D Glyphs",
-      "inclusions port not shown as 3D glyphs")
+check(Show(OutputPort(gen, 0), glyph_view).Representation == "Points",
+      "inclusions port not shown as points")
 Delete(glyph_view)
 
 # Partial volumes: the mean of `fraction` is the inclusions' volume fraction (35 % here).
@@ -203,7 +212,7 @@ check(gen.GetProperty("Status").GetElement(0) == "ok", "status after fixing the 
 
 # Panel properties reach the scene: aligned fibres, coated spheres (interphase phase and level
 # sets), a coating with a deformation on the same family is refused.
-props = RVEGenerator(FibreOrientation=1, FibreAxis=[1, 0, 0], SphereCoating=0.01,
+props = RVEGenerator(MeshUpTo=0, FibreOrientation=1, FibreAxis=[1, 0, 0], SphereCoating=0.01,
                      Resolution=[32, 32, 32], LevelSetVoxelSize=0.02)
 rows = stats_rows(OutputPort(props, 0))
 a = {i: v for q, n, i, v in rows if q == "orientation_tensor" and n == "fibres"}
@@ -289,12 +298,14 @@ check(lset.GetNumberOfCells() > 1000, "coated scene: %d level-set triangles" % l
 gen.SceneFile = ""
 gen.UpdatePipeline()
 
-# The voxel port shows as a slice without extra steps.
+# The voxel port shows as the box outline on Apply (Slice is one click away).
 slice_view = CreateView("RenderView")
-check(Show(OutputPort(gen, 1), slice_view).Representation == "Slice", "voxel port not shown as a slice")
+check(Show(OutputPort(gen, 1), slice_view).Representation == "Outline", "voxel port not shown as an outline")
 Delete(slice_view)
 
-# Headless picture, compared with the baseline.
+# Headless picture, compared with the baseline: glyphs, with the surfaces of the modified
+# inclusions only (MeshUpTo 0).
+gen.MeshUpTo = 0
 save_rve_picture(OutputPort(gen, 0), OutputPort(gen, 1), out_png, 400, surfaces=OutputPort(gen, 3))
 
 err = image_error(out_png, baseline)

@@ -25,10 +25,11 @@ const char* stop_reason_name(StopReason reason) {
   return "target reached";
 }
 
-PackingResult generate(const PackingSpec& scene, const ProgressFn& progress,
+PackingResult generate(const PackingSpec& scene, const Monitor& monitor,
                        const std::function<void(InclusionSet&)>& before_audit) {
   PackingResult r =
-      scene.method == Method::kRsa ? pack_rsa(scene, progress) : pack_md(scene, progress);
+      scene.method == Method::kRsa ? pack_rsa(scene, monitor) : pack_md(scene, monitor);
+  if (monitor.cancelled && monitor.cancelled()) throw Cancelled();
   for (const Family& f : scene.families) r.set.family_names.push_back(f.name);
   if (before_audit) before_audit(r.set);
   const AuditReport a = audit(r.set, 16);
@@ -39,7 +40,7 @@ PackingResult generate(const PackingSpec& scene, const ProgressFn& progress,
                        "). This is a defect of rvegen, not of the scene; please report it "
                        "with the scene file");
   }
-  if (progress) {
+  if (const ProgressFn& progress = monitor.line) {
     char buf[120];
     std::snprintf(buf, sizeof buf, "audit: %zu inclusions, no overlap (%.2f s)",
                   r.set.inclusions.size(), a.seconds);

@@ -65,8 +65,8 @@ constexpr double kStall = 0.1;  // m halves when the valid scale grew by less th
 
 class MdPacker {
  public:
-  MdPacker(const PackingSpec& scene, const ProgressFn& progress)
-      : scene_(scene), box_(scene.box), progress_(progress) {}
+  MdPacker(const PackingSpec& scene, const Monitor& monitor)
+      : scene_(scene), box_(scene.box), monitor_(monitor), progress_(monitor.line) {}
 
   PackingResult run();
 
@@ -74,10 +74,14 @@ class MdPacker {
   void init();
   void snapshot(double scale);
   void report_progress(bool force);
+  void report_fraction() const;
 
   const PackingSpec& scene_;
   const Box& box_;
+  const Monitor& monitor_;
   const ProgressFn& progress_;
+  // Drawn volume of the bodies that grow in radius only (aligned fibres) and of the others.
+  double radial_volume_ = 0.0, other_volume_ = 0.0;
   std::vector<Inclusion> pop_;  // drawn cores and modifiers
   md::Bodies bodies_;
   std::vector<int> drawn_;  // body k packs the drawn inclusion pop_[drawn_[k]]
@@ -95,13 +99,18 @@ class MdPacker {
   std::vector<std::pair<double, double>> best_angles_;  // chains' wave and bend angles
   std::chrono::steady_clock::time_point t0_, last_progress_;
   // The time budget holds inside a step too (a pair-list build of a crowded scene can take
-  // longer than the budget): long loops call tick_, which throws OutOfTime.
+  // longer than the budget): long loops call tick_, which throws OutOfTime, or Cancelled when
+  // the caller cancels (the first pass, which runs whatever the clock says, calls cancel_tick_).
   struct OutOfTime {};
   std::chrono::steady_clock::time_point deadline_;
+  bool cancelled() const { return monitor_.cancelled && monitor_.cancelled(); }
   const std::function<void()> tick_ = [this] {
+    if (cancelled()) throw Cancelled();
     if (std::chrono::steady_clock::now() > deadline_) throw OutOfTime{};
   };
-  const std::function<void()> no_tick_;
+  const std::function<void()> cancel_tick_ = [this] {
+    if (cancelled()) throw Cancelled();
+  };
 };
 
 void MdPacker::init() {
@@ -114,6 +123,9 @@ void MdPacker::init() {
   s_start_ = s_out_ = bodies_.start_scale;
   m_ = scene_.md.pressure;
   integrator_ = std::make_unique<md::Integrator>(bodies_.all.size());
+  for (size_t k = 0; k < bodies_.all.size(); ++k) {
+    (bodies_.all[k].radial ? radial_volume_ : other_volume_) += pop_[drawn_[k]].shape.volume();
+  }
 }
 
 void MdPacker::snapshot(double scale) {
@@ -129,6 +141,14 @@ void MdPacker::snapshot(double scale) {
     best_oriented_[k] = b.shape;
     best_angles_[k] = {b.wave_angle, b.bend_angle};
   }
+}
+
+void MdPacker::report_fraction() const {
+  if (!monitor_.fraction) return;
+  const double s = std::clamp(best_scale_, 0.0, 1.0);
+  const double total = radial_volume_ + other_volume_;
+  monitor_.fraction(total > 0.0 ? (radial_volume_ * s * s + other_volume_ * s * s * s) / total
+                                : 1.0);
 }
 
 void MdPacker::report_progress(bool force) {
@@ -179,7 +199,7 @@ PackingResult MdPacker::run() {
     try {
       // The first pass runs whatever the clock says (placing planar fibres in layers may have
       // taken the budget): its configuration, at the start scale, is the least a run returns.
-      const std::function<void()>& tick = steps_ == 0 ? no_tick_ : tick_;
+      const std::function<void()>& tick = steps_ == 0 ? cancel_tick_ : tick_;
       const double skin = bodies_.chains ? std::min(kChainSkin, kChainSkinPerPressure * m_) : 0.0;
       list_.update(&bodies, box_, s_out_, tick);
       s_in = contact_pass(bodies, bodies_.oriented, list_.pairs(), box_, s_out_, best_scale_, skin,
@@ -235,7 +255,9 @@ PackingResult MdPacker::run() {
       why = StopReason::kStepBudget;
       break;
     }
+    if (cancelled()) throw Cancelled();
     if ((steps_ & 15) == 0) {
+      report_fraction();
       const double t =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - t0_).count();
       if (t > scene_.md.max_seconds) {
@@ -277,13 +299,14 @@ PackingResult MdPacker::run() {
   }
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0_).count();
   report_progress(true);
+  report_fraction();
   return res;
 }
 
 }  // namespace
 
-PackingResult pack_md(const PackingSpec& scene, const ProgressFn& progress) {
-  MdPacker packer(scene, progress);
+PackingResult pack_md(const PackingSpec& scene, const Monitor& monitor) {
+  MdPacker packer(scene, monitor);
   return packer.run();
 }
 

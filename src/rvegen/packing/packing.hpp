@@ -2,6 +2,7 @@
 #pragma once
 
 #include <functional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -40,22 +41,52 @@ struct PackingResult {
 /// Progress callback: receives one human-readable line at a time.
 using ProgressFn = std::function<void(const std::string&)>;
 
+/// What a caller sees of a packing run, and how it stops one. Every member is optional.
+struct Monitor {
+  /// One human-readable line at a time (about once a second).
+  ProgressFn line;
+  /// The share of the packing done, from 0 rising to 1: the volume of the inclusions at the
+  /// best valid scale over their drawn volume (md), the inclusions placed over those drawn
+  /// (rsa). Called at most every 16 md steps or 64 rsa attempts, and at the end.
+  std::function<void(double)> fraction;
+  /// Polled between steps and inside the long loops of a step (as often as the time budget
+  /// is checked); true stops the run and generate() throws Cancelled. Must be cheap.
+  std::function<bool()> cancelled;
+};
+
+/// Thrown by the packers and generate() when Monitor::cancelled returned true: the run left
+/// nothing behind, and the same call may be made again.
+class Cancelled : public std::runtime_error {
+ public:
+  Cancelled() : std::runtime_error("cancelled") {}
+};
+
 /// Random sequential adsorption: the population is drawn (draw_population), then inclusions are
 /// placed one at a time (largest first) at uniform random positions and kept when clear of every
 /// placed one (and their periodic images) by scene.min_gap. Each inclusion gets at most
 /// scene.rsa_max_attempts draws; when one fails the run stops with status "target_not_reached".
-PackingResult pack_rsa(const PackingSpec& scene, const ProgressFn& progress = nullptr);
+PackingResult pack_rsa(const PackingSpec& scene, const Monitor& monitor);
+inline PackingResult pack_rsa(const PackingSpec& scene, const ProgressFn& progress = nullptr) {
+  return pack_rsa(scene, Monitor{progress, nullptr, nullptr});
+}
 
 /// Molecular-dynamics packing with growth (see md.cpp for the scheme). Never overlapping by
 /// the exact tests; bounded by scene.md (steps, seconds); status "target_not_reached" with the
 /// best valid configuration (shrunk by `scale`) when jammed or out of budget.
-PackingResult pack_md(const PackingSpec& scene, const ProgressFn& progress = nullptr);
+PackingResult pack_md(const PackingSpec& scene, const Monitor& monitor);
+inline PackingResult pack_md(const PackingSpec& scene, const ProgressFn& progress = nullptr) {
+  return pack_md(scene, Monitor{progress, nullptr, nullptr});
+}
 
 /// Runs the scene's method, then the exact audit (audit.hpp) of the result. Throws AuditFailure
 /// when the audit finds an overlap (or, in a non-periodic box, an inclusion leaving it): no
 /// overlapping RVE is ever returned, whatever the status. `before_audit` is a test hook that may
 /// alter the packed set before the audit (fault injection).
-PackingResult generate(const PackingSpec& scene, const ProgressFn& progress = nullptr,
+PackingResult generate(const PackingSpec& scene, const Monitor& monitor,
                        const std::function<void(InclusionSet&)>& before_audit = nullptr);
+inline PackingResult generate(const PackingSpec& scene, const ProgressFn& progress = nullptr,
+                              const std::function<void(InclusionSet&)>& before_audit = nullptr) {
+  return generate(scene, Monitor{progress, nullptr, nullptr}, before_audit);
+}
 
 }  // namespace rvegen

@@ -10,7 +10,8 @@
 
 namespace rvegen {
 
-PackingResult pack_rsa(const PackingSpec& scene, const ProgressFn& progress) {
+PackingResult pack_rsa(const PackingSpec& scene, const Monitor& monitor) {
+  const ProgressFn& progress = monitor.line;
   const auto t0 = std::chrono::steady_clock::now();
   PackingResult res;
   res.set.box = scene.box;
@@ -43,11 +44,14 @@ PackingResult pack_rsa(const PackingSpec& scene, const ProgressFn& progress) {
     {
       bool placed = false;
       for (int attempt = 0; attempt < scene.rsa_max_attempts && !placed; ++attempt) {
-        if ((++res.attempts & 63) == 0 &&
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() >
-                scene.rsa_max_seconds) {
-          out_of_time = true;
-          break;
+        if ((++res.attempts & 63) == 0) {
+          if (monitor.cancelled && monitor.cancelled()) throw Cancelled();
+          if (monitor.fraction) monitor.fraction(static_cast<double>(done) / total);
+          if (std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() >
+              scene.rsa_max_seconds) {
+            out_of_time = true;
+            break;
+          }
         }
         Shape s = envelope(drawn);  // modified inclusions are placed by their envelopes
         Vec3 lo, hi;
@@ -119,6 +123,7 @@ PackingResult pack_rsa(const PackingSpec& scene, const ProgressFn& progress) {
                     : out_of_time                    ? StopReason::kTimeBudget
                                                      : StopReason::kNoRoom;
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (monitor.fraction) monitor.fraction(total > 0 ? static_cast<double>(done) / total : 1.0);
   return res;
 }
 

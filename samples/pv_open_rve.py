@@ -3,9 +3,11 @@
 usage: xvfb-run -a -s "-screen 0 1280x1024x24" pvpython --force-offscreen-rendering \\
          samples/pv_open_rve.py RVE_DIR [OUT.png]
 
-Reads inclusions.vtp (the surfaces, carrying the inclusion list) and rve.xdmf (the voxel image
-stored in rve.h5), prints the RVE Statistics table, re-voxelizes the RVE at 96^3 with RVE
-Voxelize (no repacking), and saves a slice of the new image coloured by phase.
+Reads inclusions.vtp (the inclusions, carrying the inclusion list) and voxels.vti (the voxel
+image), prints the RVE Statistics table, re-voxelizes the RVE at 96^3 with RVE Voxelize (no
+repacking), and saves a slice of the new image coloured by phase to OUT.png, by default next to
+the RVE directory (RVE_DIR_slice96.png), never inside it: the directory stays a set that
+`rvegen generate -o RVE_DIR` may replace.
 """
 import os
 import sys
@@ -18,12 +20,12 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from rvegen_paraview import load_rvegen, statistics_rows  # noqa: E402
 
 rve = sys.argv[1]
-out = sys.argv[2] if len(sys.argv) > 2 else os.path.join(rve, "slice96.png")
+out = sys.argv[2] if len(sys.argv) > 2 else os.path.normpath(rve) + "_slice96.png"
 load_rvegen(globals())  # defines RVEStatistics, RVEVoxelize, RVEGenerator here
 surfaces = XMLPolyDataReader(FileName=[os.path.join(rve, "inclusions.vtp")])
-image = OpenDataFile(os.path.join(rve, "rve.xdmf"))
+image = OpenDataFile(os.path.join(rve, "voxels.vti"))
 image.UpdatePipeline()
-print("rve.xdmf:", image.GetDataInformation().GetNumberOfCells(), "voxels")
+print("voxels.vti:", image.GetDataInformation().GetNumberOfCells(), "voxels")
 for q, n, i, v in statistics_rows(servermanager.Fetch(RVEStatistics(Input=surfaces))):
     if q in ("volume_fraction", "count", "nearest_neighbour_distance"):
         print("%-28s %-24s %g" % (q, n, v))

@@ -11,7 +11,9 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from rve_view import save_rve_dir_picture  # noqa: E402
 
 rve = sys.argv[1]
-out = sys.argv[2] if len(sys.argv) > 2 else os.path.join(rve, "rve.png")
+# Next to the RVE directory, never inside it (rvegen generate refuses a directory holding files
+# it did not write).
+out = sys.argv[2] if len(sys.argv) > 2 else os.path.normpath(rve) + "_rve.png"
 voxels = XMLImageDataReader(FileName=[os.path.join(rve, "voxels.vti")])
 save_rve_dir_picture(rve, voxels, out, 800)
 print("wrote", out)

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <functional>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -39,33 +40,95 @@ constexpr int kExitAudit = 4;
 constexpr size_t kMaxSceneBytes = size_t(16) << 20;
 constexpr size_t kMaxInclusionFileBytes = size_t(2) << 30;
 
-const char* kUsage =
-    "usage:\n"
-    "  rvegen generate [SCENE.json] [-o DIR] [--quiet] [--max-memory SIZE]\n"
-    "      Packs the scene (the built-in default scene when none is given) and writes, in DIR\n"
-    "      (default ./rve), as the scene's \"outputs\" ask: inclusions.json (the inclusion\n"
-    "      list), inclusions.vtp (points for glyphs), surfaces.vtp (meshes: of modified\n"
-    "      inclusions, or of all with \"mesh\"),\n"
-    "      voxels.vti (phase, inclusion_id, fraction), rve.h5 + rve.xdmf (voxels, inclusion\n"
-    "      table, metadata), material.vtk (AMITEX_FFTP material map), report.json and, when\n"
-    "      inclusions are wavy, deformed or coated, levelsets.vdb. DIR is replaced as a whole:\n"
-    "      it holds the complete new set or, on any failure, the previous one.\n"
-    "      --max-memory SIZE (bytes, or with K, M, G) refuses a scene whose estimated peak\n"
-    "      memory exceeds SIZE (default: the memory available on the machine).\n"
-    "      Exit 0 on success; 1 when the outputs cannot be written (checked before packing);\n"
-    "      2 on invalid input or a scene too large for the memory (nothing written); 3 when the\n"
-    "      target volume fraction cannot be reached (report.json says so; the best valid\n"
-    "      configuration is written); 4 when the packed RVE fails the exact audit (an internal\n"
-    "      error: nothing written).\n"
-    "  rvegen check FILE.json [--json] [--max-pairs N]\n"
-    "      Audits an inclusion list with the exact pair tests. Exit 0 when no pair overlaps,\n"
-    "      1 when some do (listing at most N pairs, default 10000), 2 on invalid input.\n"
-    "  rvegen default-scene\n"
-    "      Prints the built-in default scene.\n";
+#ifndef RVEGEN_VERSION
+#define RVEGEN_VERSION "unknown"
+#endif
 
-int usage_error(const std::string& msg) {
-  std::cerr << "rvegen: " << msg << "\n" << kUsage;
+const char* kGenerateUsage =
+    "usage: rvegen generate [SCENE.json] [-o DIR] [--outputs LIST] [--quiet]\n"
+    "                       [--max-memory SIZE]\n"
+    "  Packs the scene (the built-in default scene when none is given; see rvegen\n"
+    "  default-scene) and writes, in DIR (default ./rve), report.json and the outputs:\n"
+    "    inclusions  inclusions.json (the inclusion list) and inclusions.vtp (points for\n"
+    "                glyphs in ParaView)\n"
+    "    voxels      voxels.vti (phase, inclusion_id, fraction; zlib-compressed)\n"
+    "    levelsets   levelsets.vdb, when inclusions are wavy, deformed or coated\n"
+    "    h5          rve.h5 + rve.xdmf (voxels, inclusion table, scene, report)\n"
+    "    amitex      material.vtk (AMITEX_FFTP material map)\n"
+    "    mesh        surfaces.vtp of every inclusion (otherwise of the modified ones only)\n"
+    "  By default inclusions, voxels and levelsets; the scene's \"outputs\" list or\n"
+    "  --outputs LIST (names separated by commas) chooses others. DIR is replaced as a whole:\n"
+    "  it holds the complete new set or, on any failure, the previous one; a DIR holding files\n"
+    "  rvegen did not write is refused. The last line gives the count, the volume fraction,\n"
+    "  the time and the bytes written.\n"
+    "  --max-memory SIZE (bytes, or with K, M, G) refuses a scene whose estimated peak memory\n"
+    "  exceeds SIZE (default: the memory available on the machine).\n"
+    "  Exit 0 on success; 1 when the outputs cannot be written (checked before packing); 2 on\n"
+    "  invalid input or a scene too large for the memory (nothing written); 3 when the target\n"
+    "  volume fraction cannot be reached (report.json says so; the best valid configuration is\n"
+    "  written); 4 when the packed RVE fails the exact audit (an internal error: nothing\n"
+    "  written).\n";
+const char* kCheckUsage =
+    "usage: rvegen check FILE.json [--json] [--max-pairs N]\n"
+    "  Audits an inclusion list (inclusions.json) with the exact pair tests. Exit 0 when no\n"
+    "  pair overlaps, 1 when some do (listing at most N pairs, default 10000), 2 on invalid\n"
+    "  input.\n";
+const char* kDefaultSceneUsage =
+    "usage: rvegen default-scene\n"
+    "  Prints the built-in default scene (a scene file to start from).\n";
+
+std::string usage() {
+  return std::string("rvegen " RVEGEN_VERSION
+                     ": random Representative Volume Elements of composite materials.\n\n") +
+         kGenerateUsage + "\n" + kCheckUsage + "\n" + kDefaultSceneUsage +
+         "\nrvegen --version prints the version; rvegen COMMAND --help the help of one command.\n";
+}
+
+bool wants_help(const std::vector<std::string>& args) {
+  for (const std::string& a : args) {
+    if (a == "-h" || a == "--help") return true;
+  }
+  return false;
+}
+
+int usage_error(const std::string& msg, const char* command_usage = nullptr) {
+  std::cerr << "rvegen: " << msg << "\n";
+  if (command_usage) {
+    std::cerr << command_usage;
+  } else {
+    std::cerr << usage();
+  }
   return kExitInvalid;
+}
+
+// "812 KB", "71.1 MB", "1.54 GB" (decimal units, three significant figures or so).
+std::string human_bytes(uintmax_t bytes) {
+  char buf[32];
+  const double b = static_cast<double>(bytes);
+  if (b < 1e3) {
+    std::snprintf(buf, sizeof buf, "%.0f B", b);
+  } else if (b < 1e6) {
+    std::snprintf(buf, sizeof buf, "%.0f KB", b / 1e3);
+  } else if (b < 1e9) {
+    std::snprintf(buf, sizeof buf, "%.1f MB", b / 1e6);
+  } else {
+    std::snprintf(buf, sizeof buf, "%.2f GB", b / 1e9);
+  }
+  return buf;
+}
+
+// Bytes of the regular files in `dir` (what a run wrote).
+uintmax_t directory_bytes(const std::string& dir, int* files) {
+  uintmax_t total = 0;
+  *files = 0;
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(dir, ec)) {
+    if (e.is_regular_file(ec)) {
+      total += e.file_size(ec);
+      ++*files;
+    }
+  }
+  return total;
 }
 
 // "2G", "512M", "1000000": bytes; negative when malformed.
@@ -104,25 +167,37 @@ std::function<void(rvegen::InclusionSet&)> fault_hook() {
 }
 
 int cmd_generate(const std::vector<std::string>& args) {
-  std::string scene_path, out_dir = "rve";
-  bool quiet = false;
+  if (wants_help(args)) {
+    std::cout << kGenerateUsage;
+    return kExitOk;
+  }
+  std::string scene_path, out_dir = "rve", outputs_list;
+  bool quiet = false, outputs_given = false;
   double max_memory = 0.0;
   for (size_t i = 0; i < args.size(); ++i) {
     if (args[i] == "-o" || args[i] == "--output") {
-      if (i + 1 >= args.size()) return usage_error("-o needs a directory");
+      if (i + 1 >= args.size()) return usage_error("-o needs a directory", kGenerateUsage);
       out_dir = args[++i];
+    } else if (args[i] == "--outputs") {
+      if (i + 1 >= args.size()) {
+        return usage_error("--outputs needs a list such as inclusions,voxels,h5", kGenerateUsage);
+      }
+      outputs_list = args[++i];
+      outputs_given = true;
     } else if (args[i] == "--quiet" || args[i] == "-q") {
       quiet = true;
     } else if (args[i] == "--max-memory") {
-      if (i + 1 >= args.size()) return usage_error("--max-memory needs a size");
+      if (i + 1 >= args.size()) return usage_error("--max-memory needs a size", kGenerateUsage);
       max_memory = parse_size(args[++i]);
-      if (max_memory <= 0.0) return usage_error("--max-memory: not a size: " + args[i]);
+      if (max_memory <= 0.0) {
+        return usage_error("--max-memory: not a size: " + args[i], kGenerateUsage);
+      }
     } else if (!args[i].empty() && args[i][0] == '-') {
-      return usage_error("unknown option " + args[i]);
+      return usage_error("unknown option " + args[i] + " of generate", kGenerateUsage);
     } else if (scene_path.empty()) {
       scene_path = args[i];
     } else {
-      return usage_error("more than one scene file given");
+      return usage_error("more than one scene file given", kGenerateUsage);
     }
   }
   const auto t0 = std::chrono::steady_clock::now();
@@ -130,6 +205,16 @@ int cmd_generate(const std::vector<std::string>& args) {
   try {
     scene = scene_path.empty() ? rvegen::default_scene()
                                : rvegen::parse_scene(rvegen::read_file(scene_path, kMaxSceneBytes));
+    if (outputs_given) {
+      std::vector<std::string> names;
+      size_t at = 0;
+      while (at <= outputs_list.size()) {
+        const size_t comma = std::min(outputs_list.find(',', at), outputs_list.size());
+        names.push_back(outputs_list.substr(at, comma - at));
+        at = comma + 1;
+      }
+      scene.outputs = rvegen::outputs_from_names(names, scene.outputs.mesh, "--outputs");
+    }
   } catch (const std::exception& e) {
     std::cerr << "rvegen: invalid scene" << (scene_path.empty() ? "" : " " + scene_path) << ": "
               << e.what() << "\n";
@@ -249,8 +334,12 @@ int cmd_generate(const std::vector<std::string>& args) {
     double total = 0.0;
     for (double v : vf) total += v;
     if (!quiet) {
-      std::fprintf(stderr, "rvegen: %zu inclusions, volume fraction %.4f, %.2f s -> %s\n",
-                   result.set.inclusions.size(), total, seconds_since(t0), out_dir.c_str());
+      int files = 0;
+      const uintmax_t bytes = directory_bytes(out_dir, &files);
+      std::fprintf(stderr,
+                   "rvegen: %zu inclusions, volume fraction %.4f, %.2f s -> %s (%s in %d files)\n",
+                   result.set.inclusions.size(), total, seconds_since(t0), out_dir.c_str(),
+                   human_bytes(bytes).c_str(), files);
     }
     if (result.status != rvegen::PackingStatus::kOk) {
       std::cerr << "rvegen: target volume fraction not reached (status "
@@ -281,6 +370,10 @@ int cmd_generate(const std::vector<std::string>& args) {
 }
 
 int cmd_check(const std::vector<std::string>& args) {
+  if (wants_help(args)) {
+    std::cout << kCheckUsage;
+    return kExitOk;
+  }
   std::string path;
   bool as_json = false;
   size_t max_pairs = 10000;
@@ -289,20 +382,20 @@ int cmd_check(const std::vector<std::string>& args) {
     if (a == "--json") {
       as_json = true;
     } else if (a == "--max-pairs") {
-      if (i + 1 >= args.size()) return usage_error("--max-pairs needs a number");
+      if (i + 1 >= args.size()) return usage_error("--max-pairs needs a number", kCheckUsage);
       const double n = parse_size(args[++i]);
       if (!(n >= 1.0 && n <= 1e9) || n != std::floor(n))
-        return usage_error("--max-pairs: not a count in [1, 1e9]: " + args[i]);
+        return usage_error("--max-pairs: not a count in [1, 1e9]: " + args[i], kCheckUsage);
       max_pairs = static_cast<size_t>(n);
     } else if (!a.empty() && a[0] == '-') {
-      return usage_error("unknown option " + a);
+      return usage_error("unknown option " + a + " of check", kCheckUsage);
     } else if (path.empty()) {
       path = a;
     } else {
-      return usage_error("more than one file given");
+      return usage_error("more than one file given", kCheckUsage);
     }
   }
-  if (path.empty()) return usage_error("check needs an inclusion file");
+  if (path.empty()) return usage_error("check needs an inclusion file", kCheckUsage);
   rvegen::InclusionSet set;
   try {
     set = rvegen::read_inclusions_json(rvegen::read_file(path, kMaxInclusionFileBytes));
@@ -350,16 +443,28 @@ int cmd_check(const std::vector<std::string>& args) {
 int main(int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
   if (args.empty() || args[0] == "-h" || args[0] == "--help" || args[0] == "help") {
-    std::cout << kUsage;
+    std::cout << usage();
     return args.empty() ? kExitInvalid : kExitOk;
+  }
+  if (args[0] == "--version" || args[0] == "-V" || args[0] == "version") {
+    std::cout << "rvegen " RVEGEN_VERSION "\n";
+    return kExitOk;
   }
   const std::string cmd = args[0];
   args.erase(args.begin());
   if (cmd == "generate") return cmd_generate(args);
   if (cmd == "check") return cmd_check(args);
   if (cmd == "default-scene") {
+    if (wants_help(args)) {
+      std::cout << kDefaultSceneUsage;
+      return kExitOk;
+    }
+    if (!args.empty()) {
+      return usage_error("default-scene takes no argument (got " + args[0] + ")",
+                         kDefaultSceneUsage);
+    }
     std::cout << rvegen::scene_to_json(rvegen::default_scene());
     return kExitOk;
   }
-  return usage_error("unknown command \"" + cmd + "\"");
+  return usage_error("unknown command \"" + cmd + "\" (generate, check, default-scene)");
 }

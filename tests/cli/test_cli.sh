@@ -16,7 +16,7 @@ expect_rc() {  # expect_rc WANT CMD...
 py=/usr/bin/python3
 
 # Default scene: all four files, no overlap by the independent audit.
-expect_rc 0 "$RVEGEN" generate -q -o "$WORK/default"
+expect_rc 0 "$RVEGEN" generate -q --outputs inclusions,voxels,h5,amitex,levelsets -o "$WORK/default"
 for f in inclusions.json inclusions.vtp voxels.vti report.json rve.h5 rve.xdmf material.vtk; do
   [ -s "$WORK/default/$f" ] || fail "default run did not write $f"
 done
@@ -90,6 +90,44 @@ echo "{$BOX,\"families\":[{\"shape\":\"sphere\",\"radius\":0.1,\"count\":5}],\"o
 expect_rc 0 "$RVEGEN" generate -q "$WORK/amitex_mesh.json" -o "$WORK/out_amitex_mesh"
 [ "$(ls "$WORK/out_amitex_mesh" | tr '\n' ' ')" = "material.vtk report.json surfaces.vtp " ] \
   || fail "outputs [amitex, mesh] wrote: $(ls "$WORK/out_amitex_mesh" | tr '\n' ' ')"
+# Default outputs: one voxel file (voxels.vti, compressed), no rve.h5 or material.vtk; the last
+# line gives the bytes written, which are the directory's.
+expect_rc 0 "$RVEGEN" generate "$WORK/only_inclusions.json" --outputs inclusions,voxels -o "$WORK/out_cli_list"
+[ "$(ls "$WORK/out_cli_list" | tr '\n' ' ')" = "inclusions.json inclusions.vtp report.json voxels.vti " ] \
+  || fail "--outputs inclusions,voxels wrote: $(ls "$WORK/out_cli_list" | tr '\n' ' ')"
+expect_rc 0 "$RVEGEN" generate -o "$WORK/out_default_outputs"
+[ "$(ls "$WORK/out_default_outputs" | tr '\n' ' ')" = "inclusions.json inclusions.vtp report.json voxels.vti " ] \
+  || fail "default outputs: $(ls "$WORK/out_default_outputs" | tr '\n' ' ')"
+grep -q 'compressor="vtkZLibDataCompressor"' "$WORK/out_default_outputs/voxels.vti" \
+  || fail "voxels.vti is not compressed"
+cmp -s "$WORK/out_default_outputs/voxels.vti" "$WORK/default/voxels.vti" \
+  || fail "voxels.vti differs between runs of the same scene"
+bytes=$(du -cb "$WORK/out_default_outputs"/* | tail -1 | cut -f1)
+$py - "$WORK/last.err" "$bytes" <<'PY' || fail "the last line does not give the bytes written: $(tail -1 "$WORK/last.err")"
+import re, sys
+last = open(sys.argv[1]).read().strip().splitlines()[-1]
+m = re.search(r"\(([0-9.]+) (B|KB|MB|GB) in 4 files\)$", last)
+assert m, last
+value = float(m.group(1)) * {"B": 1, "KB": 1e3, "MB": 1e6, "GB": 1e9}[m.group(2)]
+assert abs(value - int(sys.argv[2])) <= 0.05 * int(sys.argv[2]) + 1000, (value, sys.argv[2])
+PY
+expect_rc 2 "$RVEGEN" generate "$WORK/only_inclusions.json" --outputs inclusions,voxel -o "$WORK/out_bad_list"
+grep -q 'unknown output "voxel"' "$WORK/last.err" || fail "--outputs with a typo: $(cat "$WORK/last.err")"
+[ -e "$WORK/out_bad_list" ] && fail "--outputs with a typo wrote $WORK/out_bad_list"
+# Help on every command (exit 0, on stdout), the version, and a misspelled key named.
+for c in generate check default-scene; do
+  expect_rc 0 "$RVEGEN" $c --help
+  grep -q "^usage: rvegen $c" "$WORK/last.out" || fail "$c --help: $(head -2 "$WORK/last.out")"
+done
+expect_rc 0 "$RVEGEN" --version
+grep -Eq '^rvegen [0-9]+\.[0-9]+\.[0-9]+$' "$WORK/last.out" || fail "--version: $(cat "$WORK/last.out")"
+expect_rc 2 "$RVEGEN" generate --no-such-option
+grep -q "unknown option --no-such-option" "$WORK/last.err" || fail "unknown option not named"
+echo '{"box":{"size":[1,1,1]},"families":[{"shape":"sphere","radius":0.05,"volume_fracion":0.2}]}' >"$WORK/typo.json"
+expect_rc 2 "$RVEGEN" generate -q "$WORK/typo.json" -o "$WORK/out_typo"
+grep -q 'families\[0\].volume_fracion: unknown key (did you mean "volume_fraction"?)' "$WORK/last.err" \
+  || fail "misspelled key: $(cat "$WORK/last.err")"
+[ -e "$WORK/out_typo" ] && fail "a misspelled key wrote $WORK/out_typo"
 [ -e "$WORK/default/surfaces.vtp" ] && fail "surfaces.vtp written for plain inclusions without mesh"
 expect_rc 2 "$RVEGEN" generate -q "$WORK/does_not_exist.json" -o "$WORK/out_missing"
 expect_rc 2 "$RVEGEN" frobnicate
@@ -233,10 +271,10 @@ for delay in 0.2 0.5 0.9 1.4 2.0 3.0; do
   # (report.json and rve.h5 hold the run's timings: they are checked for presence only.)
   same_set() {
     [ "$(ls -A "$1")" = "$(ls -A "$2")" ] || return 1
-    for f in inclusions.json inclusions.vtp voxels.vti rve.xdmf material.vtk; do
-      cmp -s "$1/$f" "$2/$f" || return 1
+    for f in $(ls -A "$2"); do
+      case "$f" in report.json | rve.h5) [ -s "$1/$f" ] || return 1 ;;
+        *) cmp -s "$1/$f" "$2/$f" || return 1 ;; esac
     done
-    [ -s "$1/report.json" ] && [ -s "$1/rve.h5" ]
   }
   if cmp -s "$WORK/kill/inclusions.json" "$WORK/closed/inclusions.json"; then
     same_set "$WORK/kill" "$WORK/closed" || fail "kill after ${delay}s: old set damaged"
@@ -253,7 +291,7 @@ ls -A "$WORK" | grep -q '\.rvegen-' && fail "killed runs' staging directories we
 # Many families: the report no longer fits an HDF5 attribute; it is a dataset.
 fams=$($py -c "import json; print(json.dumps([{'shape':'sphere','radius':0.03,'count':3,'name':'family number %d with a long name' % k} for k in range(40)]))")
 echo "{\"box\":{\"size\":[1,1,1]},\"families\":$fams,\"voxels\":{\"resolution\":16}}" >"$WORK/many.json"
-expect_rc 0 "$RVEGEN" generate -q "$WORK/many.json" -o "$WORK/many"
+expect_rc 0 "$RVEGEN" generate -q "$WORK/many.json" --outputs inclusions,h5 -o "$WORK/many"
 $py - "$WORK/many" <<'PY' || fail "rve.h5 report dataset"
 import json, sys
 import h5py

@@ -17,9 +17,9 @@ scenes=(default "$ROOT"/samples/scenes/*.json)
 for scene in "${scenes[@]}"; do
   name=$(basename "$scene" .json)
   if [ "$scene" = default ]; then
-    "$RVEGEN" generate -q -o "$WORK/$name" || [ $? -eq 3 ]
+    "$RVEGEN" generate -q --outputs inclusions,voxels,amitex -o "$WORK/$name" || [ $? -eq 3 ]
   else
-    "$RVEGEN" generate -q "$scene" -o "$WORK/$name" || [ $? -eq 3 ]
+    "$RVEGEN" generate -q "$scene" --outputs inclusions,voxels,amitex -o "$WORK/$name" || [ $? -eq 3 ]
   fi
   for f in inclusions.json voxels.vti material.vtk; do
     echo "$(sha256sum <"$WORK/$name/$f" | cut -d' ' -f1)  $name/$f" >>"$WORK/actual.sha256"

@@ -1,6 +1,7 @@
 // Strict reading helpers over nlohmann::json: every error names the key path.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <initializer_list>
 #include <nlohmann/json.hpp>
@@ -29,13 +30,42 @@ inline const Json& require(const Json& obj, const char* key, const std::string& 
 }
 
 /// Rejects keys not in `allowed`.
+/// Edit distance (insertions, deletions, substitutions) between two short keys.
+inline size_t edit_distance(const std::string& a, const std::string& b) {
+  std::vector<size_t> row(b.size() + 1);
+  for (size_t k = 0; k <= b.size(); ++k) row[k] = k;
+  for (size_t i = 1; i <= a.size(); ++i) {
+    size_t diag = row[0];
+    row[0] = i;
+    for (size_t k = 1; k <= b.size(); ++k) {
+      const size_t up = row[k];
+      row[k] = std::min({row[k] + 1, row[k - 1] + 1, diag + (a[i - 1] == b[k - 1] ? 0 : 1)});
+      diag = up;
+    }
+  }
+  return row[b.size()];
+}
+
+/// Fails on the first key of `obj` not in `allowed`, naming it, suggesting the nearest allowed
+/// key when one is close (at most a third of its letters differ), and listing the allowed keys.
 inline void only_keys(const Json& obj, std::initializer_list<const char*> allowed,
                       const std::string& path) {
   if (!obj.is_object()) fail(path, "expected an object");
   for (auto it = obj.begin(); it != obj.end(); ++it) {
     bool ok = false;
     for (const char* a : allowed) ok |= it.key() == a;
-    if (!ok) fail(join(path, it.key()), "unknown key");
+    if (ok) continue;
+    std::string nearest, list;
+    size_t best = it.key().size() / 3 + 1;
+    for (const char* a : allowed) {
+      list += (list.empty() ? "" : ", ") + std::string(a);
+      const size_t d = edit_distance(it.key(), a);
+      if (d < best) best = d, nearest = a;
+    }
+    fail(join(path, it.key()),
+         "unknown key" +
+             (nearest.empty() ? std::string() : " (did you mean \"" + nearest + "\"?)") +
+             "; known keys here: " + list);
   }
 }
 

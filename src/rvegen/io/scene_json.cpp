@@ -133,6 +133,28 @@ Family parse_family(const Json& j, const std::string& p, double box_volume) {
   if (!parse_shape_name(shape, &f.shape)) {
     fail(p + ".shape", "unknown shape \"" + shape + "\" (sphere, cylinder, ellipsoid)");
   }
+  // Unknown keys first: a misspelled "volume_fraction" is named as such, not reported as a
+  // missing amount.
+  switch (f.shape) {
+    case ShapeKind::Sphere:
+      only_keys(j,
+                {"name", "shape", "radius", "volume_fraction", "count", "coating", "waviness",
+                 "curvature", "deformation", "debonding"},
+                p);
+      break;
+    case ShapeKind::Cylinder:
+      only_keys(j,
+                {"name", "shape", "radius", "aspect_ratio", "volume_fraction", "count",
+                 "orientation", "coating", "waviness", "curvature", "deformation", "debonding"},
+                p);
+      break;
+    case ShapeKind::Ellipsoid:
+      only_keys(j,
+                {"name", "shape", "semi_axes", "axis_ratios", "volume_fraction", "count",
+                 "orientation", "coating", "waviness", "curvature", "deformation", "debonding"},
+                p);
+      break;
+  }
   f.modifiers = parse_modifiers(j, p);
   const bool has_vf = j.contains("volume_fraction"), has_n = j.contains("count");
   if (!has_vf && !has_n) fail(p, "give \"volume_fraction\", \"count\" or both");
@@ -151,10 +173,6 @@ Family parse_family(const Json& j, const std::string& p, double box_volume) {
   const double per = derived ? f.volume_fraction * box_volume / f.count : 0.0;
   switch (f.shape) {
     case ShapeKind::Sphere:
-      only_keys(j,
-                {"name", "shape", "radius", "volume_fraction", "count", "coating", "waviness",
-                 "curvature", "deformation", "debonding"},
-                p);
       if (derived) {
         if (j.contains("radius"))
           fail(p + ".radius",
@@ -165,10 +183,6 @@ Family parse_family(const Json& j, const std::string& p, double box_volume) {
       }
       break;
     case ShapeKind::Cylinder:
-      only_keys(j,
-                {"name", "shape", "radius", "aspect_ratio", "volume_fraction", "count",
-                 "orientation", "coating", "waviness", "curvature", "deformation", "debonding"},
-                p);
       f.aspect_ratio = parse_size(require(j, "aspect_ratio", p), p + ".aspect_ratio");
       if (derived) {
         if (j.contains("radius"))
@@ -180,10 +194,6 @@ Family parse_family(const Json& j, const std::string& p, double box_volume) {
       }
       break;
     case ShapeKind::Ellipsoid: {
-      only_keys(j,
-                {"name", "shape", "semi_axes", "axis_ratios", "volume_fraction", "count",
-                 "orientation", "coating", "waviness", "curvature", "deformation", "debonding"},
-                p);
       if (derived) {
         if (j.contains("semi_axes"))
           fail(p + ".semi_axes",
@@ -214,6 +224,31 @@ Family parse_family(const Json& j, const std::string& p, double box_volume) {
   return f;
 }
 }  // namespace
+
+Outputs outputs_from_names(const std::vector<std::string>& names, bool mesh,
+                           const std::string& where) {
+  Outputs out{false, false, false, false, false, mesh};
+  for (size_t k = 0; k < names.size(); ++k) {
+    const std::string& name = names[k];
+    if (name == "inclusions") {
+      out.inclusions = true;
+    } else if (name == "voxels") {
+      out.voxels = true;
+    } else if (name == "h5") {
+      out.h5 = true;
+    } else if (name == "amitex") {
+      out.amitex = true;
+    } else if (name == "levelsets") {
+      out.levelsets = true;
+    } else if (name == "mesh") {
+      out.mesh = true;
+    } else {
+      throw InputError(where + "[" + std::to_string(k) + "]: unknown output \"" + name +
+                       "\" (inclusions, voxels, h5, amitex, levelsets, mesh)");
+    }
+  }
+  return out;
+}
 
 Scene parse_scene(const std::string& text) {
   using namespace json_util;
@@ -342,28 +377,11 @@ Scene parse_scene(const std::string& text) {
     // The files to write: exactly the names listed (report.json always).
     const Json& o = root["outputs"];
     if (!o.is_array()) fail("outputs", "expected an array of output names");
-    const bool mesh = s.outputs.mesh;
-    s.outputs = Outputs{false, false, false, false, false, mesh};
+    std::vector<std::string> names;
     for (size_t k = 0; k < o.size(); ++k) {
-      const std::string q = "outputs[" + std::to_string(k) + "]";
-      const std::string name = string(o[k], q);
-      if (name == "inclusions") {
-        s.outputs.inclusions = true;
-      } else if (name == "voxels") {
-        s.outputs.voxels = true;
-      } else if (name == "h5") {
-        s.outputs.h5 = true;
-      } else if (name == "amitex") {
-        s.outputs.amitex = true;
-      } else if (name == "levelsets") {
-        s.outputs.levelsets = true;
-      } else if (name == "mesh") {
-        s.outputs.mesh = true;
-      } else {
-        fail(q,
-             "unknown output \"" + name + "\" (inclusions, voxels, h5, amitex, levelsets, mesh)");
-      }
+      names.push_back(string(o[k], "outputs[" + std::to_string(k) + "]"));
     }
+    s.outputs = outputs_from_names(names, s.outputs.mesh, "outputs");
   }
   validate_scene(s);
   return s;

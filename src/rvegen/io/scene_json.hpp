@@ -2,6 +2,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "rvegen/model/scene.hpp"
 
@@ -11,6 +12,10 @@ namespace rvegen {
 /// range and cross-field rule is then validate_scene's, the one place that checks a scene however
 /// it was built. Throws InputError naming the key.
 Scene parse_scene(const std::string& json_text);
+/// The outputs named in `names` (inclusions, voxels, h5, amitex, levelsets, mesh), nothing
+/// else; `mesh` as given unless "mesh" is named. `where` names the list in errors (InputError).
+Outputs outputs_from_names(const std::vector<std::string>& names, bool mesh,
+                           const std::string& where);
 /// JSON text of a scene (what parse_scene reads).
 std::string scene_to_json(const Scene& scene);
 /// JSON text of the packing part alone (the scene's keys that the packing depends on): equal

@@ -3,10 +3,12 @@
 #include <fcntl.h>
 #include <signal.h>
 #include <sys/stat.h>
+#include <tbb/parallel_for.h>
 #include <unistd.h>
 #include <zlib.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
@@ -91,23 +93,39 @@ class AppendedList {
 
  private:
   static constexpr uint64_t kBlock = 1 << 16;
+  // Blocks are deflated in parallel (each on its own), then joined in order: the bytes do not
+  // depend on the number of threads.
   static std::string deflate_blocks(const char* data, uint64_t size) {
     const uint64_t blocks = (size + kBlock - 1) / kBlock;
     std::vector<uint64_t> head = {blocks, kBlock, size % kBlock};
-    std::string body;
-    std::vector<Bytef> buf(compressBound(kBlock));
-    for (uint64_t b = 0; b < blocks; ++b) {
+    std::vector<std::vector<Bytef>> packed(blocks);
+    std::atomic<bool> failed{false};
+    tbb::parallel_for(uint64_t{0}, blocks, [&](uint64_t b) {
       const uint64_t len = std::min(kBlock, size - b * kBlock);
+      // A scratch buffer of the worst-case size, then only the deflated bytes are kept (the
+      // worst case of every block at once would be the whole image again).
+      std::vector<Bytef> buf(compressBound(static_cast<uLong>(len)));
       uLongf out = static_cast<uLongf>(buf.size());
       if (compress2(buf.data(), &out, reinterpret_cast<const Bytef*>(data + b * kBlock),
                     static_cast<uLong>(len), 1) != Z_OK) {
-        throw OutputError("zlib: compression failed");
+        failed = true;
       }
-      head.push_back(out);
-      body.append(reinterpret_cast<const char*>(buf.data()), out);
+      packed[b].assign(buf.data(), buf.data() + out);
+    });
+    if (failed) throw OutputError("zlib: compression failed");
+    std::string joined(reinterpret_cast<const char*>(head.data()), 0);
+    size_t total = 0;
+    for (const auto& buf : packed) {
+      head.push_back(buf.size());
+      total += buf.size();
     }
-    return std::string(reinterpret_cast<const char*>(head.data()), head.size() * sizeof(uint64_t)) +
-           body;
+    joined.reserve(head.size() * sizeof(uint64_t) + total);
+    joined.append(reinterpret_cast<const char*>(head.data()), head.size() * sizeof(uint64_t));
+    for (auto& buf : packed) {
+      joined.append(reinterpret_cast<const char*>(buf.data()), buf.size());
+      std::vector<Bytef>().swap(buf);
+    }
+    return joined;
   }
   bool compressed_;
   std::list<std::string> blobs_;  // stable addresses
@@ -135,14 +153,14 @@ std::string with_file(const std::function<void(std::FILE*)>& fill) {
 
 }  // namespace
 
-void write_vti(const VoxelImage& im, std::FILE* out) {
-  AppendedList app;
+void write_vti(const VoxelImage& im, std::FILE* out, bool compressed) {
+  AppendedList app(compressed);
   const uint64_t offset[3] = {app.add(im.phase.data(), im.phase.size()),
                               app.add(im.inclusion_id.data(), im.inclusion_id.size()),
                               app.add(im.fraction.data(), im.fraction.size())};
   std::ostringstream s;
   s.precision(17);
-  s << header("ImageData");
+  s << header("ImageData", app.compressed());
   s << "  <ImageData WholeExtent=\"0 " << im.dims[0] << " 0 " << im.dims[1] << " 0 " << im.dims[2]
     << "\" Origin=\"" << im.origin[0] << " " << im.origin[1] << " " << im.origin[2]
     << "\" Spacing=\"" << im.spacing[0] << " " << im.spacing[1] << " " << im.spacing[2] << "\">\n";
@@ -158,8 +176,8 @@ void write_vti(const VoxelImage& im, std::FILE* out) {
   put_appended(out, app.arrays());
 }
 
-std::string vti_bytes(const VoxelImage& im) {
-  return with_file([&](std::FILE* f) { write_vti(im, f); });
+std::string vti_bytes(const VoxelImage& im, bool compressed) {
+  return with_file([&](std::FILE* f) { write_vti(im, f, compressed); });
 }
 
 void write_material_vtk(const VoxelImage& im, std::FILE* out) {

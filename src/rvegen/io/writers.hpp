@@ -18,9 +18,11 @@
 namespace rvegen {
 
 /// VTK XML ImageData, one cell per voxel, cell arrays "phase" (UInt8), "inclusion_id" (Int32)
-/// and, when computed, "fraction" (Float32). Streamed to `out` (no copy of the image).
-void write_vti(const VoxelImage& image, std::FILE* out);
-std::string vti_bytes(const VoxelImage& image);
+/// and, when computed, "fraction" (Float32). `compressed`: zlib blocks as VTK writes them
+/// (compressor="vtkZLibDataCompressor", level 1, blocks deflated in parallel); otherwise raw
+/// arrays streamed to `out` without a copy.
+void write_vti(const VoxelImage& image, std::FILE* out, bool compressed = true);
+std::string vti_bytes(const VoxelImage& image, bool compressed = true);
 /// Legacy VTK STRUCTURED_POINTS material map as AMITEX_FFTP reads it (materialID.vtk): binary
 /// big-endian unsigned short "MaterialId" per cell, numbered 1..N in phase-label order over the
 /// labels present in the image. Streamed in blocks.

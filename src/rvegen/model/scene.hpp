@@ -99,11 +99,13 @@ struct PackingSpec {
 };
 
 /// Which files a run writes (JSON "outputs": a list of the names below). report.json always.
+/// By default one voxel file (the compressed voxels.vti); rve.h5 and material.vtk, the same
+/// image again, are written on request.
 struct Outputs {
   bool inclusions = true;  // "inclusions": inclusions.json and inclusions.vtp (points, glyphs)
-  bool voxels = true;      // "voxels": voxels.vti
-  bool h5 = true;          // "h5": rve.h5 and rve.xdmf
-  bool amitex = true;      // "amitex": material.vtk
+  bool voxels = true;      // "voxels": voxels.vti (zlib-compressed)
+  bool h5 = false;         // "h5": rve.h5 and rve.xdmf
+  bool amitex = false;     // "amitex": material.vtk
   bool levelsets = true;   // "levelsets": levelsets.vdb (wavy, deformed and coated inclusions)
   bool mesh = false;       // "mesh": surfaces.vtp of every inclusion (else of the modified ones)
   bool operator==(const Outputs& o) const {

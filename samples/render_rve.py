@@ -17,3 +17,5 @@ out = sys.argv[2] if len(sys.argv) > 2 else os.path.normpath(rve) + "_rve.png"
 voxels = XMLImageDataReader(FileName=[os.path.join(rve, "voxels.vti")])
 save_rve_dir_picture(rve, voxels, out, 800)
 print("wrote", out)
+sys.stdout.flush()
+os._exit(0)  # no GL teardown at exit (GLXBadContext, sometimes an abort, under Xvfb)

@@ -4,7 +4,7 @@ Shared by samples/render_rve.py and the plugin's image-regression test.
 """
 import os
 
-from paraview.simple import (ColorBy, CreateView, GetColorTransferFunction, Outline, Render,
+from paraview.simple import (ColorBy, CreateView, GetColorTransferFunction, GetScalarBar, Outline, Render,
                              SaveScreenshot, Show, Threshold, XMLPolyDataReader,
                              _DisableFirstRenderCameraReset)
 
@@ -51,17 +51,48 @@ def save_rve_picture(inclusions, box_source, out_png, size, surfaces=None, glyph
     SaveScreenshot(out_png, view, ImageResolution=[size, size])
 
 
-def family_colours(shown, inclusions):
+# Family colours of the named legend (report pictures).
+FAMILY_COLOURS = [[0.12, 0.35, 0.70], [0.70, 0.15, 0.30], [0.15, 0.55, 0.30], [0.50, 0.30, 0.65],
+                  [0.85, 0.45, 0.10], [0.35, 0.35, 0.35]]
+
+
+def family_colours(shown, inclusions, names=None, view=None):
     """One "family" colour map over the representations `shown`, spanning the families of
-    `inclusions` (points with a "family" point array)."""
-    lut = GetColorTransferFunction("family")
-    lut.ApplyPreset("Rainbow Uniform", True)
+    `inclusions` (points with a "family" point array). With `names` (one per family) and `view`,
+    the map is categorical and its legend, drawn in `view`, names the families."""
+    lut = GetColorTransferFunction("family" if names is None else "family_named")
+    if names is None:
+        lut.ApplyPreset("Rainbow Uniform", True)
     for d in shown:
         d.LookupTable = lut
+    if names is not None:
+        lut.InterpretValuesAsCategories = 1
+        lut.Annotations = sum([[str(k), n] for k, n in enumerate(names)], [])
+        lut.IndexedColors = sum([FAMILY_COLOURS[k % len(FAMILY_COLOURS)] for k in range(len(names))], [])
+        if shown and view is not None:
+            bar = GetScalarBar(lut, view)
+            bar.Title = "family"
+            bar.ComponentTitle = ""
+            bar.TitleColor = bar.LabelColor = [0, 0, 0]
+            bar.WindowLocation = "Lower Center"
+            bar.Orientation = "Horizontal"
+            bar.ScalarBarLength = 0.6
+            shown[0].SetScalarBarVisibility(view, True)
+        return
     inclusions.UpdatePipeline()
     arr = inclusions.PointData.GetArray("family")
     lo, hi = arr.GetRange() if arr is not None else (0.0, 0.0)
     lut.RescaleTransferFunction(lo, max(hi, lo + 1e-9))
+
+
+def show_axes(view):
+    """Coordinates (box units) on the view's axes: the scale of the picture."""
+    view.AxesGrid.Visibility = 1
+    for t in ("XTitle", "YTitle", "ZTitle"):
+        setattr(view.AxesGrid, t, t[0])
+    for c in ("XTitleColor", "YTitleColor", "ZTitleColor", "XLabelColor", "YLabelColor",
+              "ZLabelColor", "GridColor"):
+        setattr(view.AxesGrid, c, [0, 0, 0])
 
 
 def show_glyphs(points, view, glyph, shapes, resolution=32):
@@ -124,10 +155,12 @@ def show_inclusions(rve_dir, view, glyphs_only=False):
     return shown
 
 
-def save_rve_dir_picture(rve_dir, box_source, out_png, size, draw="all", reset_camera=True):
+def save_rve_dir_picture(rve_dir, box_source, out_png, size, draw="all", reset_camera=True,
+                         family_names=None, axes=False):
     """The standard picture of an RVE written by `rvegen generate` (see show_inclusions);
     `draw`: "all", "glyphs" (no surfaces.vtp) or "mesh" (surfaces.vtp alone); without
-    `reset_camera` the camera frames the box, whatever is shown."""
+    `reset_camera` the camera frames the box, whatever is shown. With `family_names`, a legend
+    names the families; with `axes`, the axes carry their coordinates."""
     view = white_view()
     view.ViewSize = [size, size]
     if draw == "mesh":
@@ -136,7 +169,10 @@ def save_rve_dir_picture(rve_dir, box_source, out_png, size, draw="all", reset_c
         shown = [disp]
     else:
         shown = show_inclusions(rve_dir, view, glyphs_only=draw == "glyphs")
-    family_colours(shown, XMLPolyDataReader(FileName=[os.path.join(rve_dir, "inclusions.vtp")]))
+    family_colours(shown, XMLPolyDataReader(FileName=[os.path.join(rve_dir, "inclusions.vtp")]),
+                   names=family_names, view=view)
+    if axes:
+        show_axes(view)
     outline = Show(Outline(Input=box_source), view)
     outline.DiffuseColor = [0, 0, 0]
     view.CameraPosition = [2.6, 2.0, 1.8]
@@ -144,6 +180,8 @@ def save_rve_dir_picture(rve_dir, box_source, out_png, size, draw="all", reset_c
     view.CameraViewUp = [0, 0, 1]
     if reset_camera:
         view.ResetCamera()
+        if family_names is not None:
+            view.GetActiveCamera().Dolly(0.8)  # room for the legend below
     else:
         box_source.UpdatePipeline()
         view.ResetCamera(*box_source.GetDataInformation().GetBounds())

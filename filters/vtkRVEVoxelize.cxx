@@ -67,7 +67,17 @@ vtkTypeBool vtkRVEVoxelize::ProcessRequest(vtkInformation* request, vtkInformati
     const std::array<int, 3> dims = {this->Resolution[0], this->Resolution[1], this->Resolution[2]};
     tbb::task_arena arena;
     try {
-      RVEVoxelizeInto(set, rvegen::voxel_layout(set, dims, opt), opt, image, arena);
+      // Progress per slab of z planes; an abort leaves the image empty.
+      const long long done = RVEVoxelizeInto(set, rvegen::voxel_layout(set, dims, opt), opt, image,
+                                             arena, [this](double f) {
+                                               this->UpdateProgress(f);
+                                               return !this->GetAbortExecute();
+                                             });
+      if (done < 0) {
+        image->Initialize();
+        this->SetAbortExecute(0);
+        vtkWarningMacro(<< "aborted; the image is empty");
+      }
     } catch (const std::exception& e) {
       vtkErrorMacro(<< e.what());
       return 0;

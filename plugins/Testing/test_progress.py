@@ -54,6 +54,14 @@ for r in runs:
 gen.UpdatePropertyInformation()
 check(str(gen.GetPropertyValue("Status")) == "ok", "default scene status %s" % gen.GetPropertyValue("Status"))
 
+# The RVE Voxelize filter reports its slabs too.
+vox = RVEVoxelize(Input=OutputPort(gen, 0), Resolution=[48, 48, 48])
+vvalues = []
+tag = vox.GetClientSideObject().AddObserver("ProgressEvent", lambda o, e: vvalues.append(o.GetProgress()))
+vox.UpdatePipeline()
+check(len([v for v in vvalues if 0.0 < v < 1.0]) >= 3 and vvalues[-1] == 1.0,
+      "RVE Voxelize progress: %s" % vvalues)
+
 # 2. Abort a long packing from a progress observer.
 big = RVEGenerator(SphereVolumeFraction=0.64, SphereRadius=0.0268, FibreVolumeFraction=0.0,
                    EllipsoidVolumeFraction=0.0, TimeBudget=120.0, Resolution=[16, 16, 16])

@@ -292,3 +292,122 @@ TEST(Conductivity, ProgressCanStopTheSolve) {
 
 }  // namespace
 }  // namespace rvegen
+
+#include "rvegen/homogenize/elasticity.hpp"
+
+namespace rvegen {
+namespace {
+
+// The exact stiffness of a laminate normal to x (equal layers of stiffnesses ca and cb):
+// in-plane strains (yy, zz, yz) and normal stresses (xx, xz, xy) are uniform across layers.
+Mat6 laminate_stiffness(const Mat6& ca, const Mat6& cb) {
+  const int nn[3] = {0, 4, 5}, tt[3] = {1, 2, 3};
+  auto block = [&](const Mat6& c, const int* r, const int* s) {
+    Mat3 b;
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) b(i, j) = c(r[i], s[j]);
+    return b;
+  };
+  Mat3 inv_nn = Mat3::Zero(), inv_nn_nt = Mat3::Zero(), tn_inv_nn = Mat3::Zero(),
+       schur = Mat3::Zero();
+  for (const Mat6* c : {&ca, &cb}) {
+    const Mat3 cnn = block(*c, nn, nn), cnt = block(*c, nn, tt), ctn = block(*c, tt, nn),
+               ctt = block(*c, tt, tt);
+    const Mat3 inv = cnn.inverse();
+    inv_nn += 0.5 * inv;
+    inv_nn_nt += 0.5 * inv * cnt;
+    tn_inv_nn += 0.5 * ctn * inv;
+    schur += 0.5 * (ctt - ctn * inv * cnt);
+  }
+  // sigma_n = A <eps_n> + A <Cnn^-1 Cnt> eps_t with A = <Cnn^-1>^-1;
+  // <sigma_t> = <Ctn Cnn^-1> sigma_n + <Ctt - Ctn Cnn^-1 Cnt> eps_t.
+  const Mat3 a = inv_nn.inverse();
+  const Mat3 snn = a, snt = a * inv_nn_nt, stn = tn_inv_nn * a,
+             stt = tn_inv_nn * a * inv_nn_nt + schur;
+  Mat6 out = Mat6::Zero();
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) {
+      out(nn[i], nn[j]) = snn(i, j);
+      out(nn[i], tt[j]) = snt(i, j);
+      out(tt[i], nn[j]) = stn(i, j);
+      out(tt[i], tt[j]) = stt(i, j);
+    }
+  }
+  return out;
+}
+
+TEST(Elasticity, LaminateWithInterfacesOnVoxelFacesIsExact) {
+  for (double contrast : {10.0, 1000.0}) {
+    const std::array<int, 3> d = {8, 4, 4};
+    const std::vector<double> young = laminate(d, 1.0, contrast);
+    std::vector<double> poisson(young.size());
+    for (size_t c = 0; c < young.size(); ++c) poisson[c] = young[c] > 1.0 ? 0.2 : 0.35;
+    ElasticityOptions opt;
+    opt.tolerance = 1e-12;
+    const ElasticityResult r = effective_stiffness(d, Vec3(1, 1, 1), young, poisson, opt);
+    const Mat6 exact =
+        laminate_stiffness(isotropic_stiffness(1.0, 0.35), isotropic_stiffness(contrast, 0.2));
+    const double scale = exact.cwiseAbs().maxCoeff();
+    EXPECT_LT((r.stiffness - exact).cwiseAbs().maxCoeff(), 1e-8 * scale)
+        << "contrast " << contrast << "\n"
+        << r.stiffness << "\nexact\n"
+        << exact;
+    EXPECT_TRUE(r.converged);
+  }
+}
+
+TEST(Elasticity, HomogeneousMaterialAndEngineeringConstants) {
+  const std::array<int, 3> d = {4, 4, 4};
+  const ElasticityResult r = effective_stiffness(d, Vec3(1, 2, 1), std::vector<double>(64, 70.0),
+                                                 std::vector<double>(64, 0.3));
+  EXPECT_LT((r.stiffness - isotropic_stiffness(70.0, 0.3)).cwiseAbs().maxCoeff(), 1e-10);
+  const EngineeringConstants e = engineering_constants(r.stiffness);
+  EXPECT_NEAR(e.e1, 70.0, 1e-9);
+  EXPECT_NEAR(e.e3, 70.0, 1e-9);
+  EXPECT_NEAR(e.g12, 70.0 / 2.6, 1e-9);
+  EXPECT_NEAR(e.nu12, 0.3, 1e-12);
+  EXPECT_NEAR(e.nu32, 0.3, 1e-12);
+}
+
+TEST(Elasticity, SpherePackingLiesWithinHashinShtrikmanBoundsAndIsSymmetric) {
+  double f = 0.0;
+  const std::vector<double> k = sphere_image(16, 20.0, &f);  // 20: the spheres' Young's modulus
+  std::vector<double> poisson(k.size(), 0.3);
+  const std::array<int, 3> d = {16, 16, 16};
+  ElasticityOptions opt;
+  opt.tolerance = 1e-10;
+  const ElasticityResult r = effective_stiffness(d, Vec3(1, 1, 1), k, poisson, opt);
+  const double scale = r.stiffness.cwiseAbs().maxCoeff();
+  EXPECT_LT((r.stiffness - r.stiffness.transpose()).cwiseAbs().maxCoeff(), 1e-8 * scale);
+  // Isotropic projection of the result against the bounds on the bulk and shear moduli.
+  const double three_k = r.stiffness.topLeftCorner<3, 3>().sum() / 3.0;
+  const double two_g = (r.stiffness.trace() - three_k) / 5.0;
+  const double kb = three_k / 3.0, gb = two_g / 2.0;
+  auto bulk = [](double e, double nu) { return e / (3 * (1 - 2 * nu)); };
+  auto shear = [](double e, double nu) { return e / (2 * (1 + nu)); };
+  const double km = bulk(1, 0.3), gm = shear(1, 0.3), ki = bulk(20, 0.3), gi = shear(20, 0.3);
+  const double k_low = km + f / (1 / (ki - km) + 3 * (1 - f) / (3 * km + 4 * gm));
+  const double k_up = ki + (1 - f) / (1 / (km - ki) + 3 * f / (3 * ki + 4 * gi));
+  const double g_low =
+      gm + f / (1 / (gi - gm) + 6 * (1 - f) * (km + 2 * gm) / (5 * gm * (3 * km + 4 * gm)));
+  const double g_up =
+      gi + (1 - f) / (1 / (gm - gi) + 6 * f * (ki + 2 * gi) / (5 * gi * (3 * ki + 4 * gi)));
+  EXPECT_GT(kb, k_low);
+  EXPECT_LT(kb, k_up);
+  EXPECT_GT(gb, g_low);
+  EXPECT_LT(gb, g_up);
+  EXPECT_TRUE(r.converged);
+}
+
+TEST(Elasticity, BadInputIsRefused) {
+  const std::array<int, 3> d = {2, 2, 2};
+  EXPECT_THROW(effective_stiffness(d, Vec3(1, 1, 1), std::vector<double>(8, 1.0),
+                                   std::vector<double>(8, 0.5)),
+               InputError);
+  EXPECT_THROW(effective_stiffness(d, Vec3(1, 1, 1), std::vector<double>(7, 1.0),
+                                   std::vector<double>(8, 0.3)),
+               InputError);
+}
+
+}  // namespace
+}  // namespace rvegen

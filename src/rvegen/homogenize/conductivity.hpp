@@ -19,10 +19,10 @@
 #include <vector>
 
 #include "rvegen/geometry/shapes.hpp"
+#include "rvegen/homogenize/spectral.hpp"
 
 namespace rvegen {
 
-enum class GradientScheme { kRotated, kMoulinecSuquet };
 enum class LinearSolver { kConjugateGradient, kFixedPoint };
 
 struct ConductivityOptions {

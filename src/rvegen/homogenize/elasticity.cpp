@@ -1,0 +1,161 @@
+#include "rvegen/homogenize/elasticity.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <string>
+
+#include "rvegen/model/errors.hpp"
+#include "rvegen/packing/packing.hpp"
+
+namespace rvegen {
+
+namespace {
+
+using spectral::cplx;
+const double kSqrt2 = std::sqrt(2.0);
+// Mandel index of the tensor component (i, j), and its pair.
+constexpr int kMandel[3][3] = {{0, 5, 4}, {5, 1, 3}, {4, 3, 2}};
+constexpr int kPair[6][2] = {{0, 0}, {1, 1}, {2, 2}, {1, 2}, {0, 2}, {0, 1}};
+
+// The orthogonal projection onto compatible strains at each frequency: for the unit gradient
+// multiplier k, the strains sym(k (x) u); the projection of T is sym(k (x) u) with
+// u = 2 d - conj(k) (k . d), d = T^T conj(k) (the normal equations (|k|^2 I + conj(k) k^T) / 2,
+// inverted by Sherman-Morrison with |k| = 1).
+class StrainProjection {
+ public:
+  StrainProjection(const std::array<int, 3>& dims, const Vec3& box, GradientScheme scheme,
+                   int threads)
+      : grid_(dims, box, scheme, threads) {
+    for (auto& s : spectrum_) s.resize(grid_.frequencies());
+  }
+  void apply(const double* in, double* out) {
+    const size_t n = grid_.size();
+    for (int c = 0; c < 6; ++c) grid_.forward(in + c * n, spectrum_[c].data());
+    for (size_t at = 0; at < grid_.frequencies(); ++at) {
+      const cplx* k = grid_.unit_k(at);
+      cplx t[3][3];
+      for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+          const int m = kMandel[i][j];
+          t[i][j] = i == j ? spectrum_[m][at] : spectrum_[m][at] / kSqrt2;
+        }
+      }
+      cplx d[3], kd = 0.0;
+      for (int j = 0; j < 3; ++j) {
+        d[j] = std::conj(k[0]) * t[0][j] + std::conj(k[1]) * t[1][j] + std::conj(k[2]) * t[2][j];
+        kd += k[j] * d[j];
+      }
+      cplx u[3];
+      for (int j = 0; j < 3; ++j) u[j] = 2.0 * d[j] - std::conj(k[j]) * kd;
+      for (int c = 0; c < 6; ++c) {
+        const int i = kPair[c][0], j = kPair[c][1];
+        const cplx e = 0.5 * (k[i] * u[j] + k[j] * u[i]);
+        spectrum_[c][at] = c < 3 ? e : e * kSqrt2;
+      }
+    }
+    for (int c = 0; c < 6; ++c) grid_.inverse(spectrum_[c].data(), out + c * n);
+  }
+
+ private:
+  spectral::Grid grid_;
+  std::vector<cplx> spectrum_[6];
+};
+
+}  // namespace
+
+Mat6 isotropic_stiffness(double young, double poisson) {
+  const double lambda = young * poisson / ((1.0 + poisson) * (1.0 - 2.0 * poisson));
+  const double mu = young / (2.0 * (1.0 + poisson));
+  Mat6 c = 2.0 * mu * Mat6::Identity();
+  c.topLeftCorner<3, 3>().array() += lambda;
+  return c;
+}
+
+EngineeringConstants engineering_constants(const Mat6& c) {
+  const Mat6 s = c.inverse();
+  EngineeringConstants e;
+  e.e1 = 1.0 / s(0, 0);
+  e.e2 = 1.0 / s(1, 1);
+  e.e3 = 1.0 / s(2, 2);
+  // Mandel shear compliance is 1 / (2 G).
+  e.g23 = 1.0 / (2.0 * s(3, 3));
+  e.g13 = 1.0 / (2.0 * s(4, 4));
+  e.g12 = 1.0 / (2.0 * s(5, 5));
+  e.nu12 = -s(0, 1) / s(0, 0);
+  e.nu13 = -s(0, 2) / s(0, 0);
+  e.nu23 = -s(1, 2) / s(1, 1);
+  e.nu21 = -s(1, 0) / s(1, 1);
+  e.nu31 = -s(2, 0) / s(2, 2);
+  e.nu32 = -s(2, 1) / s(2, 2);
+  return e;
+}
+
+ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3& box_size,
+                                     const std::vector<double>& young,
+                                     const std::vector<double>& poisson,
+                                     const ElasticityOptions& opt) {
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int a = 0; a < 3; ++a) {
+    if (dims[a] < 1) throw InputError("homogenization: voxels per axis must be >= 1");
+    if (!(box_size[a] > 0.0)) throw InputError("homogenization: box size must be positive");
+  }
+  const size_t n = static_cast<size_t>(dims[0]) * dims[1] * dims[2];
+  if (young.size() != n || poisson.size() != n) {
+    throw InputError("homogenization: " + std::to_string(young.size()) + " Young's moduli and " +
+                     std::to_string(poisson.size()) + " Poisson's ratios for " + std::to_string(n) +
+                     " voxels");
+  }
+  // Lame constants per voxel.
+  std::vector<double> lambda(n), mu(n);
+  for (size_t i = 0; i < n; ++i) {
+    if (!(young[i] >= 0.0) || !std::isfinite(young[i])) {
+      throw InputError("homogenization: Young's moduli must be finite and >= 0");
+    }
+    if (!(poisson[i] > -1.0 && poisson[i] < 0.5)) {
+      throw InputError("homogenization: Poisson's ratios must lie in (-1, 0.5)");
+    }
+    lambda[i] = young[i] * poisson[i] / ((1.0 + poisson[i]) * (1.0 - 2.0 * poisson[i]));
+    mu[i] = young[i] / (2.0 * (1.0 + poisson[i]));
+  }
+  // Stress of a strain field (6 Mandel components, component-major).
+  auto stress = [&](const std::vector<double>& e, std::vector<double>* s) {
+    for (size_t i = 0; i < n; ++i) {
+      const double tr = e[i] + e[n + i] + e[2 * n + i];
+      for (int c = 0; c < 6; ++c) {
+        (*s)[c * n + i] = 2.0 * mu[i] * e[c * n + i] + (c < 3 ? lambda[i] * tr : 0.0);
+      }
+    }
+  };
+  StrainProjection project(dims, box_size, opt.scheme, opt.threads);
+  ElasticityResult res;
+  std::vector<double> mean(6 * n), x(6 * n), b(6 * n), tmp(6 * n), sig(6 * n);
+  for (int load = 0; load < 6; ++load) {
+    std::fill(mean.begin(), mean.end(), 0.0);
+    std::fill(mean.begin() + load * n, mean.begin() + (load + 1) * n, 1.0);
+    stress(mean, &tmp);
+    project.apply(tmp.data(), b.data());
+    for (double& v : b) v = -v;
+    const spectral::CgOutcome out = spectral::conjugate_gradients(
+        [&](const std::vector<double>& p, std::vector<double>* ap) {
+          stress(p, &tmp);
+          project.apply(tmp.data(), ap->data());
+        },
+        b, &x, opt.tolerance, opt.max_iterations,
+        [&](int it, double rel) { return !opt.progress || opt.progress(load, it, rel); });
+    if (out.stopped) throw Cancelled();
+    res.iterations[load] = out.iterations;
+    res.residual[load] = out.residual;
+    if (out.iterations > 0 && !(out.residual < opt.tolerance)) res.converged = false;
+    for (size_t i = 0; i < 6 * n; ++i) tmp[i] = mean[i] + x[i];
+    stress(tmp, &sig);
+    for (int c = 0; c < 6; ++c) {
+      double s = 0.0;
+      for (size_t i = 0; i < n; ++i) s += sig[c * n + i];
+      res.stiffness(c, load) = s / static_cast<double>(n);
+    }
+  }
+  res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return res;
+}
+
+}  // namespace rvegen

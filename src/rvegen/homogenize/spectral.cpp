@@ -1,0 +1,148 @@
+#include "rvegen/homogenize/spectral.hpp"
+
+#include <fftw3.h>
+
+#include <algorithm>
+#include <cmath>
+#include <mutex>
+#include <thread>
+
+namespace rvegen::spectral {
+
+namespace {
+
+// A frequency whose |k|^2 is below this (relative to the largest) has no gradient.
+constexpr double kNoGradient = 1e-14;
+
+// FFTW's planner is not thread-safe, and its threads are set up once per process.
+std::mutex& planner_mutex() {
+  static std::mutex m;
+  return m;
+}
+
+double dot(const std::vector<double>& a, const std::vector<double>& b) {
+  double s = 0.0;
+  for (size_t i = 0; i < a.size(); ++i) s += a[i] * b[i];
+  return s;
+}
+
+}  // namespace
+
+Grid::Grid(const std::array<int, 3>& dims, const Vec3& box, GradientScheme scheme, int threads)
+    : n_(static_cast<size_t>(dims[0]) * dims[1] * dims[2]),
+      nc_(static_cast<size_t>(dims[0] / 2 + 1) * dims[1] * dims[2]) {
+  real_ = fftw_alloc_real(n_);
+  spectrum_ = reinterpret_cast<cplx*>(fftw_alloc_complex(nc_));
+  {
+    std::lock_guard<std::mutex> lock(planner_mutex());
+    static const bool threads_ready = fftw_init_threads() != 0;
+    if (threads_ready) {
+      const unsigned all = std::max(1u, std::thread::hardware_concurrency());
+      fftw_plan_with_nthreads(threads > 0 ? threads : static_cast<int>(all));
+    }
+    // x fastest: FFTW's last (fastest) dimension is x. FFTW_ESTIMATE: the same plan, hence the
+    // same bytes, on every run.
+    auto* spec = reinterpret_cast<fftw_complex*>(spectrum_);
+    forward_ = fftw_plan_dft_r2c_3d(dims[2], dims[1], dims[0], real_, spec, FFTW_ESTIMATE);
+    inverse_ = fftw_plan_dft_c2r_3d(dims[2], dims[1], dims[0], spec, real_, FFTW_ESTIMATE);
+  }
+  unit_k_.resize(3 * nc_);
+  const int nx = dims[0], ny = dims[1], nz = dims[2];
+  const int n[3] = {nx, ny, nz};
+  double largest = 0.0;
+  for (int kz = 0; kz < nz; ++kz) {
+    for (int ky = 0; ky < ny; ++ky) {
+      for (int kx = 0; kx <= nx / 2; ++kx) {
+        const int idx[3] = {kx, ky, kz};
+        cplx k[3], avg[3];
+        for (int a = 0; a < 3; ++a) {
+          const int xi = idx[a] <= n[a] / 2 ? idx[a] : idx[a] - n[a];
+          const double t = 2.0 * M_PI * xi / n[a];
+          if (scheme == GradientScheme::kMoulinecSuquet) {
+            // The continuous gradient; Nyquist frequencies (even N) carry no gradient.
+            const bool nyquist = n[a] % 2 == 0 && 2 * std::abs(xi) == n[a];
+            k[a] = nyquist ? cplx(0.0) : cplx(0.0, 2.0 * M_PI * xi / box[a]);
+          } else {
+            // Willot's rotated scheme: a difference along a, averages along the other axes.
+            k[a] = (std::polar(1.0, t) - 1.0) * (n[a] / box[a]);
+            avg[a] = 0.5 * (1.0 + std::polar(1.0, t));
+          }
+        }
+        if (scheme == GradientScheme::kRotated) {
+          k[0] *= avg[1] * avg[2];
+          k[1] *= avg[0] * avg[2];
+          k[2] *= avg[0] * avg[1];
+        }
+        const size_t at = (static_cast<size_t>(kz) * ny + ky) * (nx / 2 + 1) + kx;
+        for (int a = 0; a < 3; ++a) unit_k_[3 * at + a] = k[a];
+        largest = std::max(largest, std::norm(k[0]) + std::norm(k[1]) + std::norm(k[2]));
+      }
+    }
+  }
+  for (size_t at = 0; at < nc_; ++at) {
+    cplx* k = &unit_k_[3 * at];
+    const double norm2 = std::norm(k[0]) + std::norm(k[1]) + std::norm(k[2]);
+    const double s = norm2 > kNoGradient * largest ? 1.0 / std::sqrt(norm2) : 0.0;
+    for (int a = 0; a < 3; ++a) k[a] *= s;
+  }
+}
+
+Grid::~Grid() {
+  {
+    std::lock_guard<std::mutex> lock(planner_mutex());
+    fftw_destroy_plan(static_cast<fftw_plan>(forward_));
+    fftw_destroy_plan(static_cast<fftw_plan>(inverse_));
+  }
+  fftw_free(spectrum_);
+  fftw_free(real_);
+}
+
+void Grid::forward(const double* field, cplx* out) {
+  std::copy(field, field + n_, real_);
+  fftw_execute_dft_r2c(static_cast<fftw_plan>(forward_), real_,
+                       reinterpret_cast<fftw_complex*>(out));
+}
+
+void Grid::inverse(cplx* in, double* field) {
+  fftw_execute_dft_c2r(static_cast<fftw_plan>(inverse_), reinterpret_cast<fftw_complex*>(in),
+                       real_);
+  const double inv_n = 1.0 / static_cast<double>(n_);
+  for (size_t i = 0; i < n_; ++i) field[i] = real_[i] * inv_n;
+}
+
+CgOutcome conjugate_gradients(
+    const std::function<void(const std::vector<double>&, std::vector<double>*)>& apply,
+    const std::vector<double>& b, std::vector<double>* x, double tolerance, int max_iterations,
+    const std::function<bool(int, double)>& progress) {
+  CgOutcome out;
+  std::fill(x->begin(), x->end(), 0.0);
+  const double bnorm = std::sqrt(dot(b, b));
+  if (!(bnorm > 0.0)) return out;
+  std::vector<double> r = b, p = b, ap(b.size());
+  double rr = dot(r, r);
+  out.residual = 1.0;
+  for (int it = 1; it <= max_iterations; ++it) {
+    apply(p, &ap);
+    const double pap = dot(p, ap);
+    if (!(pap > 0.0)) break;  // nothing left to reduce (round-off)
+    const double alpha = rr / pap;
+    for (size_t i = 0; i < r.size(); ++i) {
+      (*x)[i] += alpha * p[i];
+      r[i] -= alpha * ap[i];
+    }
+    const double rr_new = dot(r, r);
+    out.iterations = it;
+    out.residual = std::sqrt(rr_new) / bnorm;
+    if (progress && !progress(it, out.residual)) {
+      out.stopped = true;
+      return out;
+    }
+    if (out.residual < tolerance) break;
+    const double beta = rr_new / rr;
+    rr = rr_new;
+    for (size_t i = 0; i < r.size(); ++i) p[i] = r[i] + beta * p[i];
+  }
+  return out;
+}
+
+}  // namespace rvegen::spectral

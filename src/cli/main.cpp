@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "effective.hpp"
 #include "rvegen/io/hdf5_writer.hpp"
 #include "rvegen/io/inclusions_json.hpp"
 #include "rvegen/io/report.hpp"
@@ -293,7 +294,7 @@ int cmd_generate(const std::vector<std::string>& args) {
         levelsets.data.reset();  // the report keeps the grid summaries only
       });
     rvegen::VoxelImage image;
-    if (want.image()) {
+    if (want.image() || scene.homogenization.any()) {
       timed("voxels", [&] {
         rvegen::VoxelOptions vopt;
         vopt.partial_volume = scene.partial_volume;
@@ -311,13 +312,22 @@ int cmd_generate(const std::vector<std::string>& args) {
         out.write_with("material.vtk", [&](std::FILE* f) { rvegen::write_material_vtk(image, f); });
       });
     }
+    nlohmann::ordered_json effective;
+    if (scene.homogenization.any()) {
+      timed("homogenization",
+            [&] { effective = rvegen::cli::effective_properties(scene, image, progress); });
+    }
     rvegen::ReportStatistics stats;
     timed("statistics", [&] { stats = rvegen::report_statistics(scene, result); });
     auto report_now = [&] {
       timings.total_seconds = seconds_since(t0);
       timings.peak_memory_mb = peak_memory_mb();
-      return rvegen::report_json(scene, result, want.image() ? &image : nullptr, timings,
-                                 &levelsets, &stats);
+      std::string text = rvegen::report_json(scene, result, want.image() ? &image : nullptr,
+                                             timings, &levelsets, &stats);
+      if (effective.is_null()) return text;
+      nlohmann::ordered_json report = nlohmann::ordered_json::parse(text);
+      report["effective"] = effective;
+      return report.dump(2) + "\n";
     };
     // rve.h5 carries the report as it stood before rve.h5 itself was written.
     if (want.h5) {

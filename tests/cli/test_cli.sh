@@ -330,6 +330,42 @@ grep -q "at least 1000 overlapping pairs" "$WORK/last.out" || fail "check pile: 
 echo '{"format":"rvegen.inclusions/1","box":{"size":[1,1,1]},"inclusions":[{"id":0,"shape":"sphere","center":[0.5,0.5,0.5],"radius":50}]}' >"$WORK/giant.json"
 expect_rc 2 "$RVEGEN" check "$WORK/giant.json"
 
+# Effective properties in the same run ("materials" + "homogenization"): the report's tensors
+# are symmetric and lie within the Hashin-Shtrikman bounds it states; equal phases give their
+# own properties back exactly; missing or bad materials are named, nothing written.
+HOM_FAM='"families":[{"name":"spheres","shape":"sphere","radius":0.1,"volume_fraction":0.3}],"voxels":{"resolution":24}'
+echo "{$BOX,\"seed\":3,$HOM_FAM,\"materials\":{\"matrix\":{\"conductivity\":1,\"young\":3,\"poisson\":0.35},\"spheres\":{\"conductivity\":10,\"young\":70,\"poisson\":0.2}},\"homogenization\":{\"physics\":[\"conductivity\",\"elasticity\"]}}" >"$WORK/hom.json"
+expect_rc 0 "$RVEGEN" generate "$WORK/hom.json" -o "$WORK/hom"
+grep -q "conductivity: \|homogenization: " "$WORK/last.err" || fail "no homogenization progress: $(cat "$WORK/last.err")"
+$py - "$WORK/hom/report.json" <<'PY' || fail "effective properties in report.json"
+import json, sys
+e = json.load(open(sys.argv[1]))["effective"]
+c = e["conductivity"]
+t = c["tensor"]
+assert c["converged"], c
+assert all(abs(t[i][j] - t[j][i]) < 1e-4 * t[0][0] for i in range(3) for j in range(3)), t
+lo, hi = c["bounds"]["hashin_shtrikman"]
+assert lo < c["mean_of_diagonal"] < hi, (lo, c["mean_of_diagonal"], hi)
+s = e["stiffness"]
+assert s["converged"] and len(s["tensor"]) == 6
+for m in ("bulk", "shear"):
+    lo, hi = s["bounds"][m]["hashin_shtrikman"]
+    assert lo < s["isotropic_projection"][m] < hi, (m, lo, s["isotropic_projection"][m], hi)
+assert 0.2 < s["engineering_constants"]["nu12"] < 0.35
+PY
+echo "{$BOX,\"seed\":3,$HOM_FAM,\"materials\":{\"matrix\":{\"conductivity\":2.5},\"spheres\":{\"conductivity\":2.5}},\"homogenization\":{\"physics\":[\"conductivity\"]}}" >"$WORK/hom_equal.json"
+expect_rc 0 "$RVEGEN" generate -q "$WORK/hom_equal.json" -o "$WORK/hom_equal"
+$py -c "
+import json, sys
+t = json.load(open('$WORK/hom_equal/report.json'))['effective']['conductivity']['tensor']
+sys.exit(0 if all(abs(t[i][j] - (2.5 if i == j else 0.0)) < 1e-10 for i in range(3) for j in range(3)) else 1)" \
+  || fail "equal phases do not give their conductivity back"
+bad hom_missing "{$BOX,$HOM_FAM,\"materials\":{\"matrix\":{\"conductivity\":1}},\"homogenization\":{\"physics\":[\"conductivity\"]}}" "materials.spheres.conductivity: needed"
+bad hom_unknown_phase "{$BOX,$HOM_FAM,\"materials\":{\"matrx\":{\"conductivity\":1}}}" "materials.matrx: no phase of this name"
+bad hom_poisson "{$BOX,$HOM_FAM,\"materials\":{\"matrix\":{\"young\":1,\"poisson\":0.6}}}" "materials.matrix.poisson"
+bad hom_key "{$BOX,$HOM_FAM,\"materials\":{\"matrix\":{\"conductivty\":1}}}" 'did you mean "conductivity"'
+bad hom_physics "{$BOX,$HOM_FAM,\"homogenization\":{\"physics\":[\"thermal\"]}}" "unknown physics"
+
 if [ "$fails" -ne 0 ]; then
   echo "$fails failure(s)"
   exit 1

@@ -256,7 +256,7 @@ Scene parse_scene(const std::string& text) {
   if (!root.is_object()) fail("(root)", "expected an object");
   only_keys(root,
             {"box", "seed", "method", "min_gap", "families", "voxels", "levelsets", "surfaces",
-             "md", "rsa", "outputs"},
+             "md", "rsa", "outputs", "materials", "homogenization"},
             "");
   Scene s;
   s.box = box(require(root, "box", ""), "box");
@@ -371,6 +371,52 @@ Scene parse_scene(const std::string& text) {
     if (m.contains("mesh")) s.outputs.mesh = boolean(m["mesh"], "surfaces.mesh");
     if (m.contains("chord_error")) {
       s.surface_chord_error = number(m["chord_error"], "surfaces.chord_error");
+    }
+  }
+  if (root.contains("materials")) {
+    // Phase properties: {"matrix": {"conductivity": k, "young": E, "poisson": nu}, ...};
+    // names and ranges are validate_scene's.
+    const Json& m = root["materials"];
+    if (!m.is_object()) fail("materials", "expected an object of phase names");
+    for (auto it = m.begin(); it != m.end(); ++it) {
+      const std::string p = "materials." + it.key();
+      only_keys(it.value(), {"conductivity", "young", "poisson"}, p);
+      Material mat;
+      if (it.value().contains("conductivity"))
+        mat.conductivity = number(it.value()["conductivity"], p + ".conductivity");
+      if (it.value().contains("young")) mat.young = number(it.value()["young"], p + ".young");
+      if (it.value().contains("poisson"))
+        mat.poisson = number(it.value()["poisson"], p + ".poisson");
+      s.materials.emplace_back(it.key(), mat);
+    }
+  }
+  if (root.contains("homogenization")) {
+    const Json& h = root["homogenization"];
+    only_keys(h, {"physics", "scheme", "solver", "tolerance", "max_iterations"}, "homogenization");
+    HomogenizationSpec& spec = s.homogenization;
+    if (h.contains("physics")) {
+      const Json& ph = h["physics"];
+      if (!ph.is_array()) fail("homogenization.physics", "expected an array (conductivity, elasticity)");
+      for (size_t k = 0; k < ph.size(); ++k) {
+        const std::string q = "homogenization.physics[" + std::to_string(k) + "]";
+        const std::string name = string(ph[k], q);
+        if (name == "conductivity") {
+          spec.conductivity = true;
+        } else if (name == "elasticity") {
+          spec.elasticity = true;
+        } else {
+          fail(q, "unknown physics \"" + name + "\" (conductivity, elasticity)");
+        }
+      }
+    }
+    if (h.contains("scheme")) spec.scheme = string(h["scheme"], "homogenization.scheme");
+    if (h.contains("solver")) spec.solver = string(h["solver"], "homogenization.solver");
+    if (h.contains("tolerance")) spec.tolerance = number(h["tolerance"], "homogenization.tolerance");
+    if (h.contains("max_iterations")) {
+      const double it = number(h["max_iterations"], "homogenization.max_iterations");
+      if (it != std::floor(it) || it < 1 || it > 1e6)
+        fail("homogenization.max_iterations", "must be an integer in [1, 1e6]");
+      spec.max_iterations = static_cast<int>(it);
     }
   }
   if (root.contains("outputs")) {
@@ -492,6 +538,28 @@ std::string scene_to_json(const Scene& s) {
   root["levelsets"] = {{"half_width", s.levelset_half_width}};
   if (s.levelset_voxel_size > 0.0) root["levelsets"]["voxel_size"] = s.levelset_voxel_size;
   root["surfaces"] = {{"clip", s.clip_surfaces}, {"chord_error", s.surface_chord_error}};
+  if (!s.materials.empty()) {
+    OJson m = OJson::object();
+    for (const auto& [name, mat] : s.materials) {
+      OJson one = OJson::object();
+      if (mat.conductivity >= 0.0) one["conductivity"] = mat.conductivity;
+      if (mat.young >= 0.0) one["young"] = mat.young;
+      if (mat.poisson > -1.0) one["poisson"] = mat.poisson;
+      m[name] = one;
+    }
+    root["materials"] = m;
+  }
+  if (s.homogenization.any()) {
+    const HomogenizationSpec& h = s.homogenization;
+    OJson physics = OJson::array();
+    if (h.conductivity) physics.push_back("conductivity");
+    if (h.elasticity) physics.push_back("elasticity");
+    root["homogenization"] = {{"physics", physics},
+                              {"scheme", h.scheme},
+                              {"solver", h.solver},
+                              {"tolerance", h.tolerance},
+                              {"max_iterations", h.max_iterations}};
+  }
   if (!(s.outputs == Outputs{})) {
     OJson names = OJson::array();
     const Outputs& o = s.outputs;

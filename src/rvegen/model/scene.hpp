@@ -5,6 +5,7 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "rvegen/geometry/random.hpp"
@@ -116,6 +117,26 @@ struct Outputs {
   bool image() const { return voxels || h5 || amitex; }
 };
 
+/// Properties of one phase (a negative value: not given). Isotropic conductivity and isotropic
+/// elasticity (Young's modulus, Poisson's ratio).
+struct Material {
+  double conductivity = -1.0;
+  double young = -1.0;
+  double poisson = -2.0;  // below -1: not given
+};
+
+/// What `rvegen generate` computes of the packed RVE's effective properties (JSON
+/// "homogenization"); nothing unless a physics is asked for.
+struct HomogenizationSpec {
+  bool conductivity = false;
+  bool elasticity = false;
+  std::string scheme = "rotated";  // "rotated" (Willot), "moulinec_suquet"
+  std::string solver = "cg";       // "cg", "fixed_point" (conductivity only)
+  double tolerance = 1e-6;
+  int max_iterations = 1000;
+  bool any() const { return conductivity || elasticity; }
+};
+
 /// What only the representations of a packed set depend on.
 struct OutputSpec {
   Outputs outputs;
@@ -131,6 +152,13 @@ struct OutputSpec {
   /// Surfaces: largest distance between a tessellated surface and the true one, in voxels of
   /// the image (the smallest voxel size); each inclusion gets the segments this needs.
   double surface_chord_error = 0.1;
+  /// Phase properties keyed by "matrix", a family's name, or "<family name>.coating" (JSON
+  /// "materials"), and what to compute with them.
+  std::vector<std::pair<std::string, Material>> materials;
+  HomogenizationSpec homogenization;
+  /// The material given for "matrix", a family's name or "<family name>.coating"; null when
+  /// the scene gives none.
+  const Material* material(const std::string& key) const;
 };
 
 /// A whole scene: the packing and the outputs.

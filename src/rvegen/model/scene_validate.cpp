@@ -82,7 +82,73 @@ double mean_smallest_size(const Family& f) {
   return 0.0;
 }
 
+// "materials" and "homogenization": known phase names, properties in range, and every phase
+// the image can hold has what the asked physics need.
+void validate_materials(const Scene& s) {
+  std::vector<std::string> names = {"matrix"};
+  for (const Family& f : s.families) {
+    names.push_back(f.name);
+    names.push_back(f.name + ".coating");
+  }
+  for (size_t m = 0; m < s.materials.size(); ++m) {
+    const std::string& name = s.materials[m].first;
+    const Material& mat = s.materials[m].second;
+    const std::string p = "materials." + name;
+    if (std::find(names.begin(), names.end(), name) == names.end()) {
+      std::string list;
+      for (const std::string& n : names) list += (list.empty() ? "" : ", ") + n;
+      fail(p, "no phase of this name (phases: " + list + ")");
+    }
+    for (size_t o = 0; o < m; ++o) {
+      if (s.materials[o].first == name) fail(p, "given twice");
+    }
+    if (mat.conductivity != -1.0 && !(mat.conductivity >= 0.0 && std::isfinite(mat.conductivity)))
+      fail(p + ".conductivity", "must be finite and >= 0");
+    if (mat.young != -1.0 && !(mat.young >= 0.0 && std::isfinite(mat.young)))
+      fail(p + ".young", "must be finite and >= 0");
+    if (mat.poisson != -2.0 && !(mat.poisson > -1.0 && mat.poisson < 0.5))
+      fail(p + ".poisson", "must lie in (-1, 0.5)");
+    if ((mat.young >= 0.0) != (mat.poisson > -1.0))
+      fail(p, "give both \"young\" and \"poisson\" (isotropic elasticity), or neither");
+  }
+  const HomogenizationSpec& h = s.homogenization;
+  if (h.scheme != "rotated" && h.scheme != "moulinec_suquet")
+    fail("homogenization.scheme", "unknown scheme \"" + h.scheme + "\" (rotated, moulinec_suquet)");
+  if (h.solver != "cg" && h.solver != "fixed_point")
+    fail("homogenization.solver", "unknown solver \"" + h.solver + "\" (cg, fixed_point)");
+  if (h.solver == "fixed_point" && h.elasticity)
+    fail("homogenization.solver", "fixed_point is for conductivity only; use cg");
+  if (!(h.tolerance > 0.0 && h.tolerance < 1.0))
+    fail("homogenization.tolerance", "must lie in (0, 1)");
+  if (h.max_iterations < 1 || h.max_iterations > 1000000)
+    fail("homogenization.max_iterations", "must be an integer in [1, 1e6]");
+  if (!h.any()) return;
+  // The phases the image holds: the matrix, every family's cores, the coated families' shells.
+  std::vector<std::string> needed = {"matrix"};
+  for (const Family& f : s.families) {
+    needed.push_back(f.name);
+    if (f.modifiers.coating > 0.0) needed.push_back(f.name + ".coating");
+  }
+  for (const std::string& name : needed) {
+    const Material* mat = nullptr;
+    for (const auto& m : s.materials) {
+      if (m.first == name) mat = &m.second;
+    }
+    if (h.conductivity && (!mat || mat->conductivity < 0.0))
+      fail("materials." + name + ".conductivity", "needed by homogenization.physics conductivity");
+    if (h.elasticity && (!mat || mat->young < 0.0))
+      fail("materials." + name + ".young", "needed (with poisson) by homogenization.physics elasticity");
+  }
+}
+
 }  // namespace
+
+const Material* OutputSpec::material(const std::string& key) const {
+  for (const auto& m : materials) {
+    if (m.first == key) return &m.second;
+  }
+  return nullptr;
+}
 
 void validate_scene(const Scene& s) {
   check_box(s.box, "box");
@@ -253,6 +319,7 @@ void validate_scene(const Scene& s) {
                   packed, limit);
     fail("families", buf);
   }
+  validate_materials(s);
 }
 
 }  // namespace rvegen

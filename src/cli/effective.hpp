@@ -1,0 +1,20 @@
+// The command line's homogenization step: per-voxel phase properties from the scene's
+// "materials", the FFT solves asked for in "homogenization", and the report's "effective"
+// object with the bounds beside the results.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include "rvegen/model/scene.hpp"
+#include "rvegen/packing/packing.hpp"
+#include "rvegen/raster/voxelize.hpp"
+
+namespace rvegen::cli {
+
+/// Solves what scene.homogenization asks for on `image` (labels at voxel centres: each voxel
+/// takes its phase's properties) and returns the report's "effective" object. Progress lines
+/// go to `progress` (about once a second).
+nlohmann::ordered_json effective_properties(const Scene& scene, const VoxelImage& image,
+                                            const ProgressFn& progress);
+
+}  // namespace rvegen::cli

@@ -2,16 +2,20 @@
  * @class vtkRVEGenerator
  * @brief Generates a Representative Volume Element: inclusions packed without overlap.
  *
- * Output port 0: vtkPolyData of the inclusion surfaces (cell data inclusion_id, family, shape,
- *                phase, axis).
+ * Output port 0: vtkPolyData, one vertex per inclusion and periodic image with glyph
+ *                attributes; field data rvegen_inclusions (the inclusion list) and status.
  * Output port 1: vtkImageData with one cell per voxel (cell data phase, inclusion_id and
  *                fraction, the partial volume of the inclusions; field data phase_names).
  * Output port 2: vtkPolyData of the level-set surfaces (wavy, deformed and coated inclusions:
  *                OpenVDB narrow-band grids meshed at their zero level); empty without them.
- * Only the port that is asked for is computed.
+ * Output port 3: vtkPolyData of the tessellated surfaces: of every inclusion up to MeshUpTo
+ *                inclusions (or with Mesh), otherwise of the modified ones (cell data
+ *                inclusion_id, family, shape, phase, axis).
+ * Only the port that is asked for is computed. The packing reports its progress
+ * (UpdateProgress) and stops at its next check when AbortExecute is set.
  * Properties describe the built-in three-family scene (spheres, fibres, ellipsoids); a scene
  * file (JSON, the format `rvegen generate` reads) overrides all of them when set.
- * The packing is computed once per change of the properties and shared by both ports.
+ * The packing is computed once per change of the properties and shared by all ports.
  */
 #ifndef vtkRVEGenerator_h
 #define vtkRVEGenerator_h

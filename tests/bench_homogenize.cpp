@@ -1,0 +1,118 @@
+// Homogenization benchmark: cost of the FFT solvers against the FFTs alone, iterations against
+// contrast, and the whole elasticity solve. Prints a table (tab-separated):
+//   physics  res  contrast  threads  seconds  iterations  s_per_iteration  fft_s  ratio  peak_MiB
+// fft_s is the time of the transforms one iteration needs (3 or 6 forward and as many inverse)
+// on the same grid in the same run; ratio = s_per_iteration / fft_s (the FFTs are the floor).
+// peak_MiB is the process's peak resident memory after the row (it only grows: run one size
+// per process to read bytes per voxel).
+// The image: spheres packed at 0.3 (radius 0.12 of a unit box, seed 7), labels at voxel centres.
+// usage: rvegen_bench_homogenize RES [conductivity|elasticity] [THREADS] [CONTRAST ...]
+#include <sys/resource.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include "rvegen/homogenize/conductivity.hpp"
+#include "rvegen/homogenize/elasticity.hpp"
+#include "rvegen/model/scene.hpp"
+#include "rvegen/packing/packing.hpp"
+#include "rvegen/raster/voxelize.hpp"
+
+namespace {
+
+double peak_mib() {
+  struct rusage ru {};
+  getrusage(RUSAGE_SELF, &ru);
+  return ru.ru_maxrss / 1024.0;
+}
+
+double seconds_of(const std::function<void()>& f) {
+  const auto t = std::chrono::steady_clock::now();
+  f();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2) {
+    std::fprintf(stderr, "usage: %s RES [conductivity|elasticity] [THREADS] [CONTRAST ...]\n",
+                 argv[0]);
+    return 2;
+  }
+  const int res = std::atoi(argv[1]);
+  const std::string physics = argc > 2 ? argv[2] : "conductivity";
+  const int threads = argc > 3 ? std::atoi(argv[3]) : 0;
+  std::vector<double> contrasts;
+  for (int i = 4; i < argc; ++i) contrasts.push_back(std::atof(argv[i]));
+  if (contrasts.empty()) contrasts = {10.0, 100.0, 1000.0};
+
+  rvegen::Scene s;
+  s.box.size = rvegen::Vec3(1, 1, 1);
+  s.seed = 7;
+  rvegen::Family sph;
+  sph.name = "spheres";
+  sph.shape = rvegen::ShapeKind::Sphere;
+  sph.radius = 0.12;
+  sph.volume_fraction = 0.3;
+  s.families = {sph};
+  const rvegen::PackingResult packed = rvegen::generate(s);
+  rvegen::VoxelOptions vopt;
+  vopt.partial_volume = false;
+  const rvegen::VoxelImage img = rvegen::voxelize(packed.set, {res, res, res}, vopt);
+  const std::array<int, 3> dims = {res, res, res};
+  const size_t n = img.phase.size();
+
+  // The transforms of one iteration, alone.
+  const int fields = physics == "elasticity" ? 6 : 3;
+  double fft_s = 0.0;
+  {
+    rvegen::spectral::Grid grid(dims, s.box.size, rvegen::GradientScheme::kRotated, threads);
+    std::vector<double> field(n, 1.0);
+    std::vector<rvegen::spectral::cplx> spec(grid.frequencies());
+    const int reps = 5;
+    fft_s = seconds_of([&] {
+              for (int r = 0; r < reps; ++r) {
+                for (int c = 0; c < fields; ++c) {
+                  grid.forward(field.data(), spec.data());
+                  grid.inverse(spec.data(), field.data());
+                }
+              }
+            }) /
+            reps;
+  }
+  std::printf(
+      "physics\tres\tcontrast\tthreads\tseconds\titerations\ts_per_iteration\tfft_s\tratio\tpeak_"
+      "MiB\n");
+  for (double contrast : contrasts) {
+    int iterations = 0;
+    double seconds = 0.0;
+    if (physics == "elasticity") {
+      std::vector<double> young(n), poisson(n, 0.3);
+      for (size_t i = 0; i < n; ++i) young[i] = img.phase[i] == 0 ? 1.0 : contrast;
+      rvegen::ElasticityOptions opt;
+      opt.tolerance = 1e-6;
+      opt.threads = threads;
+      const rvegen::ElasticityResult r =
+          rvegen::effective_stiffness(dims, s.box.size, young, poisson, opt);
+      for (int it : r.iterations) iterations += it;
+      seconds = r.seconds;
+    } else {
+      std::vector<double> k(n);
+      for (size_t i = 0; i < n; ++i) k[i] = img.phase[i] == 0 ? 1.0 : contrast;
+      rvegen::ConductivityOptions opt;
+      opt.tolerance = 1e-6;
+      opt.threads = threads;
+      const rvegen::ConductivityResult r = rvegen::effective_conductivity(dims, s.box.size, k, opt);
+      for (int it : r.iterations) iterations += it;
+      seconds = r.seconds;
+    }
+    const double per = seconds / std::max(1, iterations);
+    std::printf("%s\t%d\t%g\t%d\t%.3f\t%d\t%.4f\t%.4f\t%.2f\t%.0f\n", physics.c_str(), res,
+                contrast, threads, seconds, iterations, per, fft_s, per / fft_s, peak_mib());
+  }
+  return 0;
+}

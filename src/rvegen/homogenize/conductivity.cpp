@@ -26,12 +26,14 @@ class GradientProjection {
   void apply(const double* in, double* out) {
     const size_t n = grid_.size();
     for (int a = 0; a < 3; ++a) grid_.forward(in + a * n, spectrum_[a].data());
-    for (size_t at = 0; at < grid_.frequencies(); ++at) {
-      const cplx* k = grid_.unit_k(at);
-      const cplx s = std::conj(k[0]) * spectrum_[0][at] + std::conj(k[1]) * spectrum_[1][at] +
-                     std::conj(k[2]) * spectrum_[2][at];
-      for (int a = 0; a < 3; ++a) spectrum_[a][at] = k[a] * s;
-    }
+    spectral::parallel_blocks(grid_.frequencies(), [&](size_t lo, size_t hi) {
+      for (size_t at = lo; at < hi; ++at) {
+        const cplx* k = grid_.unit_k(at);
+        const cplx s = std::conj(k[0]) * spectrum_[0][at] + std::conj(k[1]) * spectrum_[1][at] +
+                       std::conj(k[2]) * spectrum_[2][at];
+        for (int a = 0; a < 3; ++a) spectrum_[a][at] = k[a] * s;
+      }
+    });
     for (int a = 0; a < 3; ++a) grid_.inverse(spectrum_[a].data(), out + a * n);
   }
 
@@ -40,11 +42,7 @@ class GradientProjection {
   std::vector<cplx> spectrum_[3];
 };
 
-double dot(const std::vector<double>& a, const std::vector<double>& b) {
-  double s = 0.0;
-  for (size_t i = 0; i < a.size(); ++i) s += a[i] * b[i];
-  return s;
-}
+using spectral::dot;
 
 }  // namespace
 
@@ -71,12 +69,15 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
   }
   GradientProjection project(dims, box_size, opt.scheme, opt.threads);
   ConductivityResult res;
-  std::vector<double> e(3 * n), x(3 * n), r(3 * n), b(3 * n), tmp(3 * n);
+  std::vector<double> x(3 * n), tmp(3 * n), e, r;  // e, r: the fixed-point scheme's
+  if (opt.solver == LinearSolver::kFixedPoint) e.resize(3 * n), r.resize(3 * n);
   // k times a 3-component field.
   auto times_k = [&](const std::vector<double>& f, std::vector<double>* out) {
-    for (int a = 0; a < 3; ++a) {
-      for (size_t i = 0; i < n; ++i) (*out)[a * n + i] = conductivity[i] * f[a * n + i];
-    }
+    spectral::parallel_blocks(n, [&](size_t lo, size_t hi) {
+      for (int a = 0; a < 3; ++a) {
+        for (size_t i = lo; i < hi; ++i) (*out)[a * n + i] = conductivity[i] * f[a * n + i];
+      }
+    });
   };
   for (int load = 0; load < 3; ++load) {
     // Mean gradient E = unit vector along `load`; unknown: the fluctuation x (a gradient field
@@ -84,6 +85,7 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
     std::vector<double> mean(3 * n, 0.0);
     std::fill(mean.begin() + load * n, mean.begin() + (load + 1) * n, 1.0);
     times_k(mean, &tmp);
+    std::vector<double> b(3 * n);
     project.apply(tmp.data(), b.data());
     for (double& v : b) v = -v;
     const double bnorm = std::sqrt(dot(b, b));
@@ -97,7 +99,7 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
             times_k(p, &tmp);
             project.apply(tmp.data(), ap->data());
           },
-          b, &x, opt.tolerance, opt.max_iterations, progress);
+          std::move(b), &x, opt.tolerance, opt.max_iterations, progress);
     } else if (bnorm > 0.0) {
       // Basic scheme with the reference k0 = (kmin + kmax) / 2: x <- -P[(k - k0)(E + x)] / k0;
       // the residual is the gradient part of the flux of the new iterate.

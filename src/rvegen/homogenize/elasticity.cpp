@@ -31,32 +31,36 @@ class StrainProjection {
   void apply(const double* in, double* out) {
     const size_t n = grid_.size();
     for (int c = 0; c < 6; ++c) grid_.forward(in + c * n, spectrum_[c].data());
-    for (size_t at = 0; at < grid_.frequencies(); ++at) {
-      const cplx* k = grid_.unit_k(at);
-      cplx t[3][3];
-      for (int i = 0; i < 3; ++i) {
-        for (int j = 0; j < 3; ++j) {
-          const int m = kMandel[i][j];
-          t[i][j] = i == j ? spectrum_[m][at] : spectrum_[m][at] / kSqrt2;
-        }
-      }
-      cplx d[3], kd = 0.0;
-      for (int j = 0; j < 3; ++j) {
-        d[j] = std::conj(k[0]) * t[0][j] + std::conj(k[1]) * t[1][j] + std::conj(k[2]) * t[2][j];
-        kd += k[j] * d[j];
-      }
-      cplx u[3];
-      for (int j = 0; j < 3; ++j) u[j] = 2.0 * d[j] - std::conj(k[j]) * kd;
-      for (int c = 0; c < 6; ++c) {
-        const int i = kPair[c][0], j = kPair[c][1];
-        const cplx e = 0.5 * (k[i] * u[j] + k[j] * u[i]);
-        spectrum_[c][at] = c < 3 ? e : e * kSqrt2;
-      }
-    }
+    spectral::parallel_blocks(grid_.frequencies(), [&](size_t lo, size_t hi) {
+      for (size_t at = lo; at < hi; ++at) project_at(at);
+    });
     for (int c = 0; c < 6; ++c) grid_.inverse(spectrum_[c].data(), out + c * n);
   }
 
  private:
+  void project_at(size_t at) {
+    const cplx* k = grid_.unit_k(at);
+    cplx t[3][3];
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 3; ++j) {
+        const int m = kMandel[i][j];
+        t[i][j] = i == j ? spectrum_[m][at] : spectrum_[m][at] / kSqrt2;
+      }
+    }
+    cplx d[3], kd = 0.0;
+    for (int j = 0; j < 3; ++j) {
+      d[j] = std::conj(k[0]) * t[0][j] + std::conj(k[1]) * t[1][j] + std::conj(k[2]) * t[2][j];
+      kd += k[j] * d[j];
+    }
+    cplx u[3];
+    for (int j = 0; j < 3; ++j) u[j] = 2.0 * d[j] - std::conj(k[j]) * kd;
+    for (int c = 0; c < 6; ++c) {
+      const int i = kPair[c][0], j = kPair[c][1];
+      const cplx e = 0.5 * (k[i] * u[j] + k[j] * u[i]);
+      spectrum_[c][at] = c < 3 ? e : e * kSqrt2;
+    }
+  }
+
   spectral::Grid grid_;
   std::vector<cplx> spectrum_[6];
 };
@@ -119,20 +123,32 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
   }
   // Stress of a strain field (6 Mandel components, component-major).
   auto stress = [&](const std::vector<double>& e, std::vector<double>* s) {
-    for (size_t i = 0; i < n; ++i) {
-      const double tr = e[i] + e[n + i] + e[2 * n + i];
-      for (int c = 0; c < 6; ++c) {
-        (*s)[c * n + i] = 2.0 * mu[i] * e[c * n + i] + (c < 3 ? lambda[i] * tr : 0.0);
+    spectral::parallel_blocks(n, [&](size_t lo, size_t hi) {
+      for (size_t i = lo; i < hi; ++i) {
+        const double tr = e[i] + e[n + i] + e[2 * n + i];
+        for (int c = 0; c < 6; ++c) {
+          (*s)[c * n + i] = 2.0 * mu[i] * e[c * n + i] + (c < 3 ? lambda[i] * tr : 0.0);
+        }
       }
-    }
+    });
+  };
+  // Stress of the uniform unit strain `load`: column `load` of each voxel's stiffness.
+  auto load_stress = [&](int load, std::vector<double>* s) {
+    spectral::parallel_blocks(n, [&](size_t lo, size_t hi) {
+      for (size_t i = lo; i < hi; ++i) {
+        for (int c = 0; c < 6; ++c) {
+          (*s)[c * n + i] = (c == load ? 2.0 * mu[i] : 0.0) + (c < 3 && load < 3 ? lambda[i] : 0.0);
+        }
+      }
+    });
   };
   StrainProjection project(dims, box_size, opt.scheme, opt.threads);
   ElasticityResult res;
-  std::vector<double> mean(6 * n), x(6 * n), b(6 * n), tmp(6 * n), sig(6 * n);
+  // At peak: x, tmp, and the solver's residual, direction and product (five 6-component fields).
+  std::vector<double> x(6 * n), tmp(6 * n);
   for (int load = 0; load < 6; ++load) {
-    std::fill(mean.begin(), mean.end(), 0.0);
-    std::fill(mean.begin() + load * n, mean.begin() + (load + 1) * n, 1.0);
-    stress(mean, &tmp);
+    load_stress(load, &tmp);
+    std::vector<double> b(6 * n);
     project.apply(tmp.data(), b.data());
     for (double& v : b) v = -v;
     const spectral::CgOutcome out = spectral::conjugate_gradients(
@@ -140,17 +156,20 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
           stress(p, &tmp);
           project.apply(tmp.data(), ap->data());
         },
-        b, &x, opt.tolerance, opt.max_iterations,
+        std::move(b), &x, opt.tolerance, opt.max_iterations,
         [&](int it, double rel) { return !opt.progress || opt.progress(load, it, rel); });
     if (out.stopped) throw Cancelled();
     res.iterations[load] = out.iterations;
     res.residual[load] = out.residual;
     if (out.iterations > 0 && !(out.residual < opt.tolerance)) res.converged = false;
-    for (size_t i = 0; i < 6 * n; ++i) tmp[i] = mean[i] + x[i];
-    stress(tmp, &sig);
+    // Mean stress of the mean strain plus the fluctuation.
+    stress(x, &tmp);
     for (int c = 0; c < 6; ++c) {
       double s = 0.0;
-      for (size_t i = 0; i < n; ++i) s += sig[c * n + i];
+      for (size_t i = 0; i < n; ++i) {
+        s += tmp[c * n + i] + (c == load ? 2.0 * mu[i] : 0.0) +
+             (c < 3 && load < 3 ? lambda[i] : 0.0);
+      }
       res.stiffness(c, load) = s / static_cast<double>(n);
     }
   }

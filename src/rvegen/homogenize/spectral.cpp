@@ -1,6 +1,9 @@
 #include "rvegen/homogenize/spectral.hpp"
 
 #include <fftw3.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/partitioner.h>
 
 #include <algorithm>
 #include <cmath>
@@ -20,13 +23,35 @@ std::mutex& planner_mutex() {
   return m;
 }
 
-double dot(const std::vector<double>& a, const std::vector<double>& b) {
-  double s = 0.0;
-  for (size_t i = 0; i < a.size(); ++i) s += a[i] * b[i];
-  return s;
-}
+// Block of the parallel loops and of the fixed-order sums.
+constexpr size_t kBlock = size_t(1) << 14;
 
 }  // namespace
+
+void parallel_blocks(size_t n, const std::function<void(size_t, size_t)>& f) {
+  const size_t blocks = (n + kBlock - 1) / kBlock;
+  tbb::parallel_for(
+      tbb::blocked_range<size_t>(0, blocks, 1),
+      [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t b = r.begin(); b != r.end(); ++b) {
+          f(b * kBlock, std::min(n, (b + 1) * kBlock));
+        }
+      },
+      tbb::simple_partitioner());
+}
+
+double dot(const std::vector<double>& a, const std::vector<double>& b) {
+  const size_t n = a.size(), blocks = (n + kBlock - 1) / kBlock;
+  std::vector<double> part(blocks, 0.0);
+  parallel_blocks(n, [&](size_t lo, size_t hi) {
+    double s = 0.0;
+    for (size_t i = lo; i < hi; ++i) s += a[i] * b[i];
+    part[lo / kBlock] = s;
+  });
+  double s = 0.0;
+  for (double v : part) s += v;
+  return s;
+}
 
 Grid::Grid(const std::array<int, 3>& dims, const Vec3& box, GradientScheme scheme, int threads)
     : n_(static_cast<size_t>(dims[0]) * dims[1] * dims[2]),
@@ -112,24 +137,27 @@ void Grid::inverse(cplx* in, double* field) {
 
 CgOutcome conjugate_gradients(
     const std::function<void(const std::vector<double>&, std::vector<double>*)>& apply,
-    const std::vector<double>& b, std::vector<double>* x, double tolerance, int max_iterations,
+    std::vector<double> b, std::vector<double>* x, double tolerance, int max_iterations,
     const std::function<bool(int, double)>& progress) {
   CgOutcome out;
   std::fill(x->begin(), x->end(), 0.0);
   const double bnorm = std::sqrt(dot(b, b));
   if (!(bnorm > 0.0)) return out;
-  std::vector<double> r = b, p = b, ap(b.size());
-  double rr = dot(r, r);
+  std::vector<double> r = std::move(b), p = r, ap(r.size());
+  const size_t n = r.size();
+  double rr = bnorm * bnorm;
   out.residual = 1.0;
   for (int it = 1; it <= max_iterations; ++it) {
     apply(p, &ap);
     const double pap = dot(p, ap);
     if (!(pap > 0.0)) break;  // nothing left to reduce (round-off)
     const double alpha = rr / pap;
-    for (size_t i = 0; i < r.size(); ++i) {
-      (*x)[i] += alpha * p[i];
-      r[i] -= alpha * ap[i];
-    }
+    parallel_blocks(n, [&](size_t lo, size_t hi) {
+      for (size_t i = lo; i < hi; ++i) {
+        (*x)[i] += alpha * p[i];
+        r[i] -= alpha * ap[i];
+      }
+    });
     const double rr_new = dot(r, r);
     out.iterations = it;
     out.residual = std::sqrt(rr_new) / bnorm;
@@ -140,7 +168,9 @@ CgOutcome conjugate_gradients(
     if (out.residual < tolerance) break;
     const double beta = rr_new / rr;
     rr = rr_new;
-    for (size_t i = 0; i < r.size(); ++i) p[i] = r[i] + beta * p[i];
+    parallel_blocks(n, [&](size_t lo, size_t hi) {
+      for (size_t i = lo; i < hi; ++i) p[i] = r[i] + beta * p[i];
+    });
   }
   return out;
 }

@@ -47,6 +47,12 @@ class Grid {
   std::vector<cplx> unit_k_;
 };
 
+/// Runs f(begin, end) over [0, n) in fixed blocks on all cores.
+void parallel_blocks(size_t n, const std::function<void(size_t, size_t)>& f);
+/// Sum of a[i] b[i], added in fixed blocks and then in block order: the same bits whatever the
+/// number of threads.
+double dot(const std::vector<double>& a, const std::vector<double>& b);
+
 /// Conjugate gradients for A x = b on the subspace the projection-based operator A keeps (x
 /// starts at 0). `apply(p, out)` computes A p. Stops when |r| / |b| < tolerance or after
 /// max_iterations; `progress(iteration, relative residual)` returning false stops it too
@@ -56,9 +62,10 @@ struct CgOutcome {
   double residual = 0.0;
   bool stopped = false;
 };
+/// `b` is taken by value: it becomes the residual (one field less at peak).
 CgOutcome conjugate_gradients(
     const std::function<void(const std::vector<double>&, std::vector<double>*)>& apply,
-    const std::vector<double>& b, std::vector<double>* x, double tolerance, int max_iterations,
+    std::vector<double> b, std::vector<double>* x, double tolerance, int max_iterations,
     const std::function<bool(int, double)>& progress);
 
 }  // namespace spectral

@@ -74,6 +74,12 @@ const char* kCheckUsage =
     "  Audits an inclusion list (inclusions.json) with the exact pair tests. Exit 0 when no\n"
     "  pair overlaps, 1 when some do (listing at most N pairs, default 10000), 2 on invalid\n"
     "  input.\n";
+const char* kHomogenizeUsage =
+    "usage: rvegen homogenize DIR SCENE.json\n"
+    "  Computes the effective properties of an RVE written earlier (DIR/inclusions.json) with\n"
+    "  the scene's \"materials\", \"homogenization\" and voxel resolution, and prints them as\n"
+    "  JSON (the \"effective\" object of report.json). The scene's families must be the RVE's\n"
+    "  (same names, same order). Exit 0 on success, 2 on invalid input.\n";
 const char* kDefaultSceneUsage =
     "usage: rvegen default-scene\n"
     "  Prints the built-in default scene (a scene file to start from).\n";
@@ -81,7 +87,7 @@ const char* kDefaultSceneUsage =
 std::string usage() {
   return std::string("rvegen " RVEGEN_VERSION
                      ": random Representative Volume Elements of composite materials.\n\n") +
-         kGenerateUsage + "\n" + kCheckUsage + "\n" + kDefaultSceneUsage +
+         kGenerateUsage + "\n" + kCheckUsage + "\n" + kHomogenizeUsage + "\n" + kDefaultSceneUsage +
          "\nrvegen --version prints the version; rvegen COMMAND --help the help of one command.\n";
 }
 
@@ -379,6 +385,54 @@ int cmd_generate(const std::vector<std::string>& args) {
   }
 }
 
+int cmd_homogenize(const std::vector<std::string>& args) {
+  if (wants_help(args)) {
+    std::cout << kHomogenizeUsage;
+    return kExitOk;
+  }
+  std::vector<std::string> files;
+  for (const std::string& a : args) {
+    if (!a.empty() && a[0] == '-')
+      return usage_error("unknown option " + a + " of homogenize", kHomogenizeUsage);
+    files.push_back(a);
+  }
+  if (files.size() != 2)
+    return usage_error("homogenize needs an RVE directory and a scene file", kHomogenizeUsage);
+  rvegen::Scene scene;
+  rvegen::InclusionSet set;
+  try {
+    scene = rvegen::parse_scene(rvegen::read_file(files[1], kMaxSceneBytes));
+    if (!scene.homogenization.any()) {
+      throw rvegen::InputError("homogenization.physics: give conductivity, elasticity or both");
+    }
+    const std::string path = files[0] + "/inclusions.json";
+    set = rvegen::read_inclusions_json(rvegen::read_file(path, kMaxInclusionFileBytes));
+    std::vector<std::string> names;
+    for (const rvegen::Family& f : scene.families) names.push_back(f.name);
+    if (set.family_names != names) {
+      std::string have, want;
+      for (const auto& n : set.family_names) have += (have.empty() ? "" : ", ") + n;
+      for (const auto& n : names) want += (want.empty() ? "" : ", ") + n;
+      throw rvegen::InputError("families: the scene's (" + want + ") are not the RVE's (" + have +
+                               ")");
+    }
+  } catch (const std::exception& e) {
+    std::cerr << "rvegen: invalid input: " << e.what() << "\n";
+    return kExitInvalid;
+  }
+  try {
+    rvegen::VoxelOptions vopt;
+    vopt.partial_volume = false;
+    const rvegen::VoxelImage image = rvegen::voxelize(set, scene.resolution, vopt);
+    const auto progress = [](const std::string& line) { std::cerr << line << "\n"; };
+    std::cout << rvegen::cli::effective_properties(scene, image, progress).dump(2) << "\n";
+    return kExitOk;
+  } catch (const rvegen::InputError& e) {
+    std::cerr << "rvegen: invalid input: " << e.what() << "\n";
+    return kExitInvalid;
+  }
+}
+
 int cmd_check(const std::vector<std::string>& args) {
   if (wants_help(args)) {
     std::cout << kCheckUsage;
@@ -464,6 +518,7 @@ int main(int argc, char** argv) {
   args.erase(args.begin());
   if (cmd == "generate") return cmd_generate(args);
   if (cmd == "check") return cmd_check(args);
+  if (cmd == "homogenize") return cmd_homogenize(args);
   if (cmd == "default-scene") {
     if (wants_help(args)) {
       std::cout << kDefaultSceneUsage;
@@ -476,5 +531,6 @@ int main(int argc, char** argv) {
     std::cout << rvegen::scene_to_json(rvegen::default_scene());
     return kExitOk;
   }
-  return usage_error("unknown command \"" + cmd + "\" (generate, check, default-scene)");
+  return usage_error("unknown command \"" + cmd +
+                     "\" (generate, check, homogenize, default-scene)");
 }

@@ -115,7 +115,7 @@ expect_rc 2 "$RVEGEN" generate "$WORK/only_inclusions.json" --outputs inclusions
 grep -q 'unknown output "voxel"' "$WORK/last.err" || fail "--outputs with a typo: $(cat "$WORK/last.err")"
 [ -e "$WORK/out_bad_list" ] && fail "--outputs with a typo wrote $WORK/out_bad_list"
 # Help on every command (exit 0, on stdout), the version, and a misspelled key named.
-for c in generate check default-scene; do
+for c in generate check homogenize default-scene; do
   expect_rc 0 "$RVEGEN" $c --help
   grep -q "^usage: rvegen $c" "$WORK/last.out" || fail "$c --help: $(head -2 "$WORK/last.out")"
 done
@@ -360,6 +360,19 @@ import json, sys
 t = json.load(open('$WORK/hom_equal/report.json'))['effective']['conductivity']['tensor']
 sys.exit(0 if all(abs(t[i][j] - (2.5 if i == j else 0.0)) < 1e-10 for i in range(3) for j in range(3)) else 1)" \
   || fail "equal phases do not give their conductivity back"
+# The same on the RVE already written: rvegen homogenize DIR SCENE prints the report's object.
+expect_rc 0 "$RVEGEN" homogenize "$WORK/hom" "$WORK/hom.json"
+$py - "$WORK/last.out" "$WORK/hom/report.json" <<'PY' || fail "homogenize DIR differs from generate's report"
+import json, sys
+a = json.load(open(sys.argv[1]))
+b = json.load(open(sys.argv[2]))["effective"]
+for phys in ("conductivity", "stiffness"):
+    ta, tb = a[phys]["tensor"], b[phys]["tensor"]
+    assert all(abs(x - y) <= 1e-12 * abs(tb[0][0]) for ra, rb in zip(ta, tb) for x, y in zip(ra, rb)), phys
+PY
+expect_rc 2 "$RVEGEN" homogenize "$WORK/default" "$WORK/hom.json"
+grep -q "families: the scene's (spheres) are not the RVE's" "$WORK/last.err" \
+  || fail "homogenize with other families: $(cat "$WORK/last.err")"
 bad hom_missing "{$BOX,$HOM_FAM,\"materials\":{\"matrix\":{\"conductivity\":1}},\"homogenization\":{\"physics\":[\"conductivity\"]}}" "materials.spheres.conductivity: needed"
 bad hom_unknown_phase "{$BOX,$HOM_FAM,\"materials\":{\"matrx\":{\"conductivity\":1}}}" "materials.matrx: no phase of this name"
 bad hom_poisson "{$BOX,$HOM_FAM,\"materials\":{\"matrix\":{\"young\":1,\"poisson\":0.6}}}" "materials.matrix.poisson"

@@ -396,7 +396,8 @@ Scene parse_scene(const std::string& text) {
     HomogenizationSpec& spec = s.homogenization;
     if (h.contains("physics")) {
       const Json& ph = h["physics"];
-      if (!ph.is_array()) fail("homogenization.physics", "expected an array (conductivity, elasticity)");
+      if (!ph.is_array())
+        fail("homogenization.physics", "expected an array (conductivity, elasticity)");
       for (size_t k = 0; k < ph.size(); ++k) {
         const std::string q = "homogenization.physics[" + std::to_string(k) + "]";
         const std::string name = string(ph[k], q);
@@ -411,7 +412,8 @@ Scene parse_scene(const std::string& text) {
     }
     if (h.contains("scheme")) spec.scheme = string(h["scheme"], "homogenization.scheme");
     if (h.contains("solver")) spec.solver = string(h["solver"], "homogenization.solver");
-    if (h.contains("tolerance")) spec.tolerance = number(h["tolerance"], "homogenization.tolerance");
+    if (h.contains("tolerance"))
+      spec.tolerance = number(h["tolerance"], "homogenization.tolerance");
     if (h.contains("max_iterations")) {
       const double it = number(h["max_iterations"], "homogenization.max_iterations");
       if (it != std::floor(it) || it < 1 || it > 1e6)

@@ -137,7 +137,8 @@ void validate_materials(const Scene& s) {
     if (h.conductivity && (!mat || mat->conductivity < 0.0))
       fail("materials." + name + ".conductivity", "needed by homogenization.physics conductivity");
     if (h.elasticity && (!mat || mat->young < 0.0))
-      fail("materials." + name + ".young", "needed (with poisson) by homogenization.physics elasticity");
+      fail("materials." + name + ".young",
+           "needed (with poisson) by homogenization.physics elasticity");
   }
 }
 

@@ -252,8 +252,9 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   vtkRVEGenerator(const vtkRVEGenerator&) = delete;
   void operator=(const vtkRVEGenerator&) = delete;
 
-  // Empties every output after an abort and clears the flag for the next update.
-  int EndAborted(vtkInformationVector* outVec);
+  // Empties this execution's outputs after an abort of the update of `key` at `port`, and
+  // clears the flag for the next update.
+  int EndAborted(vtkInformationVector* outVec, const std::string& key, int port);
 
   struct Cache;
   std::unique_ptr<Cache> Cached;

@@ -50,11 +50,7 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
                                           const std::vector<double>& conductivity,
                                           const ConductivityOptions& opt) {
   const auto t0 = std::chrono::steady_clock::now();
-  for (int a = 0; a < 3; ++a) {
-    if (dims[a] < 1) throw InputError("homogenization: voxels per axis must be >= 1");
-    if (!(box_size[a] > 0.0)) throw InputError("homogenization: box size must be positive");
-  }
-  const size_t n = static_cast<size_t>(dims[0]) * dims[1] * dims[2];
+  const size_t n = spectral::checked_voxels(dims, box_size);
   if (conductivity.size() != n) {
     throw InputError("homogenization: " + std::to_string(conductivity.size()) +
                      " conductivities for " + std::to_string(n) + " voxels");

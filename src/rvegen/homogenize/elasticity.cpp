@@ -99,11 +99,7 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
                                      const std::vector<double>& poisson,
                                      const ElasticityOptions& opt) {
   const auto t0 = std::chrono::steady_clock::now();
-  for (int a = 0; a < 3; ++a) {
-    if (dims[a] < 1) throw InputError("homogenization: voxels per axis must be >= 1");
-    if (!(box_size[a] > 0.0)) throw InputError("homogenization: box size must be positive");
-  }
-  const size_t n = static_cast<size_t>(dims[0]) * dims[1] * dims[2];
+  const size_t n = spectral::checked_voxels(dims, box_size);
   if (young.size() != n || poisson.size() != n) {
     throw InputError("homogenization: " + std::to_string(young.size()) + " Young's moduli and " +
                      std::to_string(poisson.size()) + " Poisson's ratios for " + std::to_string(n) +
@@ -132,22 +128,15 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
       }
     });
   };
-  // Stress of the uniform unit strain `load`: column `load` of each voxel's stiffness.
-  auto load_stress = [&](int load, std::vector<double>* s) {
-    spectral::parallel_blocks(n, [&](size_t lo, size_t hi) {
-      for (size_t i = lo; i < hi; ++i) {
-        for (int c = 0; c < 6; ++c) {
-          (*s)[c * n + i] = (c == load ? 2.0 * mu[i] : 0.0) + (c < 3 && load < 3 ? lambda[i] : 0.0);
-        }
-      }
-    });
-  };
   StrainProjection project(dims, box_size, opt.scheme, opt.threads);
   ElasticityResult res;
   // At peak: x, tmp, and the solver's residual, direction and product (five 6-component fields).
   std::vector<double> x(6 * n), tmp(6 * n);
   for (int load = 0; load < 6; ++load) {
-    load_stress(load, &tmp);
+    // The stress of the uniform unit strain `load` (built in x, which the solve resets).
+    std::fill(x.begin(), x.end(), 0.0);
+    std::fill(x.begin() + load * n, x.begin() + (load + 1) * n, 1.0);
+    stress(x, &tmp);
     std::vector<double> b(6 * n);
     project.apply(tmp.data(), b.data());
     for (double& v : b) v = -v;
@@ -162,14 +151,13 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
     res.iterations[load] = out.iterations;
     res.residual[load] = out.residual;
     if (out.iterations > 0 && !(out.residual < opt.tolerance)) res.converged = false;
-    // Mean stress of the mean strain plus the fluctuation.
+    // Mean stress of the mean strain plus the fluctuation: the unit strain is added to x
+    // (x is reset by the next solve).
+    for (size_t i = 0; i < n; ++i) x[load * n + i] += 1.0;
     stress(x, &tmp);
     for (int c = 0; c < 6; ++c) {
       double s = 0.0;
-      for (size_t i = 0; i < n; ++i) {
-        s += tmp[c * n + i] + (c == load ? 2.0 * mu[i] : 0.0) +
-             (c < 3 && load < 3 ? lambda[i] : 0.0);
-      }
+      for (size_t i = 0; i < n; ++i) s += tmp[c * n + i];
       res.stiffness(c, load) = s / static_cast<double>(n);
     }
   }

@@ -10,6 +10,8 @@
 #include <mutex>
 #include <thread>
 
+#include "rvegen/model/errors.hpp"
+
 namespace rvegen::spectral {
 
 namespace {
@@ -27,6 +29,14 @@ std::mutex& planner_mutex() {
 constexpr size_t kBlock = size_t(1) << 14;
 
 }  // namespace
+
+size_t checked_voxels(const std::array<int, 3>& dims, const Vec3& box) {
+  for (int a = 0; a < 3; ++a) {
+    if (dims[a] < 1) throw InputError("homogenization: voxels per axis must be >= 1");
+    if (!(box[a] > 0.0)) throw InputError("homogenization: box size must be positive");
+  }
+  return static_cast<size_t>(dims[0]) * dims[1] * dims[2];
+}
 
 void parallel_blocks(size_t n, const std::function<void(size_t, size_t)>& f) {
   const size_t blocks = (n + kBlock - 1) / kBlock;

@@ -47,6 +47,10 @@ class Grid {
   std::vector<cplx> unit_k_;
 };
 
+/// Voxels of a grid of `dims` voxels over a box of `box`; throws InputError when an axis has
+/// no voxel or the box no positive size.
+size_t checked_voxels(const std::array<int, 3>& dims, const Vec3& box);
+
 /// Runs f(begin, end) over [0, n) in fixed blocks on all cores.
 void parallel_blocks(size_t n, const std::function<void(size_t, size_t)>& f);
 /// Sum of a[i] b[i], added in fixed blocks and then in block order: the same bits whatever the

@@ -4,9 +4,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <vector>
 
 #include "rvegen/homogenize/conductivity.hpp"
+#include "rvegen/homogenize/medium.hpp"
 #include "rvegen/model/scene.hpp"
 #include "rvegen/packing/packing.hpp"
 #include "rvegen/raster/voxelize.hpp"
@@ -298,9 +300,9 @@ TEST(Conductivity, ProgressCanStopTheSolve) {
 namespace rvegen {
 namespace {
 
-// The exact stiffness of a laminate normal to x (equal layers of stiffnesses ca and cb):
+// The exact stiffness of a laminate normal to x (shares fa of stiffness ca, 1 - fa of cb):
 // in-plane strains (yy, zz, yz) and normal stresses (xx, xz, xy) are uniform across layers.
-Mat6 laminate_stiffness(const Mat6& ca, const Mat6& cb) {
+Mat6 laminate_stiffness(const Mat6& ca, const Mat6& cb, double fa = 0.5) {
   const int nn[3] = {0, 4, 5}, tt[3] = {1, 2, 3};
   auto block = [&](const Mat6& c, const int* r, const int* s) {
     Mat3 b;
@@ -310,14 +312,14 @@ Mat6 laminate_stiffness(const Mat6& ca, const Mat6& cb) {
   };
   Mat3 inv_nn = Mat3::Zero(), inv_nn_nt = Mat3::Zero(), tn_inv_nn = Mat3::Zero(),
        schur = Mat3::Zero();
-  for (const Mat6* c : {&ca, &cb}) {
+  for (const auto& [c, w] : {std::pair<const Mat6*, double>{&ca, fa}, {&cb, 1.0 - fa}}) {
     const Mat3 cnn = block(*c, nn, nn), cnt = block(*c, nn, tt), ctn = block(*c, tt, nn),
                ctt = block(*c, tt, tt);
     const Mat3 inv = cnn.inverse();
-    inv_nn += 0.5 * inv;
-    inv_nn_nt += 0.5 * inv * cnt;
-    tn_inv_nn += 0.5 * ctn * inv;
-    schur += 0.5 * (ctt - ctn * inv * cnt);
+    inv_nn += w * inv;
+    inv_nn_nt += w * inv * cnt;
+    tn_inv_nn += w * ctn * inv;
+    schur += w * (ctt - ctn * inv * cnt);
   }
   // sigma_n = A <eps_n> + A <Cnn^-1 Cnt> eps_t with A = <Cnn^-1>^-1;
   // <sigma_t> = <Ctn Cnn^-1> sigma_n + <Ctt - Ctn Cnn^-1 Cnt> eps_t.
@@ -407,6 +409,165 @@ TEST(Elasticity, BadInputIsRefused) {
   EXPECT_THROW(effective_stiffness(d, Vec3(1, 1, 1), std::vector<double>(7, 1.0),
                                    std::vector<double>(8, 0.3)),
                InputError);
+}
+
+// Composite voxels (medium.hpp). A laminate normal to x: material A (index 1) over
+// x in [0.13, 0.655) of a unit box, B (index 0) elsewhere, so that both interfaces cut voxels at
+// every resolution used here. Material per voxel by its centre; the voxels cut by an interface
+// are listed with A's share and the normal (its sign alternates: the rule must not care).
+struct CutLaminate {
+  std::vector<uint32_t> material;
+  std::vector<CompositeVoxel> cut;
+  double share_a = 0.655 - 0.13;
+};
+CutLaminate cut_laminate(const std::array<int, 3>& d) {
+  const double lo = 0.13, hi = 0.655;
+  CutLaminate l;
+  const size_t n = static_cast<size_t>(d[0]) * d[1] * d[2];
+  l.material.resize(n);
+  for (size_t c = 0; c < n; ++c) {
+    const int i = static_cast<int>(c % d[0]);
+    const double x0 = static_cast<double>(i) / d[0], x1 = static_cast<double>(i + 1) / d[0];
+    const double xc = 0.5 * (x0 + x1);
+    l.material[c] = xc >= lo && xc < hi ? 1 : 0;
+    const double share = std::max(0.0, std::min(x1, hi) - std::max(x0, lo)) * d[0];
+    if (share > 1e-12 && share < 1.0 - 1e-12) {
+      CompositeVoxel v;
+      v.voxel = c;
+      v.inside = 1;
+      v.outside = 0;
+      v.fraction = share;
+      v.normal = Vec3(i % 2 ? -1.0 : 1.0, 0.0, 0.0);
+      l.cut.push_back(v);
+    }
+  }
+  return l;
+}
+
+TEST(CompositeVoxels, LaminateRuleMakesACutConductingLaminateExactAtAnyResolution) {
+  for (double contrast : {10.0, 1000.0}) {
+    const double fa = CutLaminate{}.share_a;
+    const double harmonic = 1.0 / (fa / contrast + (1.0 - fa)),
+                 arithmetic = fa * contrast + (1.0 - fa);
+    for (int res : {7, 10, 16}) {
+      const std::array<int, 3> d = {res, 3, 2};
+      const CutLaminate l = cut_laminate(d);
+      ASSERT_EQ(l.cut.size(), static_cast<size_t>(2 * 3 * 2));
+      const std::vector<Mat3> mats = {Mat3::Identity(), contrast * Mat3::Identity()};
+      ConductivityOptions opt;
+      opt.tolerance = 1e-12;
+      for (VoxelRule rule :
+           {VoxelRule::kLaminate, VoxelRule::kVoigt, VoxelRule::kReuss, VoxelRule::kPlain}) {
+        const ConductivityResult r = effective_conductivity(
+            d, Vec3(1, 1, 1), compose_medium<3>(l.material, mats, l.cut, rule), opt);
+        const double ex = std::abs(r.tensor(0, 0) / harmonic - 1.0),
+                     ey = std::abs(r.tensor(1, 1) / arithmetic - 1.0);
+        std::printf(
+            "contrast %g, %d voxels across, %-8s: relative error %.2e (normal), %.2e (along)\n",
+            contrast, res, voxel_rule_name(rule), ex, ey);
+        if (rule == VoxelRule::kLaminate) {
+          EXPECT_LT(ex, 1e-8) << "contrast " << contrast << ", " << res;
+          EXPECT_LT(ey, 1e-8);
+          EXPECT_LT(std::abs(r.tensor(2, 2) / arithmetic - 1.0), 1e-8);
+          EXPECT_LT(std::abs(r.tensor(0, 1)), 1e-8 * arithmetic);
+        } else {
+          // Voigt and Reuss voxels are each exact in one direction only; plain voxels in none.
+          EXPECT_GT(std::max(ex, ey), 1e-3) << voxel_rule_name(rule);
+        }
+        if (rule == VoxelRule::kVoigt) EXPECT_LT(ey, 1e-8);
+        if (rule == VoxelRule::kReuss) EXPECT_LT(ex, 1e-8);
+      }
+    }
+  }
+}
+
+TEST(CompositeVoxels, LaminateRuleMakesACutElasticLaminateExactAtAnyResolution) {
+  for (double contrast : {10.0, 1000.0}) {
+    const Mat6 cb = isotropic_stiffness(1.0, 0.35), ca = isotropic_stiffness(contrast, 0.2);
+    const Mat6 exact = laminate_stiffness(ca, cb, CutLaminate{}.share_a);
+    const double scale = exact.cwiseAbs().maxCoeff();
+    for (int res : {7, 10}) {
+      const std::array<int, 3> d = {res, 2, 2};
+      const CutLaminate l = cut_laminate(d);
+      ElasticityOptions opt;
+      opt.tolerance = 1e-12;
+      for (VoxelRule rule : {VoxelRule::kLaminate, VoxelRule::kVoigt, VoxelRule::kReuss}) {
+        const ElasticityResult r = effective_stiffness(
+            d, Vec3(1, 1, 1), compose_medium<6>(l.material, {cb, ca}, l.cut, rule), opt);
+        const double err = (r.stiffness - exact).cwiseAbs().maxCoeff() / scale;
+        std::printf("contrast %g, %d voxels across, %-8s: largest stiffness error %.2e of C_max\n",
+                    contrast, res, voxel_rule_name(rule), err);
+        if (rule == VoxelRule::kLaminate) {
+          EXPECT_LT(err, 1e-8) << "contrast " << contrast << ", " << res << "\n"
+                               << r.stiffness << "\nexact\n"
+                               << exact;
+        } else {
+          EXPECT_GT(err, 1e-4) << voxel_rule_name(rule);
+        }
+      }
+    }
+  }
+}
+
+// The laminate rule does not depend on the frame: for a rotation R, mixing the rotated
+// materials across the rotated normal gives the rotated mixture (anisotropic phases included).
+TEST(CompositeVoxels, LaminateRuleIsFrameIndifferentAndMatchesTheClosedForms) {
+  const Mat6 a = transverse_stiffness(230.0, 15.0, 27.0, 0.2, 0.4, Vec3(0.3, 0.5, 0.8));
+  const Mat6 b = isotropic_stiffness(3.0, 0.35);
+  const Mat3 r = Eigen::AngleAxisd(0.7, Vec3(1, 2, 3).normalized()).toRotationMatrix();
+  const Mat6 m = mandel_rotation(r);
+  const Vec3 n = Vec3(0.2, -0.5, 0.9).normalized();
+  const Mat6 mixed = mix_stiffness(a, b, 0.37, n, VoxelRule::kLaminate);
+  const Mat6 turned = mix_stiffness(m * a * m.transpose(), m * b * m.transpose(), 0.37, r * n,
+                                    VoxelRule::kLaminate);
+  EXPECT_LT((turned - m * mixed * m.transpose()).cwiseAbs().maxCoeff(), 1e-10 * a.norm());
+  // Along x it is the block form of the test's own reference.
+  EXPECT_LT((mix_stiffness(a, b, 0.37, Vec3::UnitX(), VoxelRule::kLaminate) -
+             laminate_stiffness(a, b, 0.37))
+                .cwiseAbs()
+                .maxCoeff(),
+            1e-10 * a.norm());
+  // Conductivity: arithmetic mean along the layers, harmonic across them.
+  const Mat3 k =
+      mix_conductivity(Mat3::Identity(), 9.0 * Mat3::Identity(), 0.25, n, VoxelRule::kLaminate);
+  const double harmonic = 1.0 / (0.25 + 0.75 / 9.0), arithmetic = 0.25 + 0.75 * 9.0;
+  const Mat3 expect =
+      arithmetic * (Mat3::Identity() - n * n.transpose()) + harmonic * n * n.transpose();
+  EXPECT_LT((k - expect).cwiseAbs().maxCoeff(), 1e-12);
+  // A void layer: nothing crosses it, the solid carries its share along it.
+  const Mat3 kv =
+      mix_conductivity(Mat3::Zero(), 4.0 * Mat3::Identity(), 0.5, n, VoxelRule::kLaminate);
+  EXPECT_LT((kv - 2.0 * (Mat3::Identity() - n * n.transpose())).cwiseAbs().maxCoeff(), 1e-12);
+  // Transverse isotropy: the axis's modulus and Poisson's ratio come back from the compliance.
+  const Vec3 axis = Vec3(1, 1, 0).normalized();
+  const Mat6 s = transverse_stiffness(230.0, 15.0, 27.0, 0.2, 0.4, axis).inverse();
+  const Mat6 rot = mandel_rotation(Eigen::AngleAxisd(-M_PI / 4, Vec3::UnitZ()).toRotationMatrix());
+  const Mat6 local = rot * s * rot.transpose();  // axis turned onto x
+  EXPECT_NEAR(1.0 / local(0, 0), 230.0, 1e-9);
+  EXPECT_NEAR(-local(0, 1) / local(0, 0), 0.2, 1e-12);
+  EXPECT_NEAR(1.0 / local(2, 2), 15.0, 1e-9);
+  EXPECT_NEAR(1.0 / (2.0 * local(4, 4)), 27.0, 1e-9);
+  EXPECT_THROW(transverse_stiffness(1.0, 1.0, 1.0, 2.0, 0.3, axis), InputError);
+}
+
+TEST(CompositeVoxels, BadCompositesAreRefused) {
+  const std::vector<uint32_t> mat(8, 0);
+  const std::vector<Mat3> mats = {Mat3::Identity(), 2.0 * Mat3::Identity()};
+  CompositeVoxel v;
+  v.voxel = 3;
+  v.inside = 1;
+  v.fraction = 1.5;
+  EXPECT_THROW(compose_medium<3>(mat, mats, {v}, VoxelRule::kLaminate), InputError);
+  v.fraction = 0.5;
+  v.normal = Vec3(1, 1, 0);  // not unit
+  EXPECT_THROW(compose_medium<3>(mat, mats, {v}, VoxelRule::kLaminate), InputError);
+  v.normal = Vec3::UnitY();
+  v.inside = 2;  // no such material
+  EXPECT_THROW(compose_medium<3>(mat, mats, {v}, VoxelRule::kLaminate), InputError);
+  Mat3 bad = Mat3::Identity();
+  bad(0, 0) = -1.0;
+  EXPECT_THROW(compose_medium<3>(mat, {bad}, {}, VoxelRule::kPlain), InputError);
+  EXPECT_THROW(voxel_rule_from_name("mean"), InputError);
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <string>
+#include <unordered_map>
 
 #include "rvegen/model/errors.hpp"
 #include "rvegen/packing/packing.hpp"
@@ -49,31 +50,66 @@ using spectral::dot;
 ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const Vec3& box_size,
                                           const std::vector<double>& conductivity,
                                           const ConductivityOptions& opt) {
-  const auto t0 = std::chrono::steady_clock::now();
   const size_t n = spectral::checked_voxels(dims, box_size);
   if (conductivity.size() != n) {
     throw InputError("homogenization: " + std::to_string(conductivity.size()) +
                      " conductivities for " + std::to_string(n) + " voxels");
   }
-  double kmin = INFINITY, kmax = 0.0;
-  for (double k : conductivity) {
+  // One isotropic tensor per distinct value.
+  ConductivityMedium m;
+  m.index.resize(n);
+  std::unordered_map<double, uint32_t> row;
+  for (size_t i = 0; i < n; ++i) {
+    const double k = conductivity[i];
     if (!(k >= 0.0) || !std::isfinite(k)) {
       throw InputError("homogenization: conductivities must be finite and >= 0");
     }
-    kmin = std::min(kmin, k);
-    kmax = std::max(kmax, k);
+    auto [it, fresh] = row.try_emplace(k, static_cast<uint32_t>(m.tensors.size()));
+    if (fresh) m.tensors.push_back(k * Mat3::Identity());
+    m.index[i] = it->second;
+  }
+  return effective_conductivity(dims, box_size, m, opt);
+}
+
+ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const Vec3& box_size,
+                                          const ConductivityMedium& medium,
+                                          const ConductivityOptions& opt) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const size_t n = spectral::checked_voxels(dims, box_size);
+  if (medium.index.size() != n) {
+    throw InputError("homogenization: a medium of " + std::to_string(medium.index.size()) +
+                     " voxels for " + std::to_string(n));
+  }
+  // The extreme eigenvalues over the tensors in use (the fixed-point reference).
+  double kmin = INFINITY, kmax = 0.0;
+  for (const Mat3& t : medium.tensors) {
+    if (!t.allFinite()) throw InputError("homogenization: conductivities must be finite");
+    const Vec3 ev = Eigen::SelfAdjointEigenSolver<Mat3>(t).eigenvalues();
+    if (ev.minCoeff() < -1e-12 * std::max(1.0, ev.maxCoeff())) {
+      throw InputError("homogenization: conductivities must be positive semi-definite");
+    }
+    kmin = std::min(kmin, ev.minCoeff());
+    kmax = std::max(kmax, ev.maxCoeff());
+  }
+  for (uint32_t i : medium.index) {
+    if (i >= medium.tensors.size()) throw InputError("homogenization: a voxel has no tensor");
   }
   GradientProjection project(dims, box_size, opt.scheme, opt.threads);
   ConductivityResult res;
   std::vector<double> x(3 * n), tmp(3 * n), e, r;  // e, r: the fixed-point scheme's
   if (opt.solver == LinearSolver::kFixedPoint) e.resize(3 * n), r.resize(3 * n);
-  // k times a 3-component field.
-  auto times_k = [&](const std::vector<double>& f, std::vector<double>* out) {
+  // k times a 3-component field, and (k - k0) times one.
+  auto times = [&](const std::vector<double>& f, std::vector<double>* out, double shift) {
     spectral::parallel_blocks(n, [&](size_t lo, size_t hi) {
-      for (int a = 0; a < 3; ++a) {
-        for (size_t i = lo; i < hi; ++i) (*out)[a * n + i] = conductivity[i] * f[a * n + i];
+      for (size_t i = lo; i < hi; ++i) {
+        const Vec3 g(f[i], f[n + i], f[2 * n + i]);
+        const Vec3 q = medium.at(i) * g - shift * g;
+        for (int a = 0; a < 3; ++a) (*out)[a * n + i] = q[a];
       }
     });
+  };
+  auto times_k = [&](const std::vector<double>& f, std::vector<double>* out) {
+    times(f, out, 0.0);
   };
   for (int load = 0; load < 3; ++load) {
     // Mean gradient E = unit vector along `load`; unknown: the fluctuation x (a gradient field
@@ -103,9 +139,7 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
       std::fill(x.begin(), x.end(), 0.0);
       for (int it = 1; it <= opt.max_iterations; ++it) {
         for (size_t i = 0; i < 3 * n; ++i) e[i] = mean[i] + x[i];
-        for (int a = 0; a < 3; ++a) {
-          for (size_t i = 0; i < n; ++i) tmp[a * n + i] = (conductivity[i] - k0) * e[a * n + i];
-        }
+        times(e, &tmp, k0);
         project.apply(tmp.data(), x.data());
         for (double& v : x) v /= -k0;
         for (size_t i = 0; i < 3 * n; ++i) e[i] = mean[i] + x[i];
@@ -127,9 +161,11 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
     res.residual[load] = out.residual;
     if (bnorm > 0.0 && !(out.residual < opt.tolerance)) res.converged = false;
     // Mean flux of k (E + x).
+    for (size_t i = 0; i < 3 * n; ++i) x[i] += mean[i];
+    times_k(x, &tmp);
     for (int a = 0; a < 3; ++a) {
       double q = 0.0;
-      for (size_t i = 0; i < n; ++i) q += conductivity[i] * (mean[a * n + i] + x[a * n + i]);
+      for (size_t i = 0; i < n; ++i) q += tmp[a * n + i];
       res.tensor(a, load) = q / static_cast<double>(n);
     }
   }

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "rvegen/geometry/shapes.hpp"
+#include "rvegen/homogenize/medium.hpp"
 #include "rvegen/homogenize/spectral.hpp"
 
 namespace rvegen {
@@ -54,6 +55,10 @@ struct ConductivityResult {
 /// dims[2] values). Throws InputError on a size mismatch or a negative or non-finite value.
 ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const Vec3& box_size,
                                           const std::vector<double>& conductivity,
+                                          const ConductivityOptions& options = {});
+/// The same for a medium of conductivity tensors (anisotropic phases, composite voxels).
+ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const Vec3& box_size,
+                                          const ConductivityMedium& medium,
                                           const ConductivityOptions& options = {});
 
 }  // namespace rvegen

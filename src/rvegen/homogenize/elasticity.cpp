@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <map>
 #include <string>
 
 #include "rvegen/model/errors.hpp"
@@ -12,6 +13,7 @@ namespace rvegen {
 namespace {
 
 using spectral::cplx;
+using Vec6 = Eigen::Matrix<double, 6, 1>;
 const double kSqrt2 = std::sqrt(2.0);
 // Mandel index of the tensor component (i, j), and its pair.
 constexpr int kMandel[3][3] = {{0, 5, 4}, {5, 1, 3}, {4, 3, 2}};
@@ -98,15 +100,16 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
                                      const std::vector<double>& young,
                                      const std::vector<double>& poisson,
                                      const ElasticityOptions& opt) {
-  const auto t0 = std::chrono::steady_clock::now();
   const size_t n = spectral::checked_voxels(dims, box_size);
   if (young.size() != n || poisson.size() != n) {
     throw InputError("homogenization: " + std::to_string(young.size()) + " Young's moduli and " +
                      std::to_string(poisson.size()) + " Poisson's ratios for " + std::to_string(n) +
                      " voxels");
   }
-  // Lame constants per voxel.
-  std::vector<double> lambda(n), mu(n);
+  // One isotropic stiffness per distinct pair of constants.
+  StiffnessMedium m;
+  m.index.resize(n);
+  std::map<std::pair<double, double>, uint32_t> row;
   for (size_t i = 0; i < n; ++i) {
     if (!(young[i] >= 0.0) || !std::isfinite(young[i])) {
       throw InputError("homogenization: Young's moduli must be finite and >= 0");
@@ -114,17 +117,36 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
     if (!(poisson[i] > -1.0 && poisson[i] < 0.5)) {
       throw InputError("homogenization: Poisson's ratios must lie in (-1, 0.5)");
     }
-    lambda[i] = young[i] * poisson[i] / ((1.0 + poisson[i]) * (1.0 - 2.0 * poisson[i]));
-    mu[i] = young[i] / (2.0 * (1.0 + poisson[i]));
+    auto [it, fresh] =
+        row.try_emplace({young[i], poisson[i]}, static_cast<uint32_t>(m.tensors.size()));
+    if (fresh) m.tensors.push_back(isotropic_stiffness(young[i], poisson[i]));
+    m.index[i] = it->second;
+  }
+  return effective_stiffness(dims, box_size, m, opt);
+}
+
+ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3& box_size,
+                                     const StiffnessMedium& medium, const ElasticityOptions& opt) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const size_t n = spectral::checked_voxels(dims, box_size);
+  if (medium.index.size() != n) {
+    throw InputError("homogenization: a medium of " + std::to_string(medium.index.size()) +
+                     " voxels for " + std::to_string(n));
+  }
+  for (const Mat6& t : medium.tensors) {
+    if (!t.allFinite()) throw InputError("homogenization: stiffnesses must be finite");
+  }
+  for (uint32_t i : medium.index) {
+    if (i >= medium.tensors.size()) throw InputError("homogenization: a voxel has no tensor");
   }
   // Stress of a strain field (6 Mandel components, component-major).
   auto stress = [&](const std::vector<double>& e, std::vector<double>* s) {
     spectral::parallel_blocks(n, [&](size_t lo, size_t hi) {
+      Vec6 v;
       for (size_t i = lo; i < hi; ++i) {
-        const double tr = e[i] + e[n + i] + e[2 * n + i];
-        for (int c = 0; c < 6; ++c) {
-          (*s)[c * n + i] = 2.0 * mu[i] * e[c * n + i] + (c < 3 ? lambda[i] * tr : 0.0);
-        }
+        for (int c = 0; c < 6; ++c) v[c] = e[c * n + i];
+        const Vec6 t = medium.at(i) * v;
+        for (int c = 0; c < 6; ++c) (*s)[c * n + i] = t[c];
       }
     });
   };

@@ -11,11 +11,10 @@
 #include <vector>
 
 #include "rvegen/geometry/shapes.hpp"
+#include "rvegen/homogenize/medium.hpp"
 #include "rvegen/homogenize/spectral.hpp"
 
 namespace rvegen {
-
-using Mat6 = Eigen::Matrix<double, 6, 6>;
 
 struct ElasticityOptions {
   GradientScheme scheme = GradientScheme::kRotated;
@@ -52,6 +51,10 @@ struct ElasticityResult {
 ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3& box_size,
                                      const std::vector<double>& young,
                                      const std::vector<double>& poisson,
+                                     const ElasticityOptions& options = {});
+/// The same for a medium of stiffness tensors (Mandel; anisotropic phases, composite voxels).
+ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3& box_size,
+                                     const StiffnessMedium& medium,
                                      const ElasticityOptions& options = {});
 
 }  // namespace rvegen

@@ -1,0 +1,248 @@
+#include "rvegen/homogenize/medium.hpp"
+
+#include <cmath>
+
+#include "rvegen/model/errors.hpp"
+
+namespace rvegen {
+
+namespace {
+
+const double kSqrt2 = std::sqrt(2.0);
+constexpr int kPair[6][2] = {{0, 0}, {1, 1}, {2, 2}, {1, 2}, {0, 2}, {0, 1}};
+
+// The jump map N of the laminate: conductivity N a = a n; elasticity N a = sym(a (x) n) in
+// Mandel components (so that N^T sigma = sigma n).
+Eigen::Matrix<double, 3, 1> jump_map3(const Vec3& n) {
+  return n;
+}
+Eigen::Matrix<double, 6, 3> jump_map6(const Vec3& n) {
+  Eigen::Matrix<double, 6, 3> m = Eigen::Matrix<double, 6, 3>::Zero();
+  for (int c = 0; c < 6; ++c) {
+    const int i = kPair[c][0], j = kPair[c][1];
+    const double w = c < 3 ? 0.5 : 0.5 * kSqrt2;
+    m(c, i) += w * n[j];
+    m(c, j) += w * n[i];
+  }
+  return m;
+}
+
+template <int D>
+bool carries_nothing(const Eigen::Matrix<double, D, D>& c) {
+  return c.cwiseAbs().maxCoeff() == 0.0;
+}
+
+// (f A^-1 + (1 - f) B^-1)^-1, with a material that is singular in some direction (a void)
+// giving zero there: both are shifted by a tiny multiple of their scale.
+template <int D>
+Eigen::Matrix<double, D, D> harmonic_mean(const Eigen::Matrix<double, D, D>& a,
+                                          const Eigen::Matrix<double, D, D>& b, double f) {
+  using M = Eigen::Matrix<double, D, D>;
+  const double scale = std::max(a.cwiseAbs().maxCoeff(), b.cwiseAbs().maxCoeff());
+  if (scale == 0.0) return M::Zero();
+  const M eps = 1e-13 * scale * M::Identity();
+  const M s = f * (a + eps).inverse() + (1.0 - f) * (b + eps).inverse();
+  M r = s.inverse() - eps;
+  return 0.5 * (r + r.transpose());
+}
+
+template <int D, int J>
+Eigen::Matrix<double, D, D> laminate(const Eigen::Matrix<double, D, D>& a,
+                                     const Eigen::Matrix<double, D, D>& b, double f,
+                                     const Eigen::Matrix<double, D, J>& jump) {
+  using M = Eigen::Matrix<double, D, D>;
+  using K = Eigen::Matrix<double, J, J>;
+  const M* c[2] = {&a, &b};
+  const double w[2] = {f, 1.0 - f};
+  M mean = M::Zero(), second = M::Zero();
+  Eigen::Matrix<double, D, J> ck = Eigen::Matrix<double, D, J>::Zero();
+  K kinv = K::Zero();
+  bool void_present = false;
+  for (int s = 0; s < 2; ++s) {
+    if (w[s] <= 0.0) continue;
+    if (carries_nothing(*c[s])) {
+      void_present = true;
+      continue;
+    }
+    const Eigen::Matrix<double, D, J> cn = (*c[s]) * jump;
+    const K ki = (jump.transpose() * cn).inverse();
+    mean += w[s] * (*c[s]);
+    second += w[s] * cn * ki * cn.transpose();
+    ck += w[s] * cn * ki;
+    kinv += w[s] * ki;
+  }
+  M r = mean - second;
+  if (!void_present && kinv.cwiseAbs().maxCoeff() > 0.0) r += ck * kinv.inverse() * ck.transpose();
+  return 0.5 * (r + r.transpose());
+}
+
+template <int D, int J>
+Eigen::Matrix<double, D, D> mix(const Eigen::Matrix<double, D, D>& a,
+                                const Eigen::Matrix<double, D, D>& b, double f, VoxelRule rule,
+                                const Eigen::Matrix<double, D, J>& jump) {
+  if (f >= 1.0) return a;
+  if (f <= 0.0) return b;
+  switch (rule) {
+    case VoxelRule::kPlain:
+      return f >= 0.5 ? a : b;
+    case VoxelRule::kVoigt:
+      return f * a + (1.0 - f) * b;
+    case VoxelRule::kReuss:
+      return harmonic_mean<D>(a, b, f);
+    case VoxelRule::kLaminate:
+      return laminate<D, J>(a, b, f, jump);
+  }
+  return a;
+}
+
+template <int D>
+void check_material(const Eigen::Matrix<double, D, D>& c, size_t row) {
+  const double scale = c.cwiseAbs().maxCoeff();
+  const std::string which = "homogenization: material tensor " + std::to_string(row);
+  if (!std::isfinite(scale)) throw InputError(which + " is not finite");
+  if ((c - c.transpose()).cwiseAbs().maxCoeff() > 1e-12 * scale) {
+    throw InputError(which + " is not symmetric");
+  }
+  if (scale == 0.0) return;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, D, D>> eig(c);
+  if (eig.eigenvalues().minCoeff() < -1e-12 * scale) {
+    throw InputError(which + " is not positive semi-definite");
+  }
+}
+
+}  // namespace
+
+VoxelRule voxel_rule_from_name(const std::string& name) {
+  if (name == "plain") return VoxelRule::kPlain;
+  if (name == "voigt") return VoxelRule::kVoigt;
+  if (name == "reuss") return VoxelRule::kReuss;
+  if (name == "laminate") return VoxelRule::kLaminate;
+  throw InputError("homogenization: unknown voxel rule \"" + name +
+                   "\" (plain, voigt, reuss or laminate)");
+}
+
+const char* voxel_rule_name(VoxelRule rule) {
+  switch (rule) {
+    case VoxelRule::kPlain:
+      return "plain";
+    case VoxelRule::kVoigt:
+      return "voigt";
+    case VoxelRule::kReuss:
+      return "reuss";
+    case VoxelRule::kLaminate:
+      return "laminate";
+  }
+  return "?";
+}
+
+Mat3 mix_conductivity(const Mat3& a, const Mat3& b, double f, const Vec3& n, VoxelRule rule) {
+  return mix<3, 1>(a, b, f, rule, jump_map3(n));
+}
+
+Mat6 mix_stiffness(const Mat6& a, const Mat6& b, double f, const Vec3& n, VoxelRule rule) {
+  return mix<6, 3>(a, b, f, rule, jump_map6(n));
+}
+
+template <int D>
+TensorMedium<D> compose_medium(const std::vector<uint32_t>& material,
+                               const std::vector<Eigen::Matrix<double, D, D>>& materials,
+                               const std::vector<CompositeVoxel>& composites, VoxelRule rule) {
+  for (size_t r = 0; r < materials.size(); ++r) check_material<D>(materials[r], r);
+  TensorMedium<D> m;
+  m.index = material;
+  for (uint32_t i : m.index) {
+    if (i >= materials.size()) {
+      throw InputError("homogenization: a voxel's material " + std::to_string(i) +
+                       " is not among " + std::to_string(materials.size()));
+    }
+  }
+  m.tensors = materials;
+  if (rule == VoxelRule::kPlain) return m;
+  m.tensors.reserve(materials.size() + composites.size());
+  for (const CompositeVoxel& c : composites) {
+    if (c.voxel >= m.index.size() || c.inside >= materials.size() ||
+        c.outside >= materials.size()) {
+      throw InputError("homogenization: a composite voxel refers to no voxel or no material");
+    }
+    if (!(c.fraction >= 0.0 && c.fraction <= 1.0) || !c.normal.allFinite() ||
+        std::abs(c.normal.norm() - 1.0) > 1e-6) {
+      throw InputError(
+          "homogenization: a composite voxel's share must lie in [0, 1] and its "
+          "normal be a unit vector");
+    }
+    m.index[c.voxel] = static_cast<uint32_t>(m.tensors.size());
+    if constexpr (D == 3) {
+      m.tensors.push_back(
+          mix_conductivity(materials[c.inside], materials[c.outside], c.fraction, c.normal, rule));
+    } else {
+      m.tensors.push_back(
+          mix_stiffness(materials[c.inside], materials[c.outside], c.fraction, c.normal, rule));
+    }
+  }
+  return m;
+}
+
+template TensorMedium<3> compose_medium<3>(const std::vector<uint32_t>&, const std::vector<Mat3>&,
+                                           const std::vector<CompositeVoxel>&, VoxelRule);
+template TensorMedium<6> compose_medium<6>(const std::vector<uint32_t>&, const std::vector<Mat6>&,
+                                           const std::vector<CompositeVoxel>&, VoxelRule);
+
+Mat3 transverse_conductivity(double axial, double transverse, const Vec3& axis) {
+  const Vec3 a = axis.normalized();
+  return transverse * Mat3::Identity() + (axial - transverse) * a * a.transpose();
+}
+
+Mat6 mandel_rotation(const Mat3& r) {
+  Mat6 m;
+  for (int d = 0; d < 6; ++d) {
+    Mat3 e = Mat3::Zero();
+    const int k = kPair[d][0], l = kPair[d][1];
+    if (d < 3) {
+      e(k, l) = 1.0;
+    } else {
+      e(k, l) = e(l, k) = 1.0 / kSqrt2;
+    }
+    const Mat3 g = r * e * r.transpose();
+    for (int c = 0; c < 6; ++c) {
+      const int i = kPair[c][0], j = kPair[c][1];
+      m(c, d) = c < 3 ? g(i, j) : kSqrt2 * g(i, j);
+    }
+  }
+  return m;
+}
+
+Mat6 transverse_stiffness(double e_l, double e_t, double g_lt, double nu_lt, double nu_tt,
+                          const Vec3& axis) {
+  if (!(e_l > 0.0) || !(e_t > 0.0) || !(g_lt > 0.0) || !std::isfinite(e_l + e_t + g_lt) ||
+      !(nu_tt > -1.0 && nu_tt < 1.0) || !std::isfinite(nu_lt)) {
+    throw InputError(
+        "transversely isotropic stiffness: moduli must be positive and finite, "
+        "the transverse Poisson's ratio in (-1, 1)");
+  }
+  // Compliance in the fibre frame (axis = local 3), Mandel.
+  Mat6 s = Mat6::Zero();
+  s(0, 0) = s(1, 1) = 1.0 / e_t;
+  s(2, 2) = 1.0 / e_l;
+  s(0, 1) = s(1, 0) = -nu_tt / e_t;
+  s(0, 2) = s(2, 0) = s(1, 2) = s(2, 1) = -nu_lt / e_l;
+  s(3, 3) = s(4, 4) = 1.0 / (2.0 * g_lt);
+  s(5, 5) = (1.0 + nu_tt) / e_t;  // 1 / (2 G_TT), G_TT = E_T / (2 (1 + nu_TT))
+  Eigen::LLT<Mat6> llt(s);
+  if (llt.info() != Eigen::Success) {
+    throw InputError(
+        "transversely isotropic stiffness: the constants give no positive-definite "
+        "tensor (check nu_LT^2 < E_L / E_T (1 - nu_TT) / 2)");
+  }
+  const Mat6 local = s.inverse();
+  const Vec3 a = axis.normalized();
+  const Vec3 t1 = a.unitOrthogonal(), t2 = a.cross(t1);
+  Mat3 r;
+  r.col(0) = t1;
+  r.col(1) = t2;
+  r.col(2) = a;
+  const Mat6 m = mandel_rotation(r);
+  Mat6 c = m * local * m.transpose();
+  return 0.5 * (c + c.transpose());
+}
+
+}  // namespace rvegen

@@ -11,6 +11,7 @@
 #include "rvegen/homogenize/medium.hpp"
 #include "rvegen/model/scene.hpp"
 #include "rvegen/packing/packing.hpp"
+#include "rvegen/raster/cut_voxels.hpp"
 #include "rvegen/raster/voxelize.hpp"
 
 namespace rvegen {
@@ -568,6 +569,48 @@ TEST(CompositeVoxels, BadCompositesAreRefused) {
   bad(0, 0) = -1.0;
   EXPECT_THROW(compose_medium<3>(mat, {bad}, {}, VoxelRule::kPlain), InputError);
   EXPECT_THROW(voxel_rule_from_name("mean"), InputError);
+}
+
+// Voxels cut by a core (raster/cut_voxels.hpp): a coated sphere across the periodic boundary.
+// Full voxels plus the cut shares give the sphere's volume, every normal is radial, and the
+// phase beyond the surface is the shell (the matrix without a coating).
+TEST(CompositeVoxels, CutVoxelsOfASphereHaveItsVolumeRadialNormalsAndTheShellBeyond) {
+  for (double coating : {0.04, 0.0}) {
+    InclusionSet set;
+    Inclusion inc;
+    const Vec3 c(0.05, 0.5, 0.47);
+    const double r = 0.3;
+    inc.shape = Shape::sphere(c, r);
+    inc.mod.coating = coating;
+    set.inclusions = {inc};
+    set.family_names = {"spheres"};
+    const int res = 24;
+    const VoxelImage img = voxelize(set, {res, res, res});
+    const CutVoxels cut = cut_voxels(set, img);
+    EXPECT_EQ(cut.shared, 0u);
+    ASSERT_GT(cut.voxels.size(), 500u);
+    std::vector<char> is_cut(img.count(), 0);
+    double volume = 0.0;
+    const uint8_t shell = coating > 0.0 ? 2 : 0;
+    for (const CutVoxel& v : cut.voxels) {
+      is_cut[v.voxel] = 1;
+      volume += v.fraction;
+      EXPECT_EQ(v.inside, 1);
+      EXPECT_EQ(v.outside, shell);
+      // The voxel centre, brought to the sphere's nearest periodic image.
+      const int i = static_cast<int>(v.voxel % res), j = static_cast<int>((v.voxel / res) % res),
+                k = static_cast<int>(v.voxel / (res * res));
+      Vec3 d = (Vec3(i, j, k) + Vec3::Constant(0.5)) / res - c;
+      for (int a = 0; a < 3; ++a) d[a] -= std::round(d[a]);
+      EXPECT_GT(v.normal.dot(d.normalized()), 1.0 - 1e-8);
+      // A cut voxel's centre lies within half a diagonal of the surface.
+      EXPECT_LT(std::abs(d.norm() - r), 0.5 * std::sqrt(3.0) / res + 1e-12);
+    }
+    for (size_t v = 0; v < img.count(); ++v) volume += !is_cut[v] && img.phase[v] == 1;
+    volume /= static_cast<double>(img.count());
+    const double exact = 4.0 / 3.0 * M_PI * r * r * r;
+    EXPECT_LT(std::abs(volume / exact - 1.0), 2e-4) << volume << " " << exact;
+  }
 }
 
 }  // namespace

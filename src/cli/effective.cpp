@@ -6,10 +6,13 @@
 #include <cstdio>
 #include <limits>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "rvegen/homogenize/conductivity.hpp"
 #include "rvegen/homogenize/elasticity.hpp"
+#include "rvegen/homogenize/medium.hpp"
+#include "rvegen/raster/cut_voxels.hpp"
 
 namespace rvegen::cli {
 
@@ -17,9 +20,11 @@ namespace {
 
 using Json = nlohmann::ordered_json;
 
-// Properties per phase label (voids: nothing conducts or carries load there).
+// Properties per phase label (voids: nothing conducts or carries load there). A core phase with
+// transversely isotropic properties has them in `material` (its isotropic values are unused).
 struct PhaseProperties {
   std::vector<double> conductivity, young, poisson;
+  std::vector<const Material*> material;
 };
 
 PhaseProperties phase_properties(const Scene& scene, const VoxelImage& image) {
@@ -33,8 +38,55 @@ PhaseProperties phase_properties(const Scene& scene, const VoxelImage& image) {
     p.conductivity.push_back(m && m->conductivity >= 0.0 ? m->conductivity : 0.0);
     p.young.push_back(m && m->young >= 0.0 ? m->young : 0.0);
     p.poisson.push_back(m && m->poisson > -1.0 ? m->poisson : 0.0);
+    p.material.push_back(m);
   }
   return p;
+}
+
+// The medium of one physics: a row per phase label, then a row per inclusion whose core is
+// transversely isotropic (its tensor turned to the inclusion's axis); composite voxels by the
+// rule. `phase_tensor(label)` gives a label's tensor, `own_tensor(material, axis)` a turned one
+// (or nothing when the material is isotropic for this physics).
+template <int D, class PhaseTensor, class OwnTensor>
+TensorMedium<D> build_medium(const InclusionSet& set, const VoxelImage& image, const CutVoxels& cut,
+                             VoxelRule rule, const PhaseProperties& props, PhaseTensor phase_tensor,
+                             OwnTensor own_tensor, size_t* own_rows) {
+  using T = Eigen::Matrix<double, D, D>;
+  std::vector<T> rows;
+  for (size_t l = 0; l < image.phases.size(); ++l) rows.push_back(phase_tensor(l));
+  // Rows of the inclusions' own tensors, by inclusion index and by id.
+  std::vector<int64_t> own(set.inclusions.size(), -1);
+  std::unordered_map<int, uint32_t> own_by_id;
+  for (size_t m = 0; m < set.inclusions.size(); ++m) {
+    const Inclusion& inc = set.inclusions[m];
+    const Material* mat = props.material[inc.family + 1];
+    T t;
+    if (!mat || !own_tensor(*mat, principal_axis(inc.shape), &t)) continue;
+    own[m] = static_cast<int64_t>(rows.size());
+    own_by_id[inc.id] = static_cast<uint32_t>(rows.size());
+    rows.push_back(t);
+  }
+  *own_rows = own_by_id.size();
+  std::vector<uint32_t> material(image.phase.size());
+  for (size_t v = 0; v < material.size(); ++v) {
+    material[v] = image.phase[v];
+    if (!own_by_id.empty() && image.phases[image.phase[v]].kind == PhaseKind::kCore) {
+      const auto it = own_by_id.find(image.inclusion_id[v]);
+      if (it != own_by_id.end()) material[v] = it->second;
+    }
+  }
+  std::vector<CompositeVoxel> composites;
+  composites.reserve(cut.voxels.size());
+  for (const CutVoxel& c : cut.voxels) {
+    CompositeVoxel v;
+    v.voxel = c.voxel;
+    v.inside = own[c.inclusion] >= 0 ? static_cast<uint32_t>(own[c.inclusion]) : c.inside;
+    v.outside = c.outside;
+    v.fraction = c.fraction;
+    v.normal = c.normal;
+    composites.push_back(v);
+  }
+  return compose_medium<D>(material, rows, composites, rule);
 }
 
 // Shares of each phase label in the image.
@@ -113,7 +165,8 @@ std::function<bool(int, int, double)> progress_lines(const ProgressFn& progress,
 
 }  // namespace
 
-Json effective_properties(const Scene& scene, const VoxelImage& image, const ProgressFn& progress) {
+Json effective_properties(const Scene& scene, const InclusionSet& set, const VoxelImage& image,
+                          const ProgressFn& progress) {
   const HomogenizationSpec& h = scene.homogenization;
   const PhaseProperties props = phase_properties(scene, image);
   const std::vector<double> f = label_shares(image);
@@ -121,13 +174,32 @@ Json effective_properties(const Scene& scene, const VoxelImage& image, const Pro
   const Vec3 box = scene.box.size;
   const GradientScheme scheme =
       h.scheme == "moulinec_suquet" ? GradientScheme::kMoulinecSuquet : GradientScheme::kRotated;
+  const VoxelRule rule = voxel_rule_from_name(h.voxel_rule);
+  CutVoxels cut;
+  if (rule != VoxelRule::kPlain) cut = cut_voxels(set, image);
   Json out;
-  out["voxel_rule"] = "plain: each voxel has the properties of the phase at its centre";
+  out["voxel_rule"] = {
+      {"rule", h.voxel_rule},
+      {"meaning",
+       rule == VoxelRule::kPlain
+           ? "each voxel has the properties of the phase at its centre"
+           : "voxels cut by one core surface mix the two phases by the rule (laminate: exact "
+             "share and normal); other voxels take the phase at their centre"},
+      {"cut_voxels", cut.voxels.size()},
+      {"voxels_cut_by_two_cores", cut.shared}};
   out["resolution"] = {dims[0], dims[1], dims[2]};
   out["phase_shares"] = f;
   if (h.conductivity) {
-    std::vector<double> k(image.phase.size());
-    for (size_t i = 0; i < k.size(); ++i) k[i] = props.conductivity[image.phase[i]];
+    size_t own = 0;
+    const ConductivityMedium medium = build_medium<3>(
+        set, image, cut, rule, props,
+        [&](size_t l) { return Mat3(props.conductivity[l] * Mat3::Identity()); },
+        [](const Material& m, const Vec3& axis, Mat3* t) {
+          if (!m.transverse_conduction()) return false;
+          *t = transverse_conductivity(m.axial_conductivity, m.transverse_conductivity, axis);
+          return true;
+        },
+        &own);
     ConductivityOptions opt;
     opt.scheme = scheme;
     opt.solver =
@@ -135,7 +207,7 @@ Json effective_properties(const Scene& scene, const VoxelImage& image, const Pro
     opt.tolerance = h.tolerance;
     opt.max_iterations = h.max_iterations;
     opt.progress = progress_lines(progress, "conductivity", 3);
-    const ConductivityResult r = effective_conductivity(dims, box, k, opt);
+    const ConductivityResult r = effective_conductivity(dims, box, medium, opt);
     const auto [kmin, kmax] = range(f, props.conductivity);
     Json c;
     c["tensor"] = rows(r.tensor);
@@ -146,25 +218,35 @@ Json effective_properties(const Scene& scene, const VoxelImage& image, const Pro
     c["residual"] = r.residual;
     c["converged"] = r.converged;
     c["seconds"] = r.seconds;
-    c["bounds"] = {
-        {"voigt", arithmetic(f, props.conductivity)},
-        {"reuss", harmonic(f, props.conductivity)},
-        {"hashin_shtrikman",
-         {walpole(f, props.conductivity, 2.0 * kmin), walpole(f, props.conductivity, 2.0 * kmax)}}};
+    if (own == 0) {
+      c["bounds"] = {{"voigt", arithmetic(f, props.conductivity)},
+                     {"reuss", harmonic(f, props.conductivity)},
+                     {"hashin_shtrikman",
+                      {walpole(f, props.conductivity, 2.0 * kmin),
+                       walpole(f, props.conductivity, 2.0 * kmax)}}};
+    } else {
+      c["bounds"] = "not stated: the isotropic bounds do not apply to anisotropic fibres";
+    }
     out["conductivity"] = c;
   }
   if (h.elasticity) {
-    std::vector<double> young(image.phase.size()), poisson(image.phase.size());
-    for (size_t i = 0; i < young.size(); ++i) {
-      young[i] = props.young[image.phase[i]];
-      poisson[i] = props.poisson[image.phase[i]];
-    }
+    size_t own = 0;
+    const StiffnessMedium medium = build_medium<6>(
+        set, image, cut, rule, props,
+        [&](size_t l) { return isotropic_stiffness(props.young[l], props.poisson[l]); },
+        [](const Material& m, const Vec3& axis, Mat6* t) {
+          if (!m.transverse_elasticity()) return false;
+          *t = transverse_stiffness(m.axial_young, m.transverse_young, m.axial_shear,
+                                    m.axial_poisson, m.transverse_poisson, axis);
+          return true;
+        },
+        &own);
     ElasticityOptions opt;
     opt.scheme = scheme;
     opt.tolerance = h.tolerance;
     opt.max_iterations = h.max_iterations;
     opt.progress = progress_lines(progress, "elasticity", 6);
-    const ElasticityResult r = effective_stiffness(dims, box, young, poisson, opt);
+    const ElasticityResult r = effective_stiffness(dims, box, medium, opt);
     const EngineeringConstants e = engineering_constants(r.stiffness);
     // Bulk and shear moduli per phase, the isotropic projection of the result, and the bounds.
     std::vector<double> bulk(f.size()), shear(f.size());
@@ -192,6 +274,11 @@ Json effective_properties(const Scene& scene, const VoxelImage& image, const Pro
     s["residual"] = r.residual;
     s["converged"] = r.converged;
     s["seconds"] = r.seconds;
+    if (own > 0) {
+      s["bounds"] = "not stated: the isotropic bounds do not apply to anisotropic fibres";
+      out["stiffness"] = s;
+      return out;
+    }
     s["bounds"] = {
         {"bulk",
          {{"voigt", arithmetic(f, bulk)},

@@ -11,10 +11,12 @@
 
 namespace rvegen::cli {
 
-/// Solves what scene.homogenization asks for on `image` (labels at voxel centres: each voxel
-/// takes its phase's properties) and returns the report's "effective" object. Progress lines
-/// go to `progress` (about once a second).
-nlohmann::ordered_json effective_properties(const Scene& scene, const VoxelImage& image,
-                                            const ProgressFn& progress);
+/// Solves what scene.homogenization asks for on `image` (labels at voxel centres, inclusion ids)
+/// of the inclusions `set`, and returns the report's "effective" object. Each voxel takes its
+/// phase's properties (transversely isotropic cores turned to their inclusion's axis); voxels
+/// cut by one core surface take the scene's voxel rule. Progress lines go to `progress` (about
+/// once a second).
+nlohmann::ordered_json effective_properties(const Scene& scene, const InclusionSet& set,
+                                            const VoxelImage& image, const ProgressFn& progress);
 
 }  // namespace rvegen::cli

@@ -320,8 +320,9 @@ int cmd_generate(const std::vector<std::string>& args) {
     }
     nlohmann::ordered_json effective;
     if (scene.homogenization.any()) {
-      timed("homogenization",
-            [&] { effective = rvegen::cli::effective_properties(scene, image, progress); });
+      timed("homogenization", [&] {
+        effective = rvegen::cli::effective_properties(scene, result.set, image, progress);
+      });
     }
     rvegen::ReportStatistics stats;
     timed("statistics", [&] { stats = rvegen::report_statistics(scene, result); });
@@ -425,7 +426,7 @@ int cmd_homogenize(const std::vector<std::string>& args) {
     vopt.partial_volume = false;
     const rvegen::VoxelImage image = rvegen::voxelize(set, scene.resolution, vopt);
     const auto progress = [](const std::string& line) { std::cerr << line << "\n"; };
-    std::cout << rvegen::cli::effective_properties(scene, image, progress).dump(2) << "\n";
+    std::cout << rvegen::cli::effective_properties(scene, set, image, progress).dump(2) << "\n";
     return kExitOk;
   } catch (const rvegen::InputError& e) {
     std::cerr << "rvegen: invalid input: " << e.what() << "\n";

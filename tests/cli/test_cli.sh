@@ -378,6 +378,52 @@ bad hom_unknown_phase "{$BOX,$HOM_FAM,\"materials\":{\"matrx\":{\"conductivity\"
 bad hom_poisson "{$BOX,$HOM_FAM,\"materials\":{\"matrix\":{\"young\":1,\"poisson\":0.6}}}" "materials.matrix.poisson"
 bad hom_key "{$BOX,$HOM_FAM,\"materials\":{\"matrix\":{\"conductivty\":1}}}" 'did you mean "conductivity"'
 bad hom_physics "{$BOX,$HOM_FAM,\"homogenization\":{\"physics\":[\"thermal\"]}}" "unknown physics"
+bad hom_rule "{$BOX,$HOM_FAM,\"homogenization\":{\"voxel_rule\":\"mean\"}}" 'homogenization.voxel_rule: unknown rule "mean"'
+# Voxel rules: the report names the rule and counts the cut voxels; every rule's result lies
+# within the bounds, and the rules differ (plain voxels ignore the cut shares).
+for rule in plain laminate; do
+  sed "s/\"physics\":\[\"conductivity\",\"elasticity\"\]/\"physics\":[\"conductivity\"],\"voxel_rule\":\"$rule\"/" "$WORK/hom.json" >"$WORK/hom_$rule.json"
+  expect_rc 0 "$RVEGEN" homogenize "$WORK/hom" "$WORK/hom_$rule.json"
+  cp "$WORK/last.out" "$WORK/eff_$rule.json"
+done
+$py - "$WORK/eff_plain.json" "$WORK/eff_laminate.json" <<'PY' || fail "voxel rules in the effective object"
+import json, sys
+p, l = (json.load(open(a)) for a in sys.argv[1:3])
+assert p["voxel_rule"]["rule"] == "plain" and p["voxel_rule"]["cut_voxels"] == 0, p["voxel_rule"]
+assert l["voxel_rule"]["rule"] == "laminate" and l["voxel_rule"]["cut_voxels"] > 1000, l["voxel_rule"]
+for e in (p, l):
+    c = e["conductivity"]
+    lo, hi = c["bounds"]["hashin_shtrikman"]
+    assert lo < c["mean_of_diagonal"] < hi, (lo, c["mean_of_diagonal"], hi)
+assert abs(p["conductivity"]["mean_of_diagonal"] / l["conductivity"]["mean_of_diagonal"] - 1) > 1e-4
+PY
+# Transversely isotropic fibres, each turned to its own axis: fibres along z whose transverse
+# conductivity is the matrix's leave a gradient across them undisturbed, so k_xx = k_yy = 1 and
+# the off-diagonal terms vanish exactly (a fibre turned any other way would break this), while
+# k_zz rises; the stiffness is stiffest along the fibres.
+FIB_FAM='"families":[{"name":"fibres","shape":"cylinder","radius":0.04,"aspect_ratio":5,"volume_fraction":0.2,"orientation":{"law":"aligned","axis":[0,0,1]}}],"voxels":{"resolution":24}'
+FIB_MAT='"matrix":{"conductivity":1,"young":3,"poisson":0.35},"fibres":{"axial_conductivity":100,"transverse_conductivity":1,"axial_young":230,"transverse_young":15,"axial_shear":27,"axial_poisson":0.2,"transverse_poisson":0.4}'
+echo "{$BOX,\"seed\":5,$FIB_FAM,\"materials\":{$FIB_MAT},\"homogenization\":{\"physics\":[\"conductivity\",\"elasticity\"]}}" >"$WORK/fib.json"
+expect_rc 0 "$RVEGEN" generate -q "$WORK/fib.json" -o "$WORK/fib"
+$py - "$WORK/fib/report.json" <<'PY' || fail "transversely isotropic fibres"
+import json, sys
+e = json.load(open(sys.argv[1]))["effective"]
+t = e["conductivity"]["tensor"]
+assert abs(t[0][0] - 1) < 1e-10 and abs(t[1][1] - 1) < 1e-10, t
+assert all(abs(t[i][j]) < 1e-10 for i in range(3) for j in range(3) if i != j), t
+assert t[2][2] > 1.5, t
+assert isinstance(e["conductivity"]["bounds"], str)
+s = e["stiffness"]
+c = s["engineering_constants"]
+assert s["converged"] and c["E3"] > 1.5 * c["E1"] and abs(c["E1"] / c["E2"] - 1) < 0.05, c
+m = s["tensor"]
+assert all(abs(m[i][j] - m[j][i]) < 1e-6 * m[2][2] for i in range(6) for j in range(6)), m
+PY
+bad ti_matrix "{$BOX,$FIB_FAM,\"materials\":{\"matrix\":{\"axial_conductivity\":1,\"transverse_conductivity\":1}}}" "materials.matrix: transversely isotropic properties are for a family"
+bad ti_sphere "{$BOX,$HOM_FAM,\"materials\":{\"spheres\":{\"axial_conductivity\":1,\"transverse_conductivity\":1}}}" "need an axis"
+bad ti_half "{$BOX,$FIB_FAM,\"materials\":{\"fibres\":{\"axial_young\":230,\"transverse_young\":15}}}" "materials.fibres.axial_shear"
+bad ti_both "{$BOX,$FIB_FAM,\"materials\":{\"fibres\":{\"conductivity\":3,\"axial_conductivity\":1,\"transverse_conductivity\":1}}}" "not both"
+bad ti_unstable "{$BOX,$FIB_FAM,\"materials\":{\"fibres\":{\"axial_young\":1,\"transverse_young\":1,\"axial_shear\":1,\"axial_poisson\":0.9,\"transverse_poisson\":0.3}}}" "no stable material"
 
 if [ "$fails" -ne 0 ]; then
   echo "$fails failure(s)"

@@ -380,19 +380,33 @@ Scene parse_scene(const std::string& text) {
     if (!m.is_object()) fail("materials", "expected an object of phase names");
     for (auto it = m.begin(); it != m.end(); ++it) {
       const std::string p = "materials." + it.key();
-      only_keys(it.value(), {"conductivity", "young", "poisson"}, p);
+      only_keys(
+          it.value(),
+          {"conductivity", "young", "poisson", "axial_conductivity", "transverse_conductivity",
+           "axial_young", "transverse_young", "axial_shear", "axial_poisson", "transverse_poisson"},
+          p);
       Material mat;
-      if (it.value().contains("conductivity"))
-        mat.conductivity = number(it.value()["conductivity"], p + ".conductivity");
-      if (it.value().contains("young")) mat.young = number(it.value()["young"], p + ".young");
-      if (it.value().contains("poisson"))
-        mat.poisson = number(it.value()["poisson"], p + ".poisson");
+      const std::pair<const char*, double*> fields[] = {
+          {"conductivity", &mat.conductivity},
+          {"young", &mat.young},
+          {"poisson", &mat.poisson},
+          {"axial_conductivity", &mat.axial_conductivity},
+          {"transverse_conductivity", &mat.transverse_conductivity},
+          {"axial_young", &mat.axial_young},
+          {"transverse_young", &mat.transverse_young},
+          {"axial_shear", &mat.axial_shear},
+          {"axial_poisson", &mat.axial_poisson},
+          {"transverse_poisson", &mat.transverse_poisson}};
+      for (const auto& [key, value] : fields) {
+        if (it.value().contains(key)) *value = number(it.value()[key], p + "." + key);
+      }
       s.materials.emplace_back(it.key(), mat);
     }
   }
   if (root.contains("homogenization")) {
     const Json& h = root["homogenization"];
-    only_keys(h, {"physics", "scheme", "solver", "tolerance", "max_iterations"}, "homogenization");
+    only_keys(h, {"physics", "scheme", "solver", "tolerance", "max_iterations", "voxel_rule"},
+              "homogenization");
     HomogenizationSpec& spec = s.homogenization;
     if (h.contains("physics")) {
       const Json& ph = h["physics"];
@@ -412,6 +426,8 @@ Scene parse_scene(const std::string& text) {
     }
     if (h.contains("scheme")) spec.scheme = string(h["scheme"], "homogenization.scheme");
     if (h.contains("solver")) spec.solver = string(h["solver"], "homogenization.solver");
+    if (h.contains("voxel_rule"))
+      spec.voxel_rule = string(h["voxel_rule"], "homogenization.voxel_rule");
     if (h.contains("tolerance"))
       spec.tolerance = number(h["tolerance"], "homogenization.tolerance");
     if (h.contains("max_iterations")) {
@@ -547,6 +563,14 @@ std::string scene_to_json(const Scene& s) {
       if (mat.conductivity >= 0.0) one["conductivity"] = mat.conductivity;
       if (mat.young >= 0.0) one["young"] = mat.young;
       if (mat.poisson > -1.0) one["poisson"] = mat.poisson;
+      if (mat.axial_conductivity >= 0.0) one["axial_conductivity"] = mat.axial_conductivity;
+      if (mat.transverse_conductivity >= 0.0)
+        one["transverse_conductivity"] = mat.transverse_conductivity;
+      if (mat.axial_young >= 0.0) one["axial_young"] = mat.axial_young;
+      if (mat.transverse_young >= 0.0) one["transverse_young"] = mat.transverse_young;
+      if (mat.axial_shear >= 0.0) one["axial_shear"] = mat.axial_shear;
+      if (mat.axial_poisson > -1.0) one["axial_poisson"] = mat.axial_poisson;
+      if (mat.transverse_poisson > -1.0) one["transverse_poisson"] = mat.transverse_poisson;
       m[name] = one;
     }
     root["materials"] = m;
@@ -560,7 +584,8 @@ std::string scene_to_json(const Scene& s) {
                               {"scheme", h.scheme},
                               {"solver", h.solver},
                               {"tolerance", h.tolerance},
-                              {"max_iterations", h.max_iterations}};
+                              {"max_iterations", h.max_iterations},
+                              {"voxel_rule", h.voxel_rule}};
   }
   if (!(s.outputs == Outputs{})) {
     OJson names = OJson::array();

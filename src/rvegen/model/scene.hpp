@@ -118,11 +118,19 @@ struct Outputs {
 };
 
 /// Properties of one phase (a negative value: not given). Isotropic conductivity and isotropic
-/// elasticity (Young's modulus, Poisson's ratio).
+/// elasticity (Young's modulus, Poisson's ratio); for a family's cores, transversely isotropic
+/// alternatives about each inclusion's own axis (the fibre axis, an ellipsoid's longest one).
 struct Material {
   double conductivity = -1.0;
   double young = -1.0;
   double poisson = -2.0;  // below -1: not given
+  double axial_conductivity = -1.0, transverse_conductivity = -1.0;
+  double axial_young = -1.0, transverse_young = -1.0, axial_shear = -1.0;
+  double axial_poisson = -2.0, transverse_poisson = -2.0;  // below -1: not given
+  bool transverse_conduction() const { return axial_conductivity >= 0.0; }
+  bool transverse_elasticity() const { return axial_young >= 0.0; }
+  bool conducts() const { return conductivity >= 0.0 || transverse_conduction(); }
+  bool elastic() const { return young >= 0.0 || transverse_elasticity(); }
 };
 
 /// What `rvegen generate` computes of the packed RVE's effective properties (JSON
@@ -134,6 +142,9 @@ struct HomogenizationSpec {
   std::string solver = "cg";       // "cg", "fixed_point" (conductivity only)
   double tolerance = 1e-6;
   int max_iterations = 1000;
+  /// Voxels cut by a core surface: "laminate" (exact normal and share), "voigt", "reuss",
+  /// "plain" (the phase at the voxel centre).
+  std::string voxel_rule = "laminate";
   bool any() const { return conductivity || elasticity; }
 };
 

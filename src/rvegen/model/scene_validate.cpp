@@ -82,6 +82,65 @@ double mean_smallest_size(const Family& f) {
   return 0.0;
 }
 
+// Transversely isotropic properties: a family's cores only, all constants of a physics together,
+// instead of the isotropic ones, and a positive-definite stiffness.
+void validate_transverse(const Scene& s, const std::string& name, const Material& m,
+                         const std::string& p) {
+  const bool tc = m.axial_conductivity != -1.0 || m.transverse_conductivity != -1.0;
+  const bool te = m.axial_young != -1.0 || m.transverse_young != -1.0 || m.axial_shear != -1.0 ||
+                  m.axial_poisson != -2.0 || m.transverse_poisson != -2.0;
+  if (!tc && !te) return;
+  const Family* family = nullptr;
+  for (const Family& f : s.families) {
+    if (f.name == name) family = &f;
+  }
+  if (!family)
+    fail(p,
+         "transversely isotropic properties are for a family's cores (about each "
+         "inclusion's axis), not for the matrix or a coating");
+  if (family->shape == ShapeKind::Sphere)
+    fail(p,
+         "transversely isotropic properties need an axis: cylinders or ellipsoids, not "
+         "spheres");
+  if (tc) {
+    if (m.conductivity != -1.0)
+      fail(p,
+           "give \"conductivity\" or \"axial_conductivity\" with "
+           "\"transverse_conductivity\", not both");
+    for (const auto& [key, v] :
+         {std::pair<const char*, double>{"axial_conductivity", m.axial_conductivity},
+          {"transverse_conductivity", m.transverse_conductivity}}) {
+      if (!(v >= 0.0 && std::isfinite(v)))
+        fail(p + "." + key, "must be finite and >= 0 (give both axial and transverse)");
+    }
+  }
+  if (te) {
+    if (m.young != -1.0 || m.poisson != -2.0)
+      fail(p,
+           "give isotropic (\"young\", \"poisson\") or transversely isotropic constants, "
+           "not both");
+    for (const auto& [key, v] : {std::pair<const char*, double>{"axial_young", m.axial_young},
+                                 {"transverse_young", m.transverse_young},
+                                 {"axial_shear", m.axial_shear}}) {
+      if (!(v > 0.0 && std::isfinite(v)))
+        fail(p + "." + key,
+             "must be finite and > 0 (transversely isotropic elasticity needs axial_young, "
+             "transverse_young, axial_shear, axial_poisson and transverse_poisson)");
+    }
+    if (!(m.transverse_poisson > -1.0 && m.transverse_poisson < 1.0))
+      fail(p + ".transverse_poisson", "must lie in (-1, 1)");
+    if (!(m.axial_poisson > -1.0 && std::isfinite(m.axial_poisson)))
+      fail(p + ".axial_poisson", "must be given, finite and > -1");
+    // Positive definite: 1 - nu_TT - 2 nu_LT^2 E_T / E_L > 0.
+    if (!(1.0 - m.transverse_poisson -
+              2.0 * m.axial_poisson * m.axial_poisson * m.transverse_young / m.axial_young >
+          0.0))
+      fail(p,
+           "these constants give no stable material (need 1 - transverse_poisson - 2 "
+           "axial_poisson^2 transverse_young / axial_young > 0)");
+  }
+}
+
 // "materials" and "homogenization": known phase names, properties in range, and every phase
 // the image can hold has what the asked physics need.
 void validate_materials(const Scene& s) {
@@ -110,6 +169,7 @@ void validate_materials(const Scene& s) {
       fail(p + ".poisson", "must lie in (-1, 0.5)");
     if ((mat.young >= 0.0) != (mat.poisson > -1.0))
       fail(p, "give both \"young\" and \"poisson\" (isotropic elasticity), or neither");
+    validate_transverse(s, name, mat, p);
   }
   const HomogenizationSpec& h = s.homogenization;
   if (h.scheme != "rotated" && h.scheme != "moulinec_suquet")
@@ -122,6 +182,10 @@ void validate_materials(const Scene& s) {
     fail("homogenization.tolerance", "must lie in (0, 1)");
   if (h.max_iterations < 1 || h.max_iterations > 1000000)
     fail("homogenization.max_iterations", "must be an integer in [1, 1e6]");
+  if (h.voxel_rule != "laminate" && h.voxel_rule != "voigt" && h.voxel_rule != "reuss" &&
+      h.voxel_rule != "plain")
+    fail("homogenization.voxel_rule",
+         "unknown rule \"" + h.voxel_rule + "\" (laminate, voigt, reuss, plain)");
   if (!h.any()) return;
   // The phases the image holds: the matrix, every family's cores, the coated families' shells.
   std::vector<std::string> needed = {"matrix"};
@@ -134,9 +198,9 @@ void validate_materials(const Scene& s) {
     for (const auto& m : s.materials) {
       if (m.first == name) mat = &m.second;
     }
-    if (h.conductivity && (!mat || mat->conductivity < 0.0))
+    if (h.conductivity && (!mat || !mat->conducts()))
       fail("materials." + name + ".conductivity", "needed by homogenization.physics conductivity");
-    if (h.elasticity && (!mat || mat->young < 0.0))
+    if (h.elasticity && (!mat || !mat->elastic()))
       fail("materials." + name + ".young",
            "needed (with poisson) by homogenization.physics elasticity");
   }

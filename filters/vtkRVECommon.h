@@ -168,6 +168,11 @@ long long RVEVoxelizeInto(const rvegen::InclusionSet& set, const rvegen::VoxelIm
   names->SetName("phase_names");
   for (const auto& p : layout.phases) names->InsertNextValue(p.name);
   out->GetFieldData()->AddArray(names);
+  // The inclusion list, for the filters that need the exact geometry (RVE Effective Properties).
+  vtkNew<vtkStringArray> inclusions;
+  inclusions->SetName("rvegen_inclusions");
+  inclusions->InsertNextValue(rvegen::write_inclusions_json(set));
+  out->GetFieldData()->AddArray(inclusions);
   return conflicts;
 }
 

@@ -223,7 +223,43 @@ Family parse_family(const Json& j, const std::string& p, double box_volume) {
   if (derived) f.volume_fraction = -1.0;  // the count now says it all
   return f;
 }
+
+// Phase properties: {"matrix": {"conductivity": k, "young": E, "poisson": nu}, ...}; names and
+// ranges are validate_scene's.
+void parse_materials(const Json& m, Scene* s) {
+  using namespace json_util;
+  s->materials.clear();
+  if (!m.is_object()) fail("materials", "expected an object of phase names");
+  for (auto it = m.begin(); it != m.end(); ++it) {
+    const std::string p = "materials." + it.key();
+    only_keys(
+        it.value(),
+        {"conductivity", "young", "poisson", "axial_conductivity", "transverse_conductivity",
+         "axial_young", "transverse_young", "axial_shear", "axial_poisson", "transverse_poisson"},
+        p);
+    Material mat;
+    const std::pair<const char*, double*> fields[] = {
+        {"conductivity", &mat.conductivity},
+        {"young", &mat.young},
+        {"poisson", &mat.poisson},
+        {"axial_conductivity", &mat.axial_conductivity},
+        {"transverse_conductivity", &mat.transverse_conductivity},
+        {"axial_young", &mat.axial_young},
+        {"transverse_young", &mat.transverse_young},
+        {"axial_shear", &mat.axial_shear},
+        {"axial_poisson", &mat.axial_poisson},
+        {"transverse_poisson", &mat.transverse_poisson}};
+    for (const auto& [key, value] : fields) {
+      if (it.value().contains(key)) *value = number(it.value()[key], p + "." + key);
+    }
+    s->materials.emplace_back(it.key(), mat);
+  }
+}
 }  // namespace
+
+void read_materials_json(const std::string& text, Scene* scene) {
+  parse_materials(json_util::parse(text, "materials"), scene);
+}
 
 Outputs outputs_from_names(const std::vector<std::string>& names, bool mesh,
                            const std::string& where) {
@@ -373,36 +409,7 @@ Scene parse_scene(const std::string& text) {
       s.surface_chord_error = number(m["chord_error"], "surfaces.chord_error");
     }
   }
-  if (root.contains("materials")) {
-    // Phase properties: {"matrix": {"conductivity": k, "young": E, "poisson": nu}, ...};
-    // names and ranges are validate_scene's.
-    const Json& m = root["materials"];
-    if (!m.is_object()) fail("materials", "expected an object of phase names");
-    for (auto it = m.begin(); it != m.end(); ++it) {
-      const std::string p = "materials." + it.key();
-      only_keys(
-          it.value(),
-          {"conductivity", "young", "poisson", "axial_conductivity", "transverse_conductivity",
-           "axial_young", "transverse_young", "axial_shear", "axial_poisson", "transverse_poisson"},
-          p);
-      Material mat;
-      const std::pair<const char*, double*> fields[] = {
-          {"conductivity", &mat.conductivity},
-          {"young", &mat.young},
-          {"poisson", &mat.poisson},
-          {"axial_conductivity", &mat.axial_conductivity},
-          {"transverse_conductivity", &mat.transverse_conductivity},
-          {"axial_young", &mat.axial_young},
-          {"transverse_young", &mat.transverse_young},
-          {"axial_shear", &mat.axial_shear},
-          {"axial_poisson", &mat.axial_poisson},
-          {"transverse_poisson", &mat.transverse_poisson}};
-      for (const auto& [key, value] : fields) {
-        if (it.value().contains(key)) *value = number(it.value()[key], p + "." + key);
-      }
-      s.materials.emplace_back(it.key(), mat);
-    }
-  }
+  if (root.contains("materials")) parse_materials(root["materials"], &s);
   if (root.contains("homogenization")) {
     const Json& h = root["homogenization"];
     only_keys(h, {"physics", "scheme", "solver", "tolerance", "max_iterations", "voxel_rule"},

@@ -12,6 +12,9 @@ namespace rvegen {
 /// range and cross-field rule is then validate_scene's, the one place that checks a scene however
 /// it was built. Throws InputError naming the key.
 Scene parse_scene(const std::string& json_text);
+/// Reads a "materials" object ({"matrix": {...}, "<family>": {...}, ...}, the scene's syntax)
+/// into scene->materials (replacing them); names and ranges are validate_homogenization's.
+void read_materials_json(const std::string& json_text, Scene* scene);
 /// The outputs named in `names` (inclusions, voxels, h5, amitex, levelsets, mesh), nothing
 /// else; `mesh` as given unless "mesh" is named. `where` names the list in errors (InputError).
 Outputs outputs_from_names(const std::vector<std::string>& names, bool mesh,

@@ -208,6 +208,10 @@ void validate_materials(const Scene& s) {
 
 }  // namespace
 
+void validate_homogenization(const Scene& scene) {
+  validate_materials(scene);
+}
+
 const Material* OutputSpec::material(const std::string& key) const {
   for (const auto& m : materials) {
     if (m.first == key) return &m.second;

@@ -1,0 +1,236 @@
+#include "rvegen/homogenize/effective.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "rvegen/homogenize/medium.hpp"
+#include "rvegen/raster/cut_voxels.hpp"
+
+namespace rvegen {
+
+namespace {
+
+// Properties per phase label (voids: nothing conducts or carries load there). A core phase with
+// transversely isotropic properties has them in `material` (its isotropic values are unused).
+struct PhaseProperties {
+  std::vector<double> conductivity, young, poisson;
+  std::vector<const Material*> material;
+};
+
+PhaseProperties phase_properties(const Scene& scene, const VoxelImage& image) {
+  PhaseProperties p;
+  for (const Phase& ph : image.phases) {
+    std::string key;
+    if (ph.kind == PhaseKind::kMatrix) key = "matrix";
+    if (ph.kind == PhaseKind::kCore) key = scene.families[ph.family].name;
+    if (ph.kind == PhaseKind::kInterphase) key = scene.families[ph.family].name + ".coating";
+    const Material* m = key.empty() ? nullptr : scene.material(key);
+    p.conductivity.push_back(m && m->conductivity >= 0.0 ? m->conductivity : 0.0);
+    p.young.push_back(m && m->young >= 0.0 ? m->young : 0.0);
+    p.poisson.push_back(m && m->poisson > -1.0 ? m->poisson : 0.0);
+    p.material.push_back(m);
+  }
+  return p;
+}
+
+// The medium of one physics: a row per phase label, then a row per inclusion whose core is
+// transversely isotropic (its tensor turned to the inclusion's axis); composite voxels by the
+// rule. `phase_tensor(label)` gives a label's tensor, `own_tensor(material, axis)` a turned one
+// (or nothing when the material is isotropic for this physics).
+template <int D, class PhaseTensor, class OwnTensor>
+TensorMedium<D> build_medium(const InclusionSet& set, const VoxelImage& image, const CutVoxels& cut,
+                             VoxelRule rule, const PhaseProperties& props, PhaseTensor phase_tensor,
+                             OwnTensor own_tensor, size_t* own_rows) {
+  using T = Eigen::Matrix<double, D, D>;
+  std::vector<T> rows;
+  for (size_t l = 0; l < image.phases.size(); ++l) rows.push_back(phase_tensor(l));
+  // Rows of the inclusions' own tensors, by inclusion index and by id.
+  std::vector<int64_t> own(set.inclusions.size(), -1);
+  std::unordered_map<int, uint32_t> own_by_id;
+  for (size_t m = 0; m < set.inclusions.size(); ++m) {
+    const Inclusion& inc = set.inclusions[m];
+    const Material* mat = props.material[inc.family + 1];
+    T t;
+    if (!mat || !own_tensor(*mat, principal_axis(inc.shape), &t)) continue;
+    own[m] = static_cast<int64_t>(rows.size());
+    own_by_id[inc.id] = static_cast<uint32_t>(rows.size());
+    rows.push_back(t);
+  }
+  *own_rows = own_by_id.size();
+  std::vector<uint32_t> material(image.phase.size());
+  for (size_t v = 0; v < material.size(); ++v) {
+    material[v] = image.phase[v];
+    if (!own_by_id.empty() && image.phases[image.phase[v]].kind == PhaseKind::kCore) {
+      const auto it = own_by_id.find(image.inclusion_id[v]);
+      if (it != own_by_id.end()) material[v] = it->second;
+    }
+  }
+  std::vector<CompositeVoxel> composites;
+  composites.reserve(cut.voxels.size());
+  for (const CutVoxel& c : cut.voxels) {
+    CompositeVoxel v;
+    v.voxel = c.voxel;
+    v.inside = own[c.inclusion] >= 0 ? static_cast<uint32_t>(own[c.inclusion]) : c.inside;
+    v.outside = c.outside;
+    v.fraction = c.fraction;
+    v.normal = c.normal;
+    composites.push_back(v);
+  }
+  return compose_medium<D>(material, rows, composites, rule);
+}
+
+// Shares of each phase label in the image.
+std::vector<double> label_shares(const VoxelImage& image) {
+  std::vector<double> f(image.phases.size(), 0.0);
+  for (uint8_t l : image.phase) f[l] += 1.0;
+  for (double& v : f) v /= static_cast<double>(image.phase.size());
+  return f;
+}
+
+double arithmetic(const std::vector<double>& f, const std::vector<double>& v) {
+  double s = 0.0;
+  for (size_t i = 0; i < f.size(); ++i) s += f[i] * v[i];
+  return s;
+}
+
+double harmonic(const std::vector<double>& f, const std::vector<double>& v) {
+  double s = 0.0;
+  for (size_t i = 0; i < f.size(); ++i) {
+    if (f[i] <= 0.0) continue;
+    if (!(v[i] > 0.0)) return 0.0;
+    s += f[i] / v[i];
+  }
+  return 1.0 / s;
+}
+
+// (sum f_i / (v_i + z))^-1 - z: the Hashin-Shtrikman-Walpole form with the comparison value z.
+double walpole(const std::vector<double>& f, const std::vector<double>& v, double z) {
+  double s = 0.0;
+  for (size_t i = 0; i < f.size(); ++i) {
+    if (f[i] <= 0.0) continue;
+    if (!(v[i] + z > 0.0)) return 0.0;
+    s += f[i] / (v[i] + z);
+  }
+  return 1.0 / s - z;
+}
+
+// The extreme values over the phases present.
+std::pair<double, double> range(const std::vector<double>& f, const std::vector<double>& v) {
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (size_t i = 0; i < f.size(); ++i) {
+    if (f[i] <= 0.0) continue;
+    lo = std::min(lo, v[i]);
+    hi = std::max(hi, v[i]);
+  }
+  return {lo, hi};
+}
+
+Bounds scalar_bounds(const std::vector<double>& f, const std::vector<double>& v, double zlo,
+                     double zhi) {
+  Bounds b;
+  b.stated = true;
+  b.voigt = arithmetic(f, v);
+  b.reuss = harmonic(f, v);
+  b.hs_lower = walpole(f, v, zlo);
+  b.hs_upper = walpole(f, v, zhi);
+  return b;
+}
+
+}  // namespace
+
+EffectiveProperties effective_properties(const Scene& scene, const InclusionSet& set,
+                                         const VoxelImage& image, const SolveProgress& progress) {
+  const HomogenizationSpec& h = scene.homogenization;
+  const PhaseProperties props = phase_properties(scene, image);
+  EffectiveProperties out;
+  out.phase_shares = label_shares(image);
+  const std::vector<double>& f = out.phase_shares;
+  const std::array<int, 3> dims = {image.size(0), image.size(1), image.size(2)};
+  out.resolution = dims;
+  const Vec3 box = scene.box.size;
+  const GradientScheme scheme =
+      h.scheme == "moulinec_suquet" ? GradientScheme::kMoulinecSuquet : GradientScheme::kRotated;
+  const VoxelRule rule = voxel_rule_from_name(h.voxel_rule);
+  CutVoxels cut;
+  if (rule != VoxelRule::kPlain) cut = cut_voxels(set, image);
+  out.voxel_rule = h.voxel_rule;
+  out.cut_voxels = cut.voxels.size();
+  out.shared_voxels = cut.shared;
+  auto report = [&](const char* physics, int loads) {
+    return [=, &progress](int load, int it, double rel) {
+      return !progress || progress(physics, load, loads, it, rel);
+    };
+  };
+  if (h.conductivity) {
+    size_t own = 0;
+    const ConductivityMedium medium = build_medium<3>(
+        set, image, cut, rule, props,
+        [&](size_t l) { return Mat3(props.conductivity[l] * Mat3::Identity()); },
+        [](const Material& m, const Vec3& axis, Mat3* t) {
+          if (!m.transverse_conduction()) return false;
+          *t = transverse_conductivity(m.axial_conductivity, m.transverse_conductivity, axis);
+          return true;
+        },
+        &own);
+    ConductivityOptions opt;
+    opt.scheme = scheme;
+    opt.solver =
+        h.solver == "fixed_point" ? LinearSolver::kFixedPoint : LinearSolver::kConjugateGradient;
+    opt.tolerance = h.tolerance;
+    opt.max_iterations = h.max_iterations;
+    opt.progress = report("conductivity", 3);
+    out.conductivity = effective_conductivity(dims, box, medium, opt);
+    out.has_conductivity = true;
+    if (own == 0) {
+      const auto [kmin, kmax] = range(f, props.conductivity);
+      out.conductivity_bounds = scalar_bounds(f, props.conductivity, 2.0 * kmin, 2.0 * kmax);
+    }
+  }
+  if (h.elasticity) {
+    size_t own = 0;
+    const StiffnessMedium medium = build_medium<6>(
+        set, image, cut, rule, props,
+        [&](size_t l) { return isotropic_stiffness(props.young[l], props.poisson[l]); },
+        [](const Material& m, const Vec3& axis, Mat6* t) {
+          if (!m.transverse_elasticity()) return false;
+          *t = transverse_stiffness(m.axial_young, m.transverse_young, m.axial_shear,
+                                    m.axial_poisson, m.transverse_poisson, axis);
+          return true;
+        },
+        &own);
+    ElasticityOptions opt;
+    opt.scheme = scheme;
+    opt.tolerance = h.tolerance;
+    opt.max_iterations = h.max_iterations;
+    opt.progress = report("elasticity", 6);
+    out.stiffness = effective_stiffness(dims, box, medium, opt);
+    out.has_stiffness = true;
+    const Mat6& c = out.stiffness.stiffness;
+    out.constants = engineering_constants(c);
+    const double three_k = c.topLeftCorner<3, 3>().sum() / 3.0;
+    out.bulk = three_k / 3.0;
+    out.shear = (c.trace() - three_k) / 10.0;
+    if (own == 0) {
+      // Bulk and shear moduli per phase, and the Hashin-Shtrikman-Walpole comparison values.
+      std::vector<double> bulk(f.size()), shear(f.size());
+      for (size_t i = 0; i < f.size(); ++i) {
+        bulk[i] = props.young[i] / (3.0 * (1.0 - 2.0 * props.poisson[i]));
+        shear[i] = props.young[i] / (2.0 * (1.0 + props.poisson[i]));
+      }
+      const auto [gmin, gmax] = range(f, shear);
+      const auto [kmin, kmax] = range(f, bulk);
+      auto zeta = [](double k, double g) {
+        return k + 2 * g > 0 ? g / 6.0 * (9 * k + 8 * g) / (k + 2 * g) : 0.0;
+      };
+      out.bulk_bounds = scalar_bounds(f, bulk, 4.0 / 3.0 * gmin, 4.0 / 3.0 * gmax);
+      out.shear_bounds = scalar_bounds(f, shear, zeta(kmin, gmin), zeta(kmax, gmax));
+    }
+  }
+  return out;
+}
+
+}  // namespace rvegen

@@ -1,0 +1,54 @@
+// Effective properties of a voxelized RVE from a scene's "materials" and "homogenization": the
+// media (phase tensors, transversely isotropic cores turned to their inclusion's axis, voxels
+// cut by one core surface mixed by the voxel rule), the FFT solves, and the bounds of isotropic
+// phases beside the results. What the command line reports and the VTK filter tabulates.
+#pragma once
+
+#include <array>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "rvegen/homogenize/conductivity.hpp"
+#include "rvegen/homogenize/elasticity.hpp"
+#include "rvegen/model/scene.hpp"
+#include "rvegen/raster/voxelize.hpp"
+
+namespace rvegen {
+
+/// Voigt, Reuss and Hashin-Shtrikman(-Walpole) bounds from the image's phase shares; `stated`
+/// is false when a phase is anisotropic (these bounds do not apply).
+struct Bounds {
+  bool stated = false;
+  double voigt = 0.0, reuss = 0.0, hs_lower = 0.0, hs_upper = 0.0;
+};
+
+struct EffectiveProperties {
+  std::string voxel_rule;
+  size_t cut_voxels = 0;     // voxels mixed by the rule
+  size_t shared_voxels = 0;  // voxels cut by two cores (left plain)
+  std::array<int, 3> resolution = {0, 0, 0};
+  std::vector<double> phase_shares;  // by phase label (centre labels)
+  bool has_conductivity = false, has_stiffness = false;
+  ConductivityResult conductivity;
+  Bounds conductivity_bounds;
+  ElasticityResult stiffness;
+  EngineeringConstants constants;
+  /// The isotropic projection of the stiffness: bulk modulus (3K = sum of C_ij, i, j < 3, over
+  /// 3) and shear modulus (2G = (trace - 3K) / 5).
+  double bulk = 0.0, shear = 0.0;
+  Bounds bulk_bounds, shear_bounds;
+};
+
+/// Called with the physics ("conductivity", "elasticity"), the load case, the number of load
+/// cases, the iteration and the relative residual; false stops the solve (Cancelled is thrown).
+using SolveProgress = std::function<bool(const char*, int, int, int, double)>;
+
+/// Solves what scene.homogenization asks for on `image` (the whole image: labels at voxel
+/// centres and inclusion ids) of the inclusions `set`. The scene's materials must have been
+/// validated (validate_homogenization).
+EffectiveProperties effective_properties(const Scene& scene, const InclusionSet& set,
+                                         const VoxelImage& image,
+                                         const SolveProgress& progress = nullptr);
+
+}  // namespace rvegen

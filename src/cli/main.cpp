@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "effective.hpp"
+#include "rvegen/io/amitex.hpp"
 #include "rvegen/io/hdf5_writer.hpp"
 #include "rvegen/io/inclusions_json.hpp"
 #include "rvegen/io/report.hpp"
@@ -55,7 +56,8 @@ const char* kGenerateUsage =
     "    voxels      voxels.vti (phase, inclusion_id, fraction; zlib-compressed)\n"
     "    levelsets   levelsets.vdb, when inclusions are wavy, deformed or coated\n"
     "    h5          rve.h5 + rve.xdmf (voxels, inclusion table, scene, report)\n"
-    "    amitex      material.vtk (AMITEX_FFTP material map)\n"
+    "    amitex      material.vtk, zoneID.vtk and the amitex_*.xml and amitex_run.sh files that\n"
+    "                run AMITEX_FFTP on them (materials from the scene)\n"
     "    mesh        surfaces.vtp of every inclusion (otherwise of the modified ones only)\n"
     "  By default inclusions, voxels and levelsets; the scene's \"outputs\" list or\n"
     "  --outputs LIST (names separated by commas) chooses others. DIR is replaced as a whole:\n"
@@ -316,6 +318,11 @@ int cmd_generate(const std::vector<std::string>& args) {
     if (want.amitex) {
       timed("write material.vtk", [&] {
         out.write_with("material.vtk", [&](std::FILE* f) { rvegen::write_material_vtk(image, f); });
+        out.write_with("zoneID.vtk", [&](std::FILE* f) { rvegen::write_zone_vtk(image, f); });
+        out.write("amitex_materials.xml", rvegen::amitex_materials_xml(scene, result.set, image));
+        out.write("amitex_loading.xml", rvegen::amitex_loading_xml());
+        out.write("amitex_algorithm.xml", rvegen::amitex_algorithm_xml());
+        out.write("amitex_run.sh", rvegen::amitex_run_sh());
       });
     }
     nlohmann::ordered_json effective;

@@ -88,7 +88,7 @@ expect_rc 0 "$RVEGEN" generate -q "$WORK/only_inclusions.json" -o "$WORK/out_onl
   || fail "outputs [inclusions] wrote: $(ls "$WORK/out_only_inclusions" | tr '\n' ' ')"
 echo "{$BOX,\"families\":[{\"shape\":\"sphere\",\"radius\":0.1,\"count\":5}],\"outputs\":[\"amitex\",\"mesh\"]}" >"$WORK/amitex_mesh.json"
 expect_rc 0 "$RVEGEN" generate -q "$WORK/amitex_mesh.json" -o "$WORK/out_amitex_mesh"
-[ "$(ls "$WORK/out_amitex_mesh" | tr '\n' ' ')" = "material.vtk report.json surfaces.vtp " ] \
+[ "$(ls "$WORK/out_amitex_mesh" | tr '\n' ' ')" = "amitex_algorithm.xml amitex_loading.xml amitex_materials.xml amitex_run.sh material.vtk report.json surfaces.vtp zoneID.vtk " ] \
   || fail "outputs [amitex, mesh] wrote: $(ls "$WORK/out_amitex_mesh" | tr '\n' ' ')"
 # Default outputs: one voxel file (voxels.vti, compressed), no rve.h5 or material.vtk; the last
 # line gives the bytes written, which are the directory's.
@@ -418,6 +418,74 @@ c = s["engineering_constants"]
 assert s["converged"] and c["E3"] > 1.5 * c["E1"] and abs(c["E1"] / c["E2"] - 1) < 0.05, c
 m = s["tensor"]
 assert all(abs(m[i][j] - m[j][i]) < 1e-6 * m[2][2] for i in range(6) for j in range(6)), m
+PY
+# AMITEX_FFTP inputs: zoneID.vtk numbers each fibre's voxels by the fibre's rank among the
+# fibres present (1 elsewhere), the material file has one material per number of material.vtk
+# with the scene's constants (Lame for the matrix; the fibre's stiffness in its own frame with
+# its axis per zone), the loading file the six unit strains, the run script every file.
+expect_rc 0 "$RVEGEN" generate -q "$WORK/fib.json" --outputs inclusions,h5,amitex -o "$WORK/fib_amitex"
+$py - "$WORK/fib_amitex" <<'PY' || fail "AMITEX files"
+import json, os, sys
+import xml.etree.ElementTree as ET
+import numpy as np, h5py
+d = sys.argv[1]
+def legacy(path):
+    raw = open(path, "rb").read()
+    lines = raw.split(b"\n", 10)
+    assert lines[0].startswith(b"# vtk DataFile") and lines[2] == b"BINARY", lines[:3]
+    kind = lines[8].split()[2].decode()
+    return np.frombuffer(lines[10], dtype={"unsigned_short": ">u2", "int": ">i4"}[kind]).astype(int)
+mat, zone = legacy(os.path.join(d, "material.vtk")), legacy(os.path.join(d, "zoneID.vtk"))
+with h5py.File(os.path.join(d, "rve.h5"), "r") as h:
+    phase = h["voxels/phase"][...].ravel()
+    ids = h["voxels/inclusion_id"][...].ravel()
+assert mat.size == zone.size == phase.size, (mat.size, zone.size, phase.size)
+fib = phase == 1
+present = np.unique(ids[fib])
+rank = {int(i): k + 1 for k, i in enumerate(present)}
+assert all(zone[fib] == [rank[int(i)] for i in ids[fib]]), "fibre zones"
+assert (zone[~fib] == 1).all(), "zones outside the fibres"
+root = ET.parse(os.path.join(d, "amitex_materials.xml")).getroot()
+mats = root.findall("Material")
+assert sorted(int(m.get("numM")) for m in mats) == sorted(set(mat.tolist())), [m.get("numM") for m in mats]
+by = {m.get("numM"): m for m in mats}
+iso = by["1"]
+assert iso.get("Law") == "elasiso"
+E, nu = 3.0, 0.35
+lam, mu = E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
+c = {int(k.get("Index")): k for k in iso.findall("Coeff")}
+assert abs(float(c[1].get("Value")) - lam) < 1e-12 and abs(float(c[2].get("Value")) - mu) < 1e-12
+ani = by["2"]
+assert ani.get("Law") == "elasaniso"
+c = {int(k.get("Index")): k for k in ani.findall("Coeff")}
+# The fibre frame's stiffness, independently: the inverse of the compliance.
+EL, ET_, GLT, nuLT, nuTT = 230.0, 15.0, 27.0, 0.2, 0.4
+S = np.array([[1 / EL, -nuLT / EL, -nuLT / EL], [-nuLT / EL, 1 / ET_, -nuTT / ET_], [-nuLT / EL, -nuTT / ET_, 1 / ET_]])
+C = np.linalg.inv(S)
+want = [C[0, 0], C[0, 1], C[0, 2], C[1, 1], C[1, 2], C[2, 2], GLT, GLT, ET_ / (2 * (1 + nuTT))]
+got = [float(c[k].get("Value")) for k in range(1, 10)]
+assert np.allclose(got, want, rtol=1e-12), (got, want)
+incs = {i["id"]: i for i in json.load(open(os.path.join(d, "inclusions.json")))["inclusions"]}
+for k, i in enumerate(present):
+    a = np.array(incs[int(i)]["half_axis"], float); a /= np.linalg.norm(a)
+    e1 = [float(c[10 + j].find("Zone[@numZ='%d']" % (k + 1)).get("Value")) for j in range(3)]
+    assert np.allclose(e1, a, atol=1e-12), (k, e1, a)
+load = ET.parse(os.path.join(d, "amitex_loading.xml")).getroot().findall("Loading")
+assert len(load) == 6
+for n, l in enumerate(load):
+    vals = [float(l.find(x).get("Value")) for x in ("xx", "yy", "zz", "xy", "xz", "yz")]
+    assert vals == [1e-3 if j == n else 0.0 for j in range(6)], vals
+ET.parse(os.path.join(d, "amitex_algorithm.xml"))
+# rve.h5 lists the composite voxels the report's solve used: unit normals, shares in (0, 1).
+with h5py.File(os.path.join(d, "rve.h5"), "r") as h:
+    g = h["composite_voxels"]
+    n, f = g["normal"][...], g["fraction"][...]
+    assert np.allclose(np.linalg.norm(n, axis=1), 1.0) and ((f > 0) & (f < 1)).all()
+    rep = json.load(open(os.path.join(d, "report.json")))["effective"]["voxel_rule"]
+    assert len(f) == rep["cut_voxels"] and g.attrs["voxels_cut_by_two_cores"][0] == rep["voxels_cut_by_two_cores"], (len(f), rep)
+run = open(os.path.join(d, "amitex_run.sh")).read()
+for f in ("material.vtk", "zoneID.vtk", "amitex_materials.xml", "amitex_loading.xml", "amitex_algorithm.xml"):
+    assert f in run, f
 PY
 bad ti_matrix "{$BOX,$FIB_FAM,\"materials\":{\"matrix\":{\"axial_conductivity\":1,\"transverse_conductivity\":1}}}" "materials.matrix: transversely isotropic properties are for a family"
 bad ti_sphere "{$BOX,$HOM_FAM,\"materials\":{\"spheres\":{\"axial_conductivity\":1,\"transverse_conductivity\":1}}}" "need an axis"

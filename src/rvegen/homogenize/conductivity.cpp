@@ -96,8 +96,11 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
   }
   GradientProjection project(dims, box_size, opt.scheme, opt.threads);
   ConductivityResult res;
-  std::vector<double> x(3 * n), tmp(3 * n), e, r;  // e, r: the fixed-point scheme's
-  if (opt.solver == LinearSolver::kFixedPoint) e.resize(3 * n), r.resize(3 * n);
+  // x and, for conjugate gradients, the solver's three fields (products computed in place:
+  // the projection reads every component before it writes one); the fixed-point scheme's
+  // tmp, e and r.
+  std::vector<double> x(3 * n), tmp, e, r;
+  if (opt.solver == LinearSolver::kFixedPoint) tmp.resize(3 * n), e.resize(3 * n), r.resize(3 * n);
   // k times a 3-component field, and (k - k0) times one.
   auto times = [&](const std::vector<double>& f, std::vector<double>* out, double shift) {
     spectral::parallel_blocks(n, [&](size_t lo, size_t hi) {
@@ -114,11 +117,12 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
   for (int load = 0; load < 3; ++load) {
     // Mean gradient E = unit vector along `load`; unknown: the fluctuation x (a gradient field
     // with zero mean); equilibrium: P[k (E + x)] = 0, i.e. P[k x] = -P[k E].
-    std::vector<double> mean(3 * n, 0.0);
-    std::fill(mean.begin() + load * n, mean.begin() + (load + 1) * n, 1.0);
-    times_k(mean, &tmp);
-    std::vector<double> b(3 * n);
-    project.apply(tmp.data(), b.data());
+    std::vector<double> b(3 * n, 0.0);
+    std::fill(b.begin() + load * n, b.begin() + (load + 1) * n, 1.0);
+    const std::vector<double> mean =
+        opt.solver == LinearSolver::kFixedPoint ? b : std::vector<double>();
+    times_k(b, &b);
+    project.apply(b.data(), b.data());
     for (double& v : b) v = -v;
     const double bnorm = std::sqrt(dot(b, b));
     auto progress = [&](int it, double rel) {
@@ -128,8 +132,8 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
     if (opt.solver == LinearSolver::kConjugateGradient) {
       out = spectral::conjugate_gradients(
           [&](const std::vector<double>& p, std::vector<double>* ap) {
-            times_k(p, &tmp);
-            project.apply(tmp.data(), ap->data());
+            times_k(p, ap);
+            project.apply(ap->data(), ap->data());
           },
           std::move(b), &x, opt.tolerance, opt.max_iterations, progress);
     } else if (bnorm > 0.0) {
@@ -160,14 +164,14 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
     res.iterations[load] = out.iterations;
     res.residual[load] = out.residual;
     if (bnorm > 0.0 && !(out.residual < opt.tolerance)) res.converged = false;
-    // Mean flux of k (E + x).
-    for (size_t i = 0; i < 3 * n; ++i) x[i] += mean[i];
-    times_k(x, &tmp);
-    for (int a = 0; a < 3; ++a) {
-      double q = 0.0;
-      for (size_t i = 0; i < n; ++i) q += tmp[a * n + i];
-      res.tensor(a, load) = q / static_cast<double>(n);
+    // Mean flux of k (E + x), voxel by voxel in order.
+    Vec3 sum = Vec3::Zero();
+    for (size_t i = 0; i < n; ++i) {
+      Vec3 g(x[i], x[n + i], x[2 * n + i]);
+      g[load] += 1.0;
+      sum += medium.at(i) * g;
     }
+    res.tensor.col(load) = sum / static_cast<double>(n);
   }
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;

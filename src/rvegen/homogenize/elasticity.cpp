@@ -152,20 +152,21 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
   };
   StrainProjection project(dims, box_size, opt.scheme, opt.threads);
   ElasticityResult res;
-  // At peak: x, tmp, and the solver's residual, direction and product (five 6-component fields).
-  std::vector<double> x(6 * n), tmp(6 * n);
+  // At peak: x and the solver's residual, direction and product (four 6-component fields); the
+  // stress and its projection are computed in place (the projection reads every component
+  // before it writes one).
+  std::vector<double> x(6 * n);
   for (int load = 0; load < 6; ++load) {
-    // The stress of the uniform unit strain `load` (built in x, which the solve resets).
-    std::fill(x.begin(), x.end(), 0.0);
-    std::fill(x.begin() + load * n, x.begin() + (load + 1) * n, 1.0);
-    stress(x, &tmp);
-    std::vector<double> b(6 * n);
-    project.apply(tmp.data(), b.data());
+    // Right-hand side: minus the projected stress of the uniform unit strain `load`.
+    std::vector<double> b(6 * n, 0.0);
+    std::fill(b.begin() + load * n, b.begin() + (load + 1) * n, 1.0);
+    stress(b, &b);
+    project.apply(b.data(), b.data());
     for (double& v : b) v = -v;
     const spectral::CgOutcome out = spectral::conjugate_gradients(
         [&](const std::vector<double>& p, std::vector<double>* ap) {
-          stress(p, &tmp);
-          project.apply(tmp.data(), ap->data());
+          stress(p, ap);
+          project.apply(ap->data(), ap->data());
         },
         std::move(b), &x, opt.tolerance, opt.max_iterations,
         [&](int it, double rel) { return !opt.progress || opt.progress(load, it, rel); });
@@ -173,15 +174,15 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
     res.iterations[load] = out.iterations;
     res.residual[load] = out.residual;
     if (out.iterations > 0 && !(out.residual < opt.tolerance)) res.converged = false;
-    // Mean stress of the mean strain plus the fluctuation: the unit strain is added to x
-    // (x is reset by the next solve).
-    for (size_t i = 0; i < n; ++i) x[load * n + i] += 1.0;
-    stress(x, &tmp);
-    for (int c = 0; c < 6; ++c) {
-      double s = 0.0;
-      for (size_t i = 0; i < n; ++i) s += tmp[c * n + i];
-      res.stiffness(c, load) = s / static_cast<double>(n);
+    // Mean stress of the unit strain plus the fluctuation, voxel by voxel in order.
+    Vec6 sum = Vec6::Zero();
+    for (size_t i = 0; i < n; ++i) {
+      Vec6 v;
+      for (int c = 0; c < 6; ++c) v[c] = x[c * n + i];
+      v[load] += 1.0;
+      sum += medium.at(i) * v;
     }
+    res.stiffness.col(load) = sum / static_cast<double>(n);
   }
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;

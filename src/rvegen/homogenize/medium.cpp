@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "rvegen/model/elastic_constants.hpp"
 #include "rvegen/model/errors.hpp"
 
 namespace rvegen {
@@ -213,27 +214,11 @@ Mat6 mandel_rotation(const Mat3& r) {
 
 Mat6 transverse_stiffness(double e_l, double e_t, double g_lt, double nu_lt, double nu_tt,
                           const Vec3& axis) {
-  if (!(e_l > 0.0) || !(e_t > 0.0) || !(g_lt > 0.0) || !std::isfinite(e_l + e_t + g_lt) ||
-      !(nu_tt > -1.0 && nu_tt < 1.0) || !std::isfinite(nu_lt)) {
-    throw InputError(
-        "transversely isotropic stiffness: moduli must be positive and finite, "
-        "the transverse Poisson's ratio in (-1, 1)");
+  // In the fibre frame (axis = local 3), Voigt to Mandel: shear rows and columns times sqrt 2.
+  Mat6 local = transverse_voigt_stiffness(e_l, e_t, g_lt, nu_lt, nu_tt, 2);
+  for (int i = 0; i < 6; ++i) {
+    for (int j = 0; j < 6; ++j) local(i, j) *= (i < 3 ? 1.0 : kSqrt2) * (j < 3 ? 1.0 : kSqrt2);
   }
-  // Compliance in the fibre frame (axis = local 3), Mandel.
-  Mat6 s = Mat6::Zero();
-  s(0, 0) = s(1, 1) = 1.0 / e_t;
-  s(2, 2) = 1.0 / e_l;
-  s(0, 1) = s(1, 0) = -nu_tt / e_t;
-  s(0, 2) = s(2, 0) = s(1, 2) = s(2, 1) = -nu_lt / e_l;
-  s(3, 3) = s(4, 4) = 1.0 / (2.0 * g_lt);
-  s(5, 5) = (1.0 + nu_tt) / e_t;  // 1 / (2 G_TT), G_TT = E_T / (2 (1 + nu_TT))
-  Eigen::LLT<Mat6> llt(s);
-  if (llt.info() != Eigen::Success) {
-    throw InputError(
-        "transversely isotropic stiffness: the constants give no positive-definite "
-        "tensor (check nu_LT^2 < E_L / E_T (1 - nu_TT) / 2)");
-  }
-  const Mat6 local = s.inverse();
   const Vec3 a = axis.normalized();
   const Vec3 t1 = a.unitOrthogonal(), t2 = a.cross(t1);
   Mat3 r;

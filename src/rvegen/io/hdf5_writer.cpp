@@ -8,6 +8,8 @@
 #include <utility>
 #include <vector>
 
+#include "rvegen/raster/cut_voxels.hpp"
+
 namespace rvegen {
 namespace {
 
@@ -170,6 +172,36 @@ void write_hdf5(const std::string& path, const VoxelImage& im, const InclusionSe
     dataset(tab, "rotation", H5T_NATIVE_DOUBLE, {n, 3, 3}, rot.data());
     text_attribute(tab, "shape_codes", std::string("0 sphere, 1 cylinder, 2 ellipsoid"));
     H5Gclose(tab);
+
+    // Voxels cut by one core surface, for solvers that take composite (laminate) voxels.
+    const CutVoxels cut = cut_voxels(set, im);
+    const hid_t cv = H5Gcreate2(file, "composite_voxels", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    const size_t m = cut.voxels.size();
+    std::vector<uint64_t> voxel(m);
+    std::vector<int32_t> owner(m);
+    std::vector<uint8_t> inside(m), outside(m);
+    std::vector<double> share(m), normal(3 * m);
+    for (size_t i = 0; i < m; ++i) {
+      const CutVoxel& c = cut.voxels[i];
+      voxel[i] = c.voxel;
+      owner[i] = set.inclusions[c.inclusion].id;
+      inside[i] = c.inside;
+      outside[i] = c.outside;
+      share[i] = c.fraction;
+      for (int a = 0; a < 3; ++a) normal[3 * i + a] = c.normal[a];
+    }
+    dataset(cv, "voxel", H5T_NATIVE_UINT64, {m}, voxel.data());
+    dataset(cv, "inclusion_id", H5T_NATIVE_INT32, {m}, owner.data());
+    dataset(cv, "inside_phase", H5T_NATIVE_UINT8, {m}, inside.data());
+    dataset(cv, "outside_phase", H5T_NATIVE_UINT8, {m}, outside.data());
+    dataset(cv, "fraction", H5T_NATIVE_DOUBLE, {m}, share.data());
+    dataset(cv, "normal", H5T_NATIVE_DOUBLE, {m, 3}, normal.data());
+    text_attribute(cv, "description",
+                   std::string("voxels cut by one core surface: voxel = index x fastest (i + nx "
+                               "(j + ny k)), the share of the voxel inside the core (fraction), "
+                               "the core's outward unit normal, the phase labels on each side"));
+    attribute(cv, "voxels_cut_by_two_cores", {static_cast<double>(cut.shared)});
+    H5Gclose(cv);
 
   } catch (...) {
     H5Fclose(file);

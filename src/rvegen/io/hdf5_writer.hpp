@@ -14,6 +14,8 @@ namespace rvegen {
 ///   computed), each [nz][ny][nx] with attributes origin, spacing (x, y, z order);
 ///   /phases/{label,name,kind,family}; /inclusions/{id,family,shape,center,radius,half_axis,
 ///   semi_axes,rotation} (one row per inclusion; unused fields 0);
+///   /composite_voxels/{voxel,inclusion_id,inside_phase,outside_phase,fraction,normal}: the
+///   voxels one core surface cuts (cut_voxels), for solvers that take laminate voxels;
 ///   root attributes format = "rvegen.h5/1", box_origin, box_size, periodic; the scene and
 ///   report JSON as string datasets /scene and /report, and also as root attributes scene and
 ///   report when shorter than 60,000 bytes (HDF5 limits attributes to 64 KB).

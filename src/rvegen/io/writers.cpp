@@ -180,10 +180,9 @@ std::string vti_bytes(const VoxelImage& im, bool compressed) {
   return with_file([&](std::FILE* f) { write_vti(im, f, compressed); });
 }
 
-void write_material_vtk(const VoxelImage& im, std::FILE* out) {
-  // AMITEX_FFTP's header, exactly 10 lines; materials numbered 1..N (phase label + 1) as
-  // big-endian unsigned shorts. Phases absent from the image would leave holes in 1..N, which
-  // AMITEX rejects: labels are renumbered densely in label order.
+std::vector<uint16_t> amitex_material_ids(const VoxelImage& im) {
+  // Phases absent from the image would leave holes in 1..N, which AMITEX rejects: labels are
+  // renumbered densely in label order.
   std::vector<int> present(256, 0);
   for (uint8_t p : im.phase) present[p] = 1;
   std::vector<uint16_t> id(256, 0);
@@ -191,6 +190,13 @@ void write_material_vtk(const VoxelImage& im, std::FILE* out) {
   for (int l = 0; l < 256; ++l) {
     if (present[l]) id[l] = next++;
   }
+  return id;
+}
+
+void write_material_vtk(const VoxelImage& im, std::FILE* out) {
+  // AMITEX_FFTP's header, exactly 10 lines; materials numbered 1..N as big-endian unsigned
+  // shorts.
+  const std::vector<uint16_t> id = amitex_material_ids(im);
   std::ostringstream s;
   s.precision(17);
   s << "# vtk DataFile Version 4.5\nMateriau\nBINARY\nDATASET STRUCTURED_POINTS\n";
@@ -372,9 +378,20 @@ bool own_file(const std::string& name) {
 }  // namespace
 
 const std::vector<std::string>& OutputSet::file_names() {
-  static const std::vector<std::string> names = {
-      "inclusions.json", "inclusions.vtp", "surfaces.vtp",  "voxels.vti", "material.vtk",
-      "rve.h5",          "rve.xdmf",       "levelsets.vdb", "report.json"};
+  static const std::vector<std::string> names = {"inclusions.json",
+                                                 "inclusions.vtp",
+                                                 "surfaces.vtp",
+                                                 "voxels.vti",
+                                                 "material.vtk",
+                                                 "zoneID.vtk",
+                                                 "amitex_materials.xml",
+                                                 "amitex_loading.xml",
+                                                 "amitex_algorithm.xml",
+                                                 "amitex_run.sh",
+                                                 "rve.h5",
+                                                 "rve.xdmf",
+                                                 "levelsets.vdb",
+                                                 "report.json"};
   return names;
 }
 

@@ -28,6 +28,9 @@ std::string vti_bytes(const VoxelImage& image, bool compressed = true);
 /// labels present in the image. Streamed in blocks.
 void write_material_vtk(const VoxelImage& image, std::FILE* out);
 std::string material_vtk_bytes(const VoxelImage& image);
+/// The AMITEX material number of each phase label (1..N over the labels present, in label
+/// order; 0 for a label absent from the image): what write_material_vtk writes.
+std::vector<uint16_t> amitex_material_ids(const VoxelImage& image);
 /// VTK XML PolyData of a mesh, streamed to `out`: Float32 points (shared within each inclusion's
 /// surface), triangles, cell arrays "inclusion_id", "family", "shape", "phase" (Int32) and "axis"
 /// (Float32 x 3). With `inclusions_json` (write_inclusions_json), field data "rvegen_inclusions"

@@ -1,0 +1,227 @@
+#include "rvegen/io/amitex.hpp"
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <map>
+#include <sstream>
+#include <vector>
+
+#include "rvegen/io/writers.hpp"
+#include "rvegen/model/elastic_constants.hpp"
+
+namespace rvegen {
+
+namespace {
+
+// Zone of each voxel's inclusion within its core material: per family, the ids present in
+// the image's core voxels, numbered 1.. in id order. Returns the zone per voxel.
+std::vector<uint32_t> zones(const VoxelImage& image, std::map<int, std::vector<int>>* ids) {
+  std::vector<char> core(image.phases.size(), 0);
+  for (const Phase& p : image.phases) core[p.label] = p.kind == PhaseKind::kCore;
+  for (size_t v = 0; v < image.phase.size(); ++v) {
+    if (core[image.phase[v]]) (*ids)[image.phase[v]].push_back(image.inclusion_id[v]);
+  }
+  std::map<int, std::map<int, uint32_t>> zone_of;
+  for (auto& [label, list] : *ids) {
+    std::sort(list.begin(), list.end());
+    list.erase(std::unique(list.begin(), list.end()), list.end());
+    for (size_t k = 0; k < list.size(); ++k) zone_of[label][list[k]] = static_cast<uint32_t>(k + 1);
+  }
+  std::vector<uint32_t> z(image.phase.size(), 1);
+  for (size_t v = 0; v < image.phase.size(); ++v) {
+    if (core[image.phase[v]]) z[v] = zone_of[image.phase[v]][image.inclusion_id[v]];
+  }
+  return z;
+}
+
+void put(std::FILE* out, const void* data, size_t bytes) {
+  if (bytes > 0 && std::fwrite(data, 1, bytes, out) != bytes) {
+    throw OutputError(std::string("write failed: ") + std::strerror(errno));
+  }
+}
+
+std::string key_of(const Scene& scene, const Phase& p) {
+  if (p.kind == PhaseKind::kMatrix) return "matrix";
+  if (p.family < 0 || p.family >= static_cast<int>(scene.families.size())) return p.name;
+  const std::string& f = scene.families[p.family].name;
+  return p.kind == PhaseKind::kInterphase ? f + ".coating" : f;
+}
+
+}  // namespace
+
+void write_zone_vtk(const VoxelImage& im, std::FILE* out) {
+  std::map<int, std::vector<int>> ids;
+  const std::vector<uint32_t> z = zones(im, &ids);
+  uint32_t most = 1;
+  for (const auto& [label, list] : ids) most = std::max(most, static_cast<uint32_t>(list.size()));
+  const bool wide = most > 65535;
+  std::ostringstream s;
+  s.precision(17);
+  s << "# vtk DataFile Version 4.5\nZones\nBINARY\nDATASET STRUCTURED_POINTS\n";
+  s << "DIMENSIONS " << im.size(0) + 1 << " " << im.size(1) + 1 << " " << im.size(2) + 1 << "\n";
+  s << "ORIGIN " << im.origin[0] + im.extent[0] * im.spacing[0] << " "
+    << im.origin[1] + im.extent[2] * im.spacing[1] << " "
+    << im.origin[2] + im.extent[4] * im.spacing[2] << "\n";
+  s << "SPACING " << im.spacing[0] << " " << im.spacing[1] << " " << im.spacing[2] << "\n";
+  s << "CELL_DATA " << im.count() << "\n";
+  s << "SCALARS ZoneId " << (wide ? "int" : "unsigned_short") << "\nLOOKUP_TABLE default\n";
+  const std::string header = s.str();
+  put(out, header.data(), header.size());
+  const int width = wide ? 4 : 2;
+  std::vector<unsigned char> block;
+  constexpr size_t kBlock = size_t(1) << 20;
+  for (size_t at = 0; at < z.size(); at += kBlock) {
+    const size_t n = std::min(kBlock, z.size() - at);
+    block.resize(width * n);
+    for (size_t i = 0; i < n; ++i) {
+      for (int b = 0; b < width; ++b) {
+        block[width * i + b] = static_cast<unsigned char>(z[at + i] >> (8 * (width - 1 - b)));
+      }
+    }
+    put(out, block.data(), block.size());
+  }
+}
+
+std::string amitex_materials_xml(const Scene& scene, const InclusionSet& set,
+                                 const VoxelImage& image) {
+  const std::vector<uint16_t> id = amitex_material_ids(image);
+  std::map<int, std::vector<int>> ids;
+  zones(image, &ids);
+  std::map<int, const Inclusion*> by_id;
+  for (const Inclusion& inc : set.inclusions) by_id[inc.id] = &inc;
+  std::ostringstream x;
+  x.precision(17);
+  // Lame coefficients of the isotropic phases, for the reference material (the mean of the
+  // extremes, Moulinec and Suquet's choice; with convergence acceleration it matters little).
+  double lmin = 1e300, lmax = 0.0, mmin = 1e300, mmax = 0.0;
+  auto lame = [](const Material& m, double* l, double* mu) {
+    *l = m.young * m.poisson / ((1.0 + m.poisson) * (1.0 - 2.0 * m.poisson));
+    *mu = m.young / (2.0 * (1.0 + m.poisson));
+  };
+  for (const Phase& p : image.phases) {
+    const Material* m = id[p.label] ? scene.material(key_of(scene, p)) : nullptr;
+    if (!m || m->young < 0.0) continue;
+    double l, mu;
+    lame(*m, &l, &mu);
+    lmin = std::min(lmin, l), lmax = std::max(lmax, l);
+    mmin = std::min(mmin, mu), mmax = std::max(mmax, mu);
+  }
+  x << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<!-- Written by rvegen for material.vtk and "
+       "zoneID.vtk; run with amitex_run.sh. -->\n<Materials>\n";
+  if (lmax > 0.0 || mmax > 0.0) {
+    x << "  <Reference_Material Lambda0=\"" << 0.5 * (lmin + lmax) << "\" Mu0=\""
+      << 0.5 * (mmin + mmax) << "\"/>\n";
+  } else {
+    x << "  <Reference_Material Lambda0=\"FILL_IN\" Mu0=\"FILL_IN\"/>\n";
+  }
+  for (const Phase& p : image.phases) {
+    if (!id[p.label]) continue;
+    const std::string key = key_of(scene, p);
+    const Material* m = scene.material(key);
+    x << "  <!-- " << p.name << " (materials." << key << ") -->\n";
+    if (m && m->transverse_elasticity() && p.kind == PhaseKind::kCore) {
+      // elasaniso: C11 C12 C13 C22 C23 C33 C44 C55 C66 in the fibre frame (1 = the fibre's
+      // axis), in AMITEX's component order xx yy zz xy xz yz (so C44, C55 and C66 are the
+      // shear moduli of the planes 12, 13 and 23), then the frame's e1 and e2, one zone per
+      // fibre.
+      const auto c = transverse_voigt_stiffness(m->axial_young, m->transverse_young, m->axial_shear,
+                                                m->axial_poisson, m->transverse_poisson, 0);
+      // c is in the order 23, 13, 12 for its shear rows.
+      const double coeff[9] = {c(0, 0), c(0, 1), c(0, 2), c(1, 1), c(1, 2),
+                               c(2, 2), c(5, 5), c(4, 4), c(3, 3)};
+      x << "  <Material numM=\"" << id[p.label] << "\" Lib=\"\" Law=\"elasaniso\">\n";
+      for (int k = 0; k < 9; ++k) {
+        x << "    <Coeff Index=\"" << k + 1 << "\" Type=\"Constant\" Value=\"" << coeff[k]
+          << "\"/>\n";
+      }
+      const std::vector<int>& list = ids[p.label];
+      std::vector<Vec3> e1(list.size()), e2(list.size());
+      for (size_t z = 0; z < list.size(); ++z) {
+        const Inclusion* inc = by_id.count(list[z]) ? by_id[list[z]] : nullptr;
+        const Vec3 a = inc ? principal_axis(inc->shape) : Vec3::UnitX();
+        e1[z] = a.norm() > 0.0 ? a.normalized() : Vec3::UnitX();
+        e2[z] = e1[z].unitOrthogonal();
+      }
+      for (int k = 0; k < 6; ++k) {
+        x << "    <Coeff Index=\"" << 10 + k << "\" Type=\"Constant_Zone\">";
+        for (size_t z = 0; z < list.size(); ++z) {
+          const Vec3& v = k < 3 ? e1[z] : e2[z];
+          x << "<Zone numZ=\"" << z + 1 << "\" Value=\"" << v[k % 3] << "\"/>";
+        }
+        x << "</Coeff>\n";
+      }
+      x << "  </Material>\n";
+      continue;
+    }
+    x << "  <Material numM=\"" << id[p.label] << "\" Lib=\"\" Law=\"elasiso\">\n";
+    if (p.kind == PhaseKind::kVoid) {
+      x << "    <!-- a debonding void: no stiffness -->\n";
+      x << "    <Coeff Index=\"1\" Type=\"Constant\" Value=\"0\"/>\n";
+      x << "    <Coeff Index=\"2\" Type=\"Constant\" Value=\"0\"/>\n";
+    } else if (m && m->young >= 0.0) {
+      double l, mu;
+      lame(*m, &l, &mu);
+      x << "    <Coeff Index=\"1\" Type=\"Constant\" Value=\"" << l << "\"/>\n";
+      x << "    <Coeff Index=\"2\" Type=\"Constant\" Value=\"" << mu << "\"/>\n";
+    } else {
+      x << "    <!-- no young and poisson for \"" << key << "\" in the scene's materials -->\n";
+      x << "    <Coeff Index=\"1\" Type=\"Constant\" Value=\"FILL_IN\"/>\n";
+      x << "    <Coeff Index=\"2\" Type=\"Constant\" Value=\"FILL_IN\"/>\n";
+    }
+    x << "  </Material>\n";
+  }
+  x << "</Materials>\n";
+  return x.str();
+}
+
+std::string amitex_loading_xml() {
+  std::ostringstream x;
+  x << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+       "<!-- Six unit mean strains (1e-3; shear in Voigt form, xy = 2 eps_xy), one increment "
+       "each: column k of the stiffness is the mean stress at the end of loading k over 1e-3 "
+       "(rvegen reports it in Mandel form: shear rows and columns times sqrt 2). -->\n"
+       "<Loading_Output>\n  <Output>\n    <vtk_StressStrain Strain=\"0\" Stress=\"0\"/>\n"
+       "  </Output>\n";
+  const char* comp[6] = {"xx", "yy", "zz", "xy", "xz", "yz"};
+  for (int load = 0; load < 6; ++load) {
+    x << "  <Loading Tag=\"" << load + 1 << "\">\n";
+    x << "    <Time_Discretization Discretization=\"Linear\" Nincr=\"1\" Tfinal=\"" << load + 1
+      << "\"/>\n";
+    for (int c = 0; c < 6; ++c) {
+      x << "    <" << comp[c] << " Driving=\"Strain\" Evolution=\"Linear\" Value=\""
+        << (c == load ? "1e-3" : "0") << "\"/>\n";
+    }
+    x << "  </Loading>\n";
+  }
+  x << "</Loading_Output>\n";
+  return x.str();
+}
+
+std::string amitex_algorithm_xml() {
+  return "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+         "<Algorithm_Parameters>\n"
+         "  <Algorithm Type=\"Basic_Scheme\">\n"
+         "    <Convergence_Criterion Value=\"Default\"/>\n"
+         "    <Convergence_Acceleration Value=\"true\"/>\n"
+         "  </Algorithm>\n"
+         "  <Mechanics>\n"
+         "    <Filter Type=\"Default\"/>\n"
+         "    <Small_Perturbations Value=\"true\"/>\n"
+         "  </Mechanics>\n"
+         "</Algorithm_Parameters>\n";
+}
+
+std::string amitex_run_sh() {
+  return "#!/bin/sh\n"
+         "# AMITEX_FFTP on this RVE: sh amitex_run.sh (MPIRUN=\"mpirun -np 4\" to choose the\n"
+         "# launcher). Mean stresses per loading end up in amitex_out/rve.std.\n"
+         "set -e\n"
+         "cd \"$(dirname \"$0\")\"\n"
+         "mkdir -p amitex_out\n"
+         "${MPIRUN:-mpirun -np 2} amitex_fftp -nm material.vtk -nz zoneID.vtk "
+         "-m amitex_materials.xml -c amitex_loading.xml -a amitex_algorithm.xml "
+         "-s amitex_out/rve\n";
+}
+
+}  // namespace rvegen

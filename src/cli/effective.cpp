@@ -48,10 +48,11 @@ SolveProgress progress_lines(const ProgressFn& progress) {
 }  // namespace
 
 Json effective_properties(const Scene& scene, const InclusionSet& set, const VoxelImage& image,
-                          const ProgressFn& progress) {
+                          const ProgressFn& progress, EffectiveProperties* keep) {
   const HomogenizationSpec& h = scene.homogenization;
-  const EffectiveProperties e =
-      rvegen::effective_properties(scene, set, image, progress_lines(progress));
+  EffectiveProperties local;
+  EffectiveProperties& e = keep ? *keep : local;
+  e = rvegen::effective_properties(scene, set, image, progress_lines(progress));
   Json out;
   out["voxel_rule"] = {
       {"rule", e.voxel_rule},

@@ -5,6 +5,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "rvegen/homogenize/effective.hpp"
 #include "rvegen/model/scene.hpp"
 #include "rvegen/packing/packing.hpp"
 #include "rvegen/raster/voxelize.hpp"
@@ -16,7 +17,9 @@ namespace rvegen::cli {
 /// phase's properties (transversely isotropic cores turned to their inclusion's axis); voxels
 /// cut by one core surface take the scene's voxel rule. Progress lines go to `progress` (about
 /// once a second).
+/// With scene.homogenization.fields, `fields` receives the local fields (owned by `*keep`).
 nlohmann::ordered_json effective_properties(const Scene& scene, const InclusionSet& set,
-                                            const VoxelImage& image, const ProgressFn& progress);
+                                            const VoxelImage& image, const ProgressFn& progress,
+                                            EffectiveProperties* keep = nullptr);
 
 }  // namespace rvegen::cli

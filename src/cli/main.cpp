@@ -224,6 +224,11 @@ int cmd_generate(const std::vector<std::string>& args) {
       }
       scene.outputs = rvegen::outputs_from_names(names, scene.outputs.mesh, "--outputs");
     }
+    if (scene.homogenization.fields && !(scene.homogenization.any() && scene.outputs.h5)) {
+      throw rvegen::InputError(
+          "homogenization.fields: the local fields go into rve.h5: ask for a physics and add "
+          "\"h5\" to the outputs");
+    }
   } catch (const std::exception& e) {
     std::cerr << "rvegen: invalid scene" << (scene_path.empty() ? "" : " " + scene_path) << ": "
               << e.what() << "\n";
@@ -326,10 +331,24 @@ int cmd_generate(const std::vector<std::string>& args) {
       });
     }
     nlohmann::ordered_json effective;
+    rvegen::EffectiveProperties solved;
+    std::vector<rvegen::LocalField> fields;
     if (scene.homogenization.any()) {
       timed("homogenization", [&] {
-        effective = rvegen::cli::effective_properties(scene, result.set, image, progress);
+        effective = rvegen::cli::effective_properties(scene, result.set, image, progress, &solved);
       });
+      // The local fields for rve.h5 (scene.homogenization.fields), per load case.
+      auto add = [&](const char* physics, const char* what, const char* names, int count,
+                     const std::vector<std::vector<float>>& per_load) {
+        for (size_t l = 0; l < per_load.size(); ++l) {
+          fields.push_back({std::string(physics) + "/load_" + std::to_string(l) + "/" + what, names,
+                            count, &per_load[l]});
+        }
+      };
+      add("conductivity", "gradient", "1 2 3", 3, solved.gradient);
+      add("conductivity", "flux", "1 2 3", 3, solved.flux);
+      add("elasticity", "strain", "11 22 33 23 13 12", 6, solved.strain);
+      add("elasticity", "stress", "11 22 33 23 13 12", 6, solved.stress);
     }
     rvegen::ReportStatistics stats;
     timed("statistics", [&] { stats = rvegen::report_statistics(scene, result); });
@@ -346,9 +365,9 @@ int cmd_generate(const std::vector<std::string>& args) {
     // rve.h5 carries the report as it stood before rve.h5 itself was written.
     if (want.h5) {
       timed("write rve.h5", [&] {
-        out.write("rve.xdmf", rvegen::xdmf_text(image, "rve.h5"));
+        out.write("rve.xdmf", rvegen::xdmf_text(image, "rve.h5", fields));
         rvegen::write_hdf5(out.staged_path("rve.h5"), image, result.set,
-                           rvegen::scene_to_json(scene), report_now());
+                           rvegen::scene_to_json(scene), report_now(), fields);
       });
     }
     out.write("report.json", report_now());

@@ -487,6 +487,42 @@ run = open(os.path.join(d, "amitex_run.sh")).read()
 for f in ("material.vtk", "zoneID.vtk", "amitex_materials.xml", "amitex_loading.xml", "amitex_algorithm.xml"):
     assert f in run, f
 PY
+# Local fields in rve.h5 ("fields": true): per load case, the mean strain is the unit strain,
+# the mean stress the report's stiffness column (the mean flux its conductivity column), and
+# the fields obey Hill-Mandel (<sigma : eps> = <sigma> : <eps>, which a mis-ordered or
+# mis-scaled component would break); without the h5 output the scene is refused.
+$py - "$WORK/fib.json" "$WORK/fib_fields.json" <<'PY'
+import json, sys
+s = json.load(open(sys.argv[1]))
+s["homogenization"]["fields"] = True
+s["outputs"] = ["inclusions", "h5"]
+json.dump(s, open(sys.argv[2], "w"))
+PY
+expect_rc 0 "$RVEGEN" generate -q "$WORK/fib_fields.json" -o "$WORK/fib_fields"
+$py - "$WORK/fib_fields" <<'PY' || fail "local fields in rve.h5"
+import json, os, sys
+import numpy as np, h5py
+d = sys.argv[1]
+e = json.load(open(os.path.join(d, "report.json")))["effective"]
+C = np.array(e["stiffness"]["tensor"]); K = np.array(e["conductivity"]["tensor"])
+r2 = np.sqrt(2.0)
+w = np.array([1, 1, 1, r2, r2, r2])  # tensor to Mandel
+with h5py.File(os.path.join(d, "rve.h5"), "r") as h:
+    for k in range(6):
+        eps = h["fields/elasticity/load_%d/strain" % k][...].reshape(-1, 6).astype(float)
+        sig = h["fields/elasticity/load_%d/stress" % k][...].reshape(-1, 6).astype(float)
+        unit = np.eye(6)[k]
+        assert np.allclose(eps.mean(0) * w, unit, atol=1e-5), (k, eps.mean(0))
+        assert np.allclose(sig.mean(0) * w, C[:, k], rtol=1e-4, atol=1e-5 * abs(C).max()), (k, sig.mean(0) * w, C[:, k])
+        dd = lambda a, b: (a[..., :3] * b[..., :3]).sum(-1) + 2 * (a[..., 3:] * b[..., 3:]).sum(-1)
+        hm, mm = dd(sig, eps).mean(), dd(sig.mean(0), eps.mean(0))
+        assert abs(hm / mm - 1) < 1e-3, (k, hm, mm)
+    for k in range(3):
+        q = h["fields/conductivity/load_%d/flux" % k][...].reshape(-1, 3).astype(float)
+        assert np.allclose(q.mean(0), K[:, k], rtol=1e-4, atol=1e-6), (k, q.mean(0), K[:, k])
+PY
+grep -q 'fibres_load\|elasticity_load_5_stress' "$WORK/fib_fields/rve.xdmf" || fail "local fields not in rve.xdmf"
+bad fields_no_h5 "{$BOX,$HOM_FAM,\"materials\":{\"matrix\":{\"conductivity\":1},\"spheres\":{\"conductivity\":10}},\"homogenization\":{\"physics\":[\"conductivity\"],\"fields\":true}}" 'homogenization.fields: the local fields go into rve.h5'
 bad ti_matrix "{$BOX,$FIB_FAM,\"materials\":{\"matrix\":{\"axial_conductivity\":1,\"transverse_conductivity\":1}}}" "materials.matrix: transversely isotropic properties are for a family"
 bad ti_sphere "{$BOX,$HOM_FAM,\"materials\":{\"spheres\":{\"axial_conductivity\":1,\"transverse_conductivity\":1}}}" "need an axis"
 bad ti_half "{$BOX,$FIB_FAM,\"materials\":{\"fibres\":{\"axial_young\":230,\"transverse_young\":15}}}" "materials.fibres.axial_shear"

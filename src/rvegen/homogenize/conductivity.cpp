@@ -164,14 +164,13 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
     res.iterations[load] = out.iterations;
     res.residual[load] = out.residual;
     if (bnorm > 0.0 && !(out.residual < opt.tolerance)) res.converged = false;
-    // Mean flux of k (E + x), voxel by voxel in order.
+    // The local gradient E + x (x is reset by the next solve) and its mean flux, voxel by
+    // voxel in order.
+    for (size_t i = 0; i < n; ++i) x[load * n + i] += 1.0;
     Vec3 sum = Vec3::Zero();
-    for (size_t i = 0; i < n; ++i) {
-      Vec3 g(x[i], x[n + i], x[2 * n + i]);
-      g[load] += 1.0;
-      sum += medium.at(i) * g;
-    }
+    for (size_t i = 0; i < n; ++i) sum += medium.at(i) * Vec3(x[i], x[n + i], x[2 * n + i]);
     res.tensor.col(load) = sum / static_cast<double>(n);
+    if (opt.field) opt.field(load, x);
   }
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;

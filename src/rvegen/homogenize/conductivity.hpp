@@ -38,6 +38,9 @@ struct ConductivityOptions {
   /// Called after each iteration with the load case (0-2), the iteration and the relative
   /// residual; returning false stops the solve (Cancelled is thrown).
   std::function<bool(int, int, double)> progress;
+  /// Called after each load case with the load case and its local gradient field (the unit
+  /// mean gradient plus the fluctuation; 3 blocks of one value per voxel, x fastest).
+  std::function<void(int, const std::vector<double>&)> field;
 };
 
 struct ConductivityResult {

@@ -183,6 +183,18 @@ EffectiveProperties effective_properties(const Scene& scene, const InclusionSet&
     opt.tolerance = h.tolerance;
     opt.max_iterations = h.max_iterations;
     opt.progress = report("conductivity", 3);
+    if (h.fields) {
+      opt.field = [&](int, const std::vector<double>& g) {
+        const size_t n = g.size() / 3;
+        std::vector<float> grad(g.begin(), g.end()), q(3 * n);
+        for (size_t i = 0; i < n; ++i) {
+          const Vec3 f = medium.at(i) * Vec3(g[i], g[n + i], g[2 * n + i]);
+          for (int a = 0; a < 3; ++a) q[a * n + i] = static_cast<float>(f[a]);
+        }
+        out.gradient.push_back(std::move(grad));
+        out.flux.push_back(std::move(q));
+      };
+    }
     out.conductivity = effective_conductivity(dims, box, medium, opt);
     out.has_conductivity = true;
     if (own == 0) {
@@ -207,6 +219,25 @@ EffectiveProperties effective_properties(const Scene& scene, const InclusionSet&
     opt.tolerance = h.tolerance;
     opt.max_iterations = h.max_iterations;
     opt.progress = report("elasticity", 6);
+    if (h.fields) {
+      // Mandel to tensor components: shear ones over sqrt 2.
+      opt.field = [&](int, const std::vector<double>& e) {
+        const size_t n = e.size() / 6;
+        const double w[6] = {1, 1, 1, M_SQRT1_2, M_SQRT1_2, M_SQRT1_2};
+        std::vector<float> eps(6 * n), sig(6 * n);
+        for (size_t i = 0; i < n; ++i) {
+          Eigen::Matrix<double, 6, 1> v;
+          for (int c = 0; c < 6; ++c) v[c] = e[c * n + i];
+          const Eigen::Matrix<double, 6, 1> t = medium.at(i) * v;
+          for (int c = 0; c < 6; ++c) {
+            eps[c * n + i] = static_cast<float>(w[c] * v[c]);
+            sig[c * n + i] = static_cast<float>(w[c] * t[c]);
+          }
+        }
+        out.strain.push_back(std::move(eps));
+        out.stress.push_back(std::move(sig));
+      };
+    }
     out.stiffness = effective_stiffness(dims, box, medium, opt);
     out.has_stiffness = true;
     const Mat6& c = out.stiffness.stiffness;

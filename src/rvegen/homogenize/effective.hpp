@@ -38,6 +38,10 @@ struct EffectiveProperties {
   /// 3) and shear modulus (2G = (trace - 3K) / 5).
   double bulk = 0.0, shear = 0.0;
   Bounds bulk_bounds, shear_bounds;
+  /// With scene.homogenization.fields, the local fields of each load case (float, blocks of
+  /// one value per voxel, x fastest): gradient and flux (3 blocks), strain and stress (6
+  /// blocks, tensor components 11, 22, 33, 23, 13, 12, not Mandel-scaled).
+  std::vector<std::vector<float>> gradient, flux, strain, stress;
 };
 
 /// Called with the physics ("conductivity", "elasticity"), the load case, the number of load

@@ -174,15 +174,17 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
     res.iterations[load] = out.iterations;
     res.residual[load] = out.residual;
     if (out.iterations > 0 && !(out.residual < opt.tolerance)) res.converged = false;
-    // Mean stress of the unit strain plus the fluctuation, voxel by voxel in order.
+    // The local strain (the unit strain plus the fluctuation; x is reset by the next solve),
+    // and its mean stress, voxel by voxel in order.
+    for (size_t i = 0; i < n; ++i) x[load * n + i] += 1.0;
     Vec6 sum = Vec6::Zero();
     for (size_t i = 0; i < n; ++i) {
       Vec6 v;
       for (int c = 0; c < 6; ++c) v[c] = x[c * n + i];
-      v[load] += 1.0;
       sum += medium.at(i) * v;
     }
     res.stiffness.col(load) = sum / static_cast<double>(n);
+    if (opt.field) opt.field(load, x);
   }
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;

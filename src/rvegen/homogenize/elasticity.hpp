@@ -25,6 +25,9 @@ struct ElasticityOptions {
   /// Called after each iteration with the load case (0-5), the iteration and the relative
   /// residual; returning false stops the solve (Cancelled is thrown).
   std::function<bool(int, int, double)> progress;
+  /// Called after each load case with the load case and its local strain field (the unit mean
+  /// strain plus the fluctuation; 6 Mandel blocks of one value per voxel, x fastest).
+  std::function<void(int, const std::vector<double>&)> field;
 };
 
 /// Young's moduli, shear moduli and Poisson's ratios of a stiffness (nu_ij = -S_ij / S_ii for

@@ -93,7 +93,8 @@ void strings(hid_t parent, const char* name, const std::vector<std::string>& v) 
 }  // namespace
 
 void write_hdf5(const std::string& path, const VoxelImage& im, const InclusionSet& set,
-                const std::string& scene_json, const std::string& report_json) {
+                const std::string& scene_json, const std::string& report_json,
+                const std::vector<LocalField>& fields) {
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
   const hid_t file = H5Fcreate(path.c_str(), H5F_ACC_EXCL, H5P_DEFAULT, H5P_DEFAULT);
   if (file < 0) throw std::runtime_error("HDF5: cannot create " + path);
@@ -203,6 +204,36 @@ void write_hdf5(const std::string& path, const VoxelImage& im, const InclusionSe
     attribute(cv, "voxels_cut_by_two_cores", {static_cast<double>(cut.shared)});
     H5Gclose(cv);
 
+    // Local fields, components last (what XDMF and ParaView read as a vector per cell).
+    if (!fields.empty()) {
+      const hid_t lcpl = H5Pcreate(H5P_LINK_CREATE);
+      H5Pset_create_intermediate_group(lcpl, 1);
+      const size_t n = im.count();
+      std::vector<float> interleaved;
+      for (const LocalField& f : fields) {
+        if (!f.values || f.values->size() != n * f.count) {
+          throw std::runtime_error("HDF5: local field " + f.name + " has the wrong size");
+        }
+        interleaved.resize(n * f.count);
+        for (int c = 0; c < f.count; ++c) {
+          for (size_t i = 0; i < n; ++i) interleaved[i * f.count + c] = (*f.values)[c * n + i];
+        }
+        const std::string path_in = "fields/" + f.name;
+        const hsize_t dims[4] = {static_cast<hsize_t>(im.size(2)), static_cast<hsize_t>(im.size(1)),
+                                 static_cast<hsize_t>(im.size(0)), static_cast<hsize_t>(f.count)};
+        const hid_t space = H5Screate_simple(4, dims, nullptr);
+        const hid_t ds = H5Dcreate2(file, path_in.c_str(), H5T_NATIVE_FLOAT, space, lcpl,
+                                    H5P_DEFAULT, H5P_DEFAULT);
+        if (ds < 0) throw std::runtime_error("HDF5: cannot create " + path_in);
+        check(H5Dwrite(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, interleaved.data()),
+              path_in.c_str());
+        text_attribute(ds, "components", f.components);
+        H5Dclose(ds);
+        H5Sclose(space);
+      }
+      H5Pclose(lcpl);
+    }
+
   } catch (...) {
     H5Fclose(file);
     throw;
@@ -210,7 +241,8 @@ void write_hdf5(const std::string& path, const VoxelImage& im, const InclusionSe
   if (H5Fclose(file) < 0) throw std::runtime_error("HDF5: cannot close " + path);
 }
 
-std::string xdmf_text(const VoxelImage& im, const std::string& h5) {
+std::string xdmf_text(const VoxelImage& im, const std::string& h5,
+                      const std::vector<LocalField>& fields) {
   std::ostringstream s;
   s.precision(17);
   const int nx = im.size(0), ny = im.size(1), nz = im.size(2);
@@ -235,6 +267,15 @@ std::string xdmf_text(const VoxelImage& im, const std::string& h5) {
   attr("phase", "UChar", 1);
   attr("inclusion_id", "Int", 4);
   if (!im.fraction.empty()) attr("fraction", "Float", 4);
+  for (const LocalField& f : fields) {
+    std::string name = f.name;
+    std::replace(name.begin(), name.end(), '/', '_');
+    s << "   <Attribute Name=\"" << name << "\" Center=\"Cell\" AttributeType=\""
+      << (f.count == 3 ? "Vector" : "Matrix") << "\">\n"
+      << "    <DataItem Dimensions=\"" << nz << " " << ny << " " << nx << " " << f.count
+      << "\" NumberType=\"Float\" Precision=\"4\" Format=\"HDF\">" << h5 << ":/fields/" << f.name
+      << "</DataItem>\n   </Attribute>\n";
+  }
   s << "  </Grid>\n </Domain>\n</Xdmf>\n";
   return s.str();
 }

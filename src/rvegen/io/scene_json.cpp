@@ -412,8 +412,9 @@ Scene parse_scene(const std::string& text) {
   if (root.contains("materials")) parse_materials(root["materials"], &s);
   if (root.contains("homogenization")) {
     const Json& h = root["homogenization"];
-    only_keys(h, {"physics", "scheme", "solver", "tolerance", "max_iterations", "voxel_rule"},
-              "homogenization");
+    only_keys(
+        h, {"physics", "scheme", "solver", "tolerance", "max_iterations", "voxel_rule", "fields"},
+        "homogenization");
     HomogenizationSpec& spec = s.homogenization;
     if (h.contains("physics")) {
       const Json& ph = h["physics"];
@@ -433,6 +434,10 @@ Scene parse_scene(const std::string& text) {
     }
     if (h.contains("scheme")) spec.scheme = string(h["scheme"], "homogenization.scheme");
     if (h.contains("solver")) spec.solver = string(h["solver"], "homogenization.solver");
+    if (h.contains("fields")) {
+      if (!h["fields"].is_boolean()) fail("homogenization.fields", "expected true or false");
+      spec.fields = h["fields"].get<bool>();
+    }
     if (h.contains("voxel_rule"))
       spec.voxel_rule = string(h["voxel_rule"], "homogenization.voxel_rule");
     if (h.contains("tolerance"))
@@ -592,7 +597,8 @@ std::string scene_to_json(const Scene& s) {
                               {"solver", h.solver},
                               {"tolerance", h.tolerance},
                               {"max_iterations", h.max_iterations},
-                              {"voxel_rule", h.voxel_rule}};
+                              {"voxel_rule", h.voxel_rule},
+                              {"fields", h.fields}};
   }
   if (!(s.outputs == Outputs{})) {
     OJson names = OJson::array();

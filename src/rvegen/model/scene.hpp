@@ -145,6 +145,8 @@ struct HomogenizationSpec {
   /// Voxels cut by a core surface: "laminate" (exact normal and share), "voigt", "reuss",
   /// "plain" (the phase at the voxel centre).
   std::string voxel_rule = "laminate";
+  /// Write the local fields of every load case into rve.h5 (needs the h5 output).
+  bool fields = false;
   bool any() const { return conductivity || elasticity; }
 };
 

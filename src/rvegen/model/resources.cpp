@@ -77,7 +77,8 @@ double mean_area(const Family& f) {
 }  // namespace
 
 double ResourceEstimate::total_bytes() const {
-  return kBaseBytes + packing_bytes + std::max({surface_bytes, voxel_bytes, levelset_bytes});
+  return kBaseBytes + packing_bytes +
+         std::max({surface_bytes, voxel_bytes + homogenization_bytes, levelset_bytes});
 }
 
 ResourceEstimate estimate_resources(const Scene& scene) {
@@ -114,6 +115,15 @@ ResourceEstimate estimate_resources(const Scene& scene) {
   e.voxels = static_cast<double>(scene.resolution[0]) * scene.resolution[1] * scene.resolution[2];
   e.voxel_bytes = e.voxels * (scene.partial_volume ? 9.0 : 5.0) * 1.1;
   e.levelset_bytes = e.band_voxels * kBytesPerBandVoxel;
+  // The FFT solver per voxel: the unknown and conjugate gradients' three fields (3 or 6
+  // components of doubles), the spectra of one field, the grid's buffers, the medium's index,
+  // plus the composite voxels' tensors (a margin); the local fields, when kept, as floats for
+  // every load case (conductivity: 3 x 2 x 3, elasticity: 6 x 2 x 6).
+  const HomogenizationSpec& h = scene.homogenization;
+  double solver = 0.0, fields = 0.0;
+  if (h.conductivity) solver = 140.0, fields += h.fields ? 72.0 : 0.0;
+  if (h.elasticity) solver = 260.0, fields += h.fields ? 288.0 : 0.0;
+  e.homogenization_bytes = e.voxels * (1.15 * solver + fields);
   return e;
 }
 
@@ -155,6 +165,8 @@ std::string describe(const ResourceEstimate& e) {
          std::to_string(static_cast<long long>(e.inclusions)) +
          " inclusions: " + format_bytes(e.packing_bytes) + "; surfaces " +
          format_bytes(e.surface_bytes) + "; voxels " + format_bytes(e.voxel_bytes) +
+         (e.homogenization_bytes > 0.0 ? "; FFT solver " + format_bytes(e.homogenization_bytes)
+                                       : std::string()) +
          "; level sets " + format_bytes(e.levelset_bytes) + ")";
 }
 

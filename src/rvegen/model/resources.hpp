@@ -10,13 +10,14 @@
 namespace rvegen {
 
 struct ResourceEstimate {
-  double inclusions = 0.0;      // expected number of inclusions
-  double voxels = 0.0;          // voxels of the image
-  double band_voxels = 0.0;     // narrow-band voxels of the level sets
-  double packing_bytes = 0.0;   // the packer's bodies, pair lists and the inclusion list
-  double surface_bytes = 0.0;   // the tessellated surfaces and their file
-  double voxel_bytes = 0.0;     // the voxel image (written as it is, no copy)
-  double levelset_bytes = 0.0;  // the OpenVDB grids while they are built and written
+  double inclusions = 0.0;            // expected number of inclusions
+  double voxels = 0.0;                // voxels of the image
+  double band_voxels = 0.0;           // narrow-band voxels of the level sets
+  double packing_bytes = 0.0;         // the packer's bodies, pair lists and the inclusion list
+  double surface_bytes = 0.0;         // the tessellated surfaces and their file
+  double voxel_bytes = 0.0;           // the voxel image (written as it is, no copy)
+  double levelset_bytes = 0.0;        // the OpenVDB grids while they are built and written
+  double homogenization_bytes = 0.0;  // the FFT solver's fields (the image stays alive)
   /// Peak: the phases run one after the other, the inclusion list stays throughout.
   double total_bytes() const;
 };

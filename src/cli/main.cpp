@@ -15,6 +15,7 @@
 
 #include "effective.hpp"
 #include "rvegen/io/amitex.hpp"
+#include "rvegen/io/fe_mesh.hpp"
 #include "rvegen/io/hdf5_writer.hpp"
 #include "rvegen/io/inclusions_json.hpp"
 #include "rvegen/io/report.hpp"
@@ -59,6 +60,9 @@ const char* kGenerateUsage =
     "    amitex      material.vtk, zoneID.vtk and the amitex_*.xml and amitex_run.sh files that\n"
     "                run AMITEX_FFTP on them (materials from the scene)\n"
     "    mesh        surfaces.vtp of every inclusion (otherwise of the modified ones only)\n"
+    "    mesh_voxel  mesh_voxel.inp (a hexahedron per voxel, periodic node sets) and, with\n"
+    "                materials, run_voxel_conductivity.inp and run_voxel_elasticity.inp\n"
+    "                (CalculiX and Abaqus decks with periodic equations)\n"
     "  By default inclusions, voxels and levelsets; the scene's \"outputs\" list or\n"
     "  --outputs LIST (names separated by commas) chooses others. DIR is replaced as a whole:\n"
     "  it holds the complete new set or, on any failure, the previous one; a DIR holding files\n"
@@ -328,6 +332,18 @@ int cmd_generate(const std::vector<std::string>& args) {
         out.write("amitex_loading.xml", rvegen::amitex_loading_xml());
         out.write("amitex_algorithm.xml", rvegen::amitex_algorithm_xml());
         out.write("amitex_run.sh", rvegen::amitex_run_sh());
+      });
+    }
+    if (want.mesh_voxel) {
+      timed("write mesh_voxel.inp", [&] {
+        out.write_with("mesh_voxel.inp",
+                       [&](std::FILE* f) { rvegen::write_abaqus_voxel_mesh(image, f); });
+        for (const bool elastic : {false, true}) {
+          const std::string deck = rvegen::abaqus_voxel_deck(scene, image, elastic);
+          if (!deck.empty()) {
+            out.write(elastic ? "run_voxel_elasticity.inp" : "run_voxel_conductivity.inp", deck);
+          }
+        }
       });
     }
     nlohmann::ordered_json effective;

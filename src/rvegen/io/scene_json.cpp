@@ -278,9 +278,11 @@ Outputs outputs_from_names(const std::vector<std::string>& names, bool mesh,
       out.levelsets = true;
     } else if (name == "mesh") {
       out.mesh = true;
+    } else if (name == "mesh_voxel") {
+      out.mesh_voxel = true;
     } else {
       throw InputError(where + "[" + std::to_string(k) + "]: unknown output \"" + name +
-                       "\" (inclusions, voxels, h5, amitex, levelsets, mesh)");
+                       "\" (inclusions, voxels, h5, amitex, levelsets, mesh, mesh_voxel)");
     }
   }
   return out;
@@ -608,7 +610,8 @@ std::string scene_to_json(const Scene& s) {
                                    {o.h5, "h5"},
                                    {o.amitex, "amitex"},
                                    {o.levelsets, "levelsets"},
-                                   {o.mesh, "mesh"}}) {
+                                   {o.mesh, "mesh"},
+                                   {o.mesh_voxel, "mesh_voxel"}}) {
       if (on) names.push_back(name);
     }
     root["outputs"] = names;

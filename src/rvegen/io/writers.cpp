@@ -391,7 +391,10 @@ const std::vector<std::string>& OutputSet::file_names() {
                                                  "rve.h5",
                                                  "rve.xdmf",
                                                  "levelsets.vdb",
-                                                 "report.json"};
+                                                 "report.json",
+                                                 "mesh_voxel.inp",
+                                                 "run_voxel_conductivity.inp",
+                                                 "run_voxel_elasticity.inp"};
   return names;
 }
 

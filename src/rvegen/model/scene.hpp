@@ -109,12 +109,15 @@ struct Outputs {
   bool amitex = false;     // "amitex": material.vtk
   bool levelsets = true;   // "levelsets": levelsets.vdb (wavy, deformed and coated inclusions)
   bool mesh = false;       // "mesh": surfaces.vtp of every inclusion (else of the modified ones)
+  /// "mesh_voxel": mesh_voxel.inp (8-node hexahedra, one per voxel, periodic node sets) and
+  /// the CalculiX/Abaqus decks run_voxel_*.inp with periodic equations
+  bool mesh_voxel = false;
   bool operator==(const Outputs& o) const {
     return inclusions == o.inclusions && voxels == o.voxels && h5 == o.h5 && amitex == o.amitex &&
-           levelsets == o.levelsets && mesh == o.mesh;
+           levelsets == o.levelsets && mesh == o.mesh && mesh_voxel == o.mesh_voxel;
   }
   /// A voxel image is computed when one of its files is asked for.
-  bool image() const { return voxels || h5 || amitex; }
+  bool image() const { return voxels || h5 || amitex || mesh_voxel; }
 };
 
 /// Properties of one phase (a negative value: not given). Isotropic conductivity and isotropic

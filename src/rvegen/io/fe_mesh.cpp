@@ -1,0 +1,265 @@
+#include "rvegen/io/fe_mesh.hpp"
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <sstream>
+#include <vector>
+
+#include "rvegen/io/writers.hpp"
+
+namespace rvegen {
+
+namespace {
+
+// Abaqus names: letters, digits and underscores, starting with a letter.
+std::string set_name(const std::string& phase) {
+  std::string s;
+  for (char c : phase) s += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
+  if (s.empty() || !std::isalpha(static_cast<unsigned char>(s[0]))) s = "P_" + s;
+  return s;
+}
+
+std::string key_of(const Scene& scene, const Phase& p) {
+  if (p.kind == PhaseKind::kMatrix) return "matrix";
+  if (p.family < 0 || p.family >= static_cast<int>(scene.families.size())) return p.name;
+  const std::string& f = scene.families[p.family].name;
+  return p.kind == PhaseKind::kInterphase ? f + ".coating" : f;
+}
+
+struct Grid {
+  int nx, ny, nz;
+  long long node(int i, int j, int k) const {
+    return 1 + i + static_cast<long long>(nx + 1) * (j + static_cast<long long>(ny + 1) * k);
+  }
+  long long nodes() const { return static_cast<long long>(nx + 1) * (ny + 1) * (nz + 1); }
+};
+
+// Ids in lines of 16.
+void id_lines(std::ostringstream& s, const std::vector<long long>& ids) {
+  for (size_t a = 0; a < ids.size(); ++a) {
+    s << ids[a] << ((a % 16 == 15 || a + 1 == ids.size()) ? "\n" : ", ");
+  }
+}
+
+}  // namespace
+
+void write_abaqus_voxel_mesh(const VoxelImage& im, std::FILE* out) {
+  const Grid g{im.size(0), im.size(1), im.size(2)};
+  auto put = [&](const std::string& text) {
+    if (!text.empty() && std::fwrite(text.data(), 1, text.size(), out) != text.size()) {
+      throw OutputError(std::string("write failed: ") + std::strerror(errno));
+    }
+  };
+  std::ostringstream s;
+  s.precision(17);
+  s << "** rvegen voxel mesh: " << g.nx << " x " << g.ny << " x " << g.nz
+    << " hexahedra (C3D8), element sets per phase, periodic node sets, reference nodes REFX, "
+       "REFY, REFZ.\n*NODE, NSET=ALLNODES\n";
+  const Vec3 o =
+      im.origin + Vec3(im.extent[0], im.extent[2], im.extent[4]).cwiseProduct(im.spacing);
+  for (int k = 0; k <= g.nz; ++k) {
+    for (int j = 0; j <= g.ny; ++j) {
+      for (int i = 0; i <= g.nx; ++i) {
+        s << g.node(i, j, k) << ", " << o[0] + i * im.spacing[0] << ", " << o[1] + j * im.spacing[1]
+          << ", " << o[2] + k * im.spacing[2] << "\n";
+      }
+      put(s.str());
+      s.str("");
+    }
+  }
+  // Reference nodes, at the origin (they belong to no element).
+  const long long ref = g.nodes();
+  for (int a = 0; a < 3; ++a)
+    s << ref + 1 + a << ", " << o[0] << ", " << o[1] << ", " << o[2] << "\n";
+  // Elements, one block per phase present.
+  for (const Phase& p : im.phases) {
+    bool any = false;
+    for (uint8_t l : im.phase) {
+      if (l == p.label) {
+        any = true;
+        break;
+      }
+    }
+    if (!any) continue;
+    s << "*ELEMENT, TYPE=C3D8, ELSET=" << set_name(p.name) << "\n";
+    put(s.str());
+    s.str("");
+    size_t v = 0;
+    for (int k = 0; k < g.nz; ++k) {
+      for (int j = 0; j < g.ny; ++j) {
+        for (int i = 0; i < g.nx; ++i, ++v) {
+          if (im.phase[v] != p.label) continue;
+          s << v + 1 << ", " << g.node(i, j, k) << ", " << g.node(i + 1, j, k) << ", "
+            << g.node(i + 1, j + 1, k) << ", " << g.node(i, j + 1, k) << ", " << g.node(i, j, k + 1)
+            << ", " << g.node(i + 1, j, k + 1) << ", " << g.node(i + 1, j + 1, k + 1) << ", "
+            << g.node(i, j + 1, k + 1) << "\n";
+        }
+        put(s.str());
+        s.str("");
+      }
+    }
+  }
+  // Node sets: faces, edges, corners (each the nodes whose coordinates lie at those ends).
+  const int n[3] = {g.nx, g.ny, g.nz};
+  const char* axis = "XYZ";
+  // at[a]: -1 free, 0 lower end, 1 upper end.
+  auto nodes_where = [&](const int at[3]) {
+    std::vector<long long> ids;
+    for (int k = 0; k <= g.nz; ++k) {
+      for (int j = 0; j <= g.ny; ++j) {
+        for (int i = 0; i <= g.nx; ++i) {
+          const int c[3] = {i, j, k};
+          bool in = true;
+          for (int a = 0; a < 3 && in; ++a) in = at[a] < 0 || c[a] == (at[a] ? n[a] : 0);
+          if (in) ids.push_back(g.node(i, j, k));
+        }
+      }
+    }
+    return ids;
+  };
+  for (int a = 0; a < 3; ++a) {
+    for (int end = 0; end < 2; ++end) {
+      int at[3] = {-1, -1, -1};
+      at[a] = end;
+      s << "*NSET, NSET=" << axis[a] << (end ? "MAX" : "MIN") << "\n";
+      id_lines(s, nodes_where(at));
+    }
+  }
+  for (int a = 0; a < 3; ++a) {  // edges along axis a
+    const int b = (a + 1) % 3, c = (a + 2) % 3;
+    const int lo = std::min(b, c), hi = std::max(b, c);
+    for (int eb = 0; eb < 2; ++eb) {
+      for (int ec = 0; ec < 2; ++ec) {
+        int at[3] = {-1, -1, -1};
+        at[lo] = eb;
+        at[hi] = ec;
+        s << "*NSET, NSET=EDGE_" << axis[lo] << eb << axis[hi] << ec << "\n";
+        id_lines(s, nodes_where(at));
+      }
+    }
+  }
+  for (int cz = 0; cz < 2; ++cz) {
+    for (int cy = 0; cy < 2; ++cy) {
+      for (int cx = 0; cx < 2; ++cx) {
+        const int at[3] = {cx, cy, cz};
+        s << "*NSET, NSET=CORNER_X" << cx << "Y" << cy << "Z" << cz << "\n";
+        id_lines(s, nodes_where(at));
+      }
+    }
+  }
+  s << "*ELSET, ELSET=EALL, GENERATE\n1, " << im.count() << ", 1\n";
+  s << "*NSET, NSET=ORIGIN\n" << g.node(0, 0, 0) << "\n";
+  s << "*NSET, NSET=REFX\n" << ref + 1 << "\n*NSET, NSET=REFY\n" << ref + 2 << "\n";
+  s << "*NSET, NSET=REFZ\n" << ref + 3 << "\n*NSET, NSET=REFS\n";
+  s << ref + 1 << ", " << ref + 2 << ", " << ref + 3 << "\n";
+  put(s.str());
+}
+
+std::string abaqus_voxel_deck(const Scene& scene, const VoxelImage& im, bool elasticity) {
+  const Grid g{im.size(0), im.size(1), im.size(2)};
+  std::vector<char> present(im.phases.size(), 0);
+  for (uint8_t l : im.phase) present[l] = 1;
+  std::ostringstream s;
+  s.precision(17);
+  s << "** rvegen: periodic " << (elasticity ? "elasticity" : "conductivity")
+    << " of the voxel mesh (CalculiX: ccx -i run_voxel_"
+    << (elasticity ? "elasticity" : "conductivity") << "). Each step prints the "
+    << (elasticity ? "stress" : "heat flux")
+    << " at every integration point of EALL (equal hexahedra with equal weights: their mean is "
+       "the mean over the box).\n";
+  s << "*INCLUDE, INPUT=mesh_voxel.inp\n";
+  for (const Phase& p : im.phases) {
+    if (!present[p.label]) continue;
+    if (p.kind == PhaseKind::kVoid) return "";
+    const Material* m = scene.material(key_of(scene, p));
+    if (!m) return "";
+    const std::string name = set_name(p.name);
+    s << "*MATERIAL, NAME=M_" << name << "\n";
+    if (elasticity) {
+      if (!(m->young > 0.0) || m->transverse_elasticity()) return "";
+      s << "*ELASTIC\n" << m->young << ", " << m->poisson << "\n";
+    } else {
+      if (!(m->conductivity > 0.0) || m->transverse_conduction()) return "";
+      s << "*CONDUCTIVITY\n" << m->conductivity << "\n";
+    }
+    s << "*SOLID SECTION, ELSET=" << name << ", MATERIAL=M_" << name << "\n";
+  }
+  // Periodic equations: every node on an upper face tied to its master.
+  const long long ref = g.nodes();
+  const double len[3] = {im.spacing[0] * g.nx, im.spacing[1] * g.ny, im.spacing[2] * g.nz};
+  const int n[3] = {g.nx, g.ny, g.nz};
+  s << "*EQUATION\n";
+  for (int k = 0; k <= g.nz; ++k) {
+    for (int j = 0; j <= g.ny; ++j) {
+      for (int i = 0; i <= g.nx; ++i) {
+        const int c[3] = {i, j, k};
+        int m[3], shifted = 0;
+        bool wrap[3];
+        for (int a = 0; a < 3; ++a) {
+          wrap[a] = c[a] == n[a];
+          m[a] = wrap[a] ? 0 : c[a];
+          shifted += wrap[a];
+        }
+        if (!shifted) continue;
+        const long long dep = g.node(i, j, k), master = g.node(m[0], m[1], m[2]);
+        const int dofs = elasticity ? 3 : 1;
+        for (int d = 0; d < dofs; ++d) {
+          const int dof = elasticity ? d + 1 : 11;
+          // Terms: dep, master, then one per axis brought back; at most four per line.
+          std::vector<std::string> terms;
+          terms.push_back(std::to_string(dep) + ", " + std::to_string(dof) + ", 1.");
+          terms.push_back(std::to_string(master) + ", " + std::to_string(dof) + ", -1.");
+          for (int a = 0; a < 3; ++a) {
+            if (!wrap[a]) continue;
+            std::ostringstream t;
+            t.precision(17);
+            t << ref + 1 + a << ", " << dof << ", " << -len[a];
+            terms.push_back(t.str());
+          }
+          s << terms.size() << "\n";
+          for (size_t t = 0; t < terms.size(); ++t) {
+            s << terms[t] << ((t % 4 == 3 || t + 1 == terms.size()) ? "\n" : ", ");
+          }
+        }
+      }
+    }
+  }
+  // Load steps: the reference nodes prescribed, the origin fixed.
+  const double r = 1.0 / std::sqrt(2.0);
+  const int loads = elasticity ? 6 : 3;
+  const char* ref_name[3] = {"REFX", "REFY", "REFZ"};
+  for (int load = 0; load < loads; ++load) {
+    s << "*STEP\n" << (elasticity ? "*STATIC\n" : "*HEAT TRANSFER, STEADY STATE\n");
+    s << "*BOUNDARY, OP=NEW\n";
+    if (elasticity) {
+      s << "ORIGIN, 1, 3, 0.\n";
+      // H (the mean displacement gradient) of the unit Mandel strain `load`: column a on
+      // reference node a.
+      double h[3][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}};
+      const int pair[6][2] = {{0, 0}, {1, 1}, {2, 2}, {1, 2}, {0, 2}, {0, 1}};
+      const int p = pair[load][0], q = pair[load][1];
+      if (p == q) {
+        h[p][p] = 1.0;
+      } else {
+        h[p][q] = h[q][p] = r;
+      }
+      for (int a = 0; a < 3; ++a) {
+        for (int c = 0; c < 3; ++c) {
+          s << ref_name[a] << ", " << c + 1 << ", " << c + 1 << ", " << h[c][a] << "\n";
+        }
+      }
+      s << "*EL PRINT, ELSET=EALL\nS\n";
+    } else {
+      s << "ORIGIN, 11, 11, 0.\n";
+      for (int a = 0; a < 3; ++a) {
+        s << ref_name[a] << ", 11, 11, " << (a == load ? 1.0 : 0.0) << "\n";
+      }
+      s << "*EL PRINT, ELSET=EALL\nHFL\n";
+    }
+    s << "*END STEP\n";
+  }
+  return s.str();
+}
+
+}  // namespace rvegen

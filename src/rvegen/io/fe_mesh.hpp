@@ -1,0 +1,43 @@
+// Finite-element meshes of the voxel image for Abaqus and CalculiX: one 8-node hexahedron per
+// voxel, element sets per phase, node sets of the faces, edges and corners, reference nodes for
+// the macroscopic load, and decks with periodic equations that run as written.
+//
+// Periodic boundary conditions: a node with a coordinate on a box face at the upper end of an
+// axis (x = L, y = L or z = L) is tied to its image with those coordinates brought to the lower
+// end (its master, which lies on no upper face), by one equation per degree of freedom:
+//   conductivity:  T(dep) - T(master) - sum_a s_a L_a G_a = 0,
+//   elasticity:    u_c(dep) - u_c(master) - sum_a s_a L_a H_ca = 0  (c = 1..3),
+// with s_a = 1 for each axis a the node was brought back along. G_a (the mean temperature
+// gradient) and H_ca (the mean displacement gradient, column a) are the degrees of freedom of
+// the reference nodes REFX, REFY, REFZ (DOF 11, or DOFs 1-3: column a of H on reference node a).
+// Edge and corner nodes thus get one equation each, tied straight to the node at the origin's
+// corner, edge or face: no node is constrained twice. The origin node is fixed (the constant
+// mode); each load case prescribes the reference nodes. The decks print the flux or stress at
+// every integration point (*EL PRINT of the set EALL): all elements are equal voxels, so the
+// plain mean of those values is the box mean (samples/ccx_effective.py).
+#pragma once
+
+#include <cstdio>
+#include <string>
+
+#include "rvegen/model/scene.hpp"
+#include "rvegen/raster/voxelize.hpp"
+
+namespace rvegen {
+
+/// mesh_voxel.inp: *NODE (node i + (nx+1) (j + (ny+1) k) + 1 at the grid point (i, j, k)),
+/// *ELEMENT C3D8 (element v + 1 for voxel v, x fastest) in one ELSET per phase present (named
+/// after the phase: matrix, the family names, <family>_coating, <family>_void), *NSET of the
+/// faces (XMIN .. ZMAX), the twelve edges (EDGE_Y0Z0 .. along x, and so on), the eight corners
+/// (CORNER_X0Y0Z0 ..), ORIGIN, and the reference nodes REFX, REFY, REFZ (set REFS); EALL.
+void write_abaqus_voxel_mesh(const VoxelImage& image, std::FILE* out);
+
+/// run_voxel_conductivity.inp (elasticity false) or run_voxel_elasticity.inp: *INCLUDE of
+/// mesh_voxel.inp, one material and section per phase, the periodic equations and three (unit
+/// mean gradients along x, y, z) or six (unit mean strains 11, 22, 33, 23, 13, 12 in Mandel
+/// form: shear components 1 / sqrt 2) load steps printing the flux or stress of EALL. Empty when a
+/// phase present lacks the isotropic property the physics needs (or is a void, or is
+/// transversely isotropic: not yet written).
+std::string abaqus_voxel_deck(const Scene& scene, const VoxelImage& image, bool elasticity);
+
+}  // namespace rvegen

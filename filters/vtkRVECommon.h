@@ -25,6 +25,7 @@
 #include "vtkPoints.h"
 #include "vtkPolyData.h"
 #include "vtkStringArray.h"
+#include "vtkTable.h"
 #include "vtkTypeInt64Array.h"
 #include "vtkUnsignedCharArray.h"
 
@@ -175,6 +176,32 @@ long long RVEVoxelizeInto(const rvegen::InclusionSet& set, const rvegen::VoxelIm
   out->GetFieldData()->AddArray(inclusions);
   return conflicts;
 }
+
+/// The long-form table the RVE filters give: columns quantity, name, index, value, one row per
+/// number.
+struct RVELongTable {
+  vtkNew<vtkStringArray> quantity, name;
+  vtkNew<vtkIntArray> index;
+  vtkNew<vtkDoubleArray> value;
+  RVELongTable() {
+    quantity->SetName("quantity");
+    name->SetName("name");
+    index->SetName("index");
+    value->SetName("value");
+  }
+  void Row(const char* q, const std::string& n, int i, double v) {
+    quantity->InsertNextValue(q);
+    name->InsertNextValue(n);
+    index->InsertNextValue(i);
+    value->InsertNextValue(v);
+  }
+  void AddTo(vtkTable* table) {
+    table->AddColumn(quantity);
+    table->AddColumn(name);
+    table->AddColumn(index);
+    table->AddColumn(value);
+  }
+};
 
 /// Reads field data "rvegen_inclusions" (the JSON of inclusions.json) of `input`: what the RVE
 /// Generator's surfaces carry, and inclusions.vtp written by `rvegen generate`. Returns false

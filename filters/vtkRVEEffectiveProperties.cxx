@@ -139,67 +139,54 @@ int vtkRVEEffectiveProperties::RequestData(vtkInformation*, vtkInformationVector
     return 0;
   }
 
-  vtkNew<vtkStringArray> quantity, name;
-  vtkNew<vtkIntArray> index;
-  vtkNew<vtkDoubleArray> value;
-  quantity->SetName("quantity");
-  name->SetName("name");
-  index->SetName("index");
-  value->SetName("value");
-  auto row = [&](const char* q, const std::string& nm, int i, double v) {
-    quantity->InsertNextValue(q);
-    name->InsertNextValue(nm);
-    index->InsertNextValue(i);
-    value->InsertNextValue(v);
-  };
+  RVELongTable rows;
   auto bounds = [&](const char* q, const rvegen::Bounds& b) {
     if (!b.stated) return;
-    row(q, "voigt", 0, b.voigt);
-    row(q, "reuss", 1, b.reuss);
-    row(q, "hs_lower", 2, b.hs_lower);
-    row(q, "hs_upper", 3, b.hs_upper);
+    rows.Row(q, "voigt", 0, b.voigt);
+    rows.Row(q, "reuss", 1, b.reuss);
+    rows.Row(q, "hs_lower", 2, b.hs_lower);
+    rows.Row(q, "hs_upper", 3, b.hs_upper);
   };
   auto ij = [](const char* p, int i, int j) {
     return std::string(p) + std::to_string(i + 1) + std::to_string(j + 1);
   };
-  row("cut_voxels", e.voxel_rule, 0, static_cast<double>(e.cut_voxels));
+  rows.Row("cut_voxels", e.voxel_rule, 0, static_cast<double>(e.cut_voxels));
   if (e.has_conductivity) {
     const rvegen::ConductivityResult& r = e.conductivity;
     for (int i = 0; i < 3; ++i) {
-      for (int j = 0; j < 3; ++j) row("conductivity", ij("k", i, j), 3 * i + j, r.tensor(i, j));
+      for (int j = 0; j < 3; ++j)
+        rows.Row("conductivity", ij("k", i, j), 3 * i + j, r.tensor(i, j));
     }
     bounds("conductivity_bound", e.conductivity_bounds);
     for (int l = 0; l < 3; ++l) {
-      row("iterations", "conductivity", l, r.iterations[l]);
-      row("residual", "conductivity", l, r.residual[l]);
+      rows.Row("iterations", "conductivity", l, r.iterations[l]);
+      rows.Row("residual", "conductivity", l, r.residual[l]);
     }
-    row("seconds", "conductivity", 0, r.seconds);
+    rows.Row("seconds", "conductivity", 0, r.seconds);
   }
   if (e.has_stiffness) {
     const rvegen::ElasticityResult& r = e.stiffness;
     for (int i = 0; i < 6; ++i) {
-      for (int j = 0; j < 6; ++j) row("stiffness", ij("C", i, j), 6 * i + j, r.stiffness(i, j));
+      for (int j = 0; j < 6; ++j)
+        rows.Row("stiffness", ij("C", i, j), 6 * i + j, r.stiffness(i, j));
     }
     const rvegen::EngineeringConstants& k = e.constants;
     const std::pair<const char*, double> constants[] = {
         {"E1", k.e1},   {"E2", k.e2},     {"E3", k.e3},     {"G23", k.g23},  {"G13", k.g13},
         {"G12", k.g12}, {"nu12", k.nu12}, {"nu13", k.nu13}, {"nu23", k.nu23}};
     int c = 0;
-    for (const auto& [nm, v] : constants) row("engineering_constant", nm, c++, v);
-    row("isotropic_projection", "bulk", 0, e.bulk);
-    row("isotropic_projection", "shear", 1, e.shear);
+    for (const auto& [nm, v] : constants) rows.Row("engineering_constant", nm, c++, v);
+    rows.Row("isotropic_projection", "bulk", 0, e.bulk);
+    rows.Row("isotropic_projection", "shear", 1, e.shear);
     bounds("bulk_bound", e.bulk_bounds);
     bounds("shear_bound", e.shear_bounds);
     for (int l = 0; l < 6; ++l) {
-      row("iterations", "elasticity", l, r.iterations[l]);
-      row("residual", "elasticity", l, r.residual[l]);
+      rows.Row("iterations", "elasticity", l, r.iterations[l]);
+      rows.Row("residual", "elasticity", l, r.residual[l]);
     }
-    row("seconds", "elasticity", 0, r.seconds);
+    rows.Row("seconds", "elasticity", 0, r.seconds);
   }
-  table->AddColumn(quantity);
-  table->AddColumn(name);
-  table->AddColumn(index);
-  table->AddColumn(value);
+  rows.AddTo(table);
   this->UpdateProgress(1.0);
   return 1;
 }

@@ -26,22 +26,10 @@ int vtkRVEStatistics::RequestData(vtkInformation*, vtkInformationVector** in,
     vtkErrorMacro(<< error);
     return 0;
   }
-  vtkNew<vtkStringArray> quantity, name;
-  vtkNew<vtkIntArray> index;
-  vtkNew<vtkDoubleArray> value;
-  quantity->SetName("quantity");
-  name->SetName("name");
-  index->SetName("index");
-  value->SetName("value");
-  auto row = [&](const char* q, const std::string& n, int i, double v) {
-    quantity->InsertNextValue(q);
-    name->InsertNextValue(n);
-    index->InsertNextValue(i);
-    value->InsertNextValue(v);
-  };
+  RVELongTable rows;
   const std::vector<rvegen::Phase> phases = rvegen::phase_table(set);
   const std::vector<double> vf = rvegen::phase_volume_fractions(set, phases);
-  for (const auto& p : phases) row("volume_fraction", p.name, p.label, vf[p.label]);
+  for (const auto& p : phases) rows.Row("volume_fraction", p.name, p.label, vf[p.label]);
   for (const auto& p : phases) {
     if (p.kind != rvegen::PhaseKind::kCore) continue;
     const int f = p.family;
@@ -54,32 +42,29 @@ int vtkRVEStatistics::RequestData(vtkInformation*, vtkInformationVector** in,
       diameter += 2.0 * inc.shape.radius;
       spheres = spheres && inc.shape.kind == rvegen::ShapeKind::Sphere;
     }
-    row("count", p.name, f, count);
+    rows.Row("count", p.name, f, count);
     if (count == 0) continue;
     if (!spheres) {
       const rvegen::Mat3 a = rvegen::orientation_tensor(set, f);
       for (int i = 0; i < 3; ++i) {
-        for (int j = 0; j < 3; ++j) row("orientation_tensor", p.name, 3 * i + j, a(i, j));
+        for (int j = 0; j < 3; ++j) rows.Row("orientation_tensor", p.name, 3 * i + j, a(i, j));
       }
     } else if (count > 1) {
       const rvegen::RadialDistribution g =
           rvegen::radial_distribution(set, f, 50, 5.0 * diameter / count);
       for (size_t k = 0; k < g.r.size(); ++k) {
-        row("r", p.name, static_cast<int>(k), g.r[k]);
-        row("g_r", p.name, static_cast<int>(k), g.g[k]);
+        rows.Row("r", p.name, static_cast<int>(k), g.r[k]);
+        rows.Row("g_r", p.name, static_cast<int>(k), g.g[k]);
       }
     }
   }
   const rvegen::Summary nn = rvegen::nearest_neighbour_distances(set);
   if (nn.n > 0) {
-    row("nearest_neighbour_distance", "mean", 0, nn.mean);
-    row("nearest_neighbour_distance", "std", 1, nn.std);
-    row("nearest_neighbour_distance", "min", 2, nn.min);
-    row("nearest_neighbour_distance", "max", 3, nn.max);
+    rows.Row("nearest_neighbour_distance", "mean", 0, nn.mean);
+    rows.Row("nearest_neighbour_distance", "std", 1, nn.std);
+    rows.Row("nearest_neighbour_distance", "min", 2, nn.min);
+    rows.Row("nearest_neighbour_distance", "max", 3, nn.max);
   }
-  table->AddColumn(quantity);
-  table->AddColumn(name);
-  table->AddColumn(index);
-  table->AddColumn(value);
+  rows.AddTo(table);
   return 1;
 }

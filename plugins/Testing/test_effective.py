@@ -61,13 +61,20 @@ if len(k) == 9:
                                       text=True).stdout)
     scene["materials"] = materials
     scene["homogenization"] = {"physics": ["conductivity"]}
-    scene["outputs"] = ["inclusions"]
+    scene["outputs"] = ["inclusions", "mesh_voxel"]
     path = os.path.join(work, "scene.json")
     with open(path, "w") as f:
         json.dump(scene, f)
     subprocess.run([rvegen, "generate", "-q", path, "-o", os.path.join(work, "rve")], check=True)
     with open(os.path.join(work, "rve", "report.json")) as f:
         cli = json.load(f)["effective"]["conductivity"]["tensor"]
+    # ParaView reads the voxel mesh the command line wrote: a hexahedron per voxel, its phase.
+    mesh = XMLUnstructuredGridReader(FileName=[os.path.join(work, "rve", "mesh_voxel.vtu")])
+    mesh.UpdatePipeline()
+    grid = servermanager.Fetch(mesh)
+    check(grid.GetNumberOfCells() == 64 ** 3 and grid.GetCellType(0) == 12,
+          "mesh_voxel.vtu: %d cells of type %d" % (grid.GetNumberOfCells(), grid.GetCellType(0)))
+    check(grid.GetCellData().GetArray("phase") is not None, "mesh_voxel.vtu has no phase")
     worst = max(abs(cli[i][j] - k["k%d%d" % (i + 1, j + 1)]) for i in range(3) for j in range(3))
     print("largest difference to rvegen generate: %.3e" % worst)
     check(worst < 1e-9 * cli[0][0], "filter and command line differ by %.3e" % worst)

@@ -60,7 +60,8 @@ const char* kGenerateUsage =
     "    amitex      material.vtk, zoneID.vtk and the amitex_*.xml and amitex_run.sh files that\n"
     "                run AMITEX_FFTP on them (materials from the scene)\n"
     "    mesh        surfaces.vtp of every inclusion (otherwise of the modified ones only)\n"
-    "    mesh_voxel  mesh_voxel.inp (a hexahedron per voxel, periodic node sets) and, with\n"
+    "    mesh_voxel  mesh_voxel.inp, .msh, .vtu (a hexahedron per voxel; periodic node sets\n"
+    "                and equations or Gmsh's $Periodic) and, with\n"
     "                materials, run_voxel_conductivity.inp and run_voxel_elasticity.inp\n"
     "                (CalculiX and Abaqus decks with periodic equations)\n"
     "  By default inclusions, voxels and levelsets; the scene's \"outputs\" list or\n"
@@ -338,6 +339,10 @@ int cmd_generate(const std::vector<std::string>& args) {
       timed("write mesh_voxel.inp", [&] {
         out.write_with("mesh_voxel.inp",
                        [&](std::FILE* f) { rvegen::write_abaqus_voxel_mesh(image, f); });
+        out.write_with("mesh_voxel.msh",
+                       [&](std::FILE* f) { rvegen::write_gmsh_voxel_mesh(image, f); });
+        out.write_with("mesh_voxel.vtu",
+                       [&](std::FILE* f) { rvegen::write_voxel_mesh_vtu(image, f); });
         for (const bool elastic : {false, true}) {
           const std::string deck = rvegen::abaqus_voxel_deck(scene, image, elastic);
           if (!deck.empty()) {

@@ -94,6 +94,38 @@ assert {n for n, _ in first} == upper, "eliminated nodes are not exactly those o
 print("mesh periodic: %d nodes, %d equations" % (len(nodes), len(first)))
 PY
 
+# The same mesh for Gmsh (format 4.1 with $Periodic) and ParaView (.vtu), read by meshio and Gmsh:
+# every voxel a hexahedron with its phase, the periodic pairs one box length apart.
+$py - "$WORK/k" <<'PY' || fail "mesh_voxel.msh / .vtu read by meshio"
+import os, sys
+import numpy as np, meshio
+d = sys.argv[1]
+m = meshio.read(os.path.join(d, "mesh_voxel.msh"))
+v = meshio.read(os.path.join(d, "mesh_voxel.vtu"))
+n = 16 ** 3
+assert sum(len(c.data) for c in m.cells if c.type == "hexahedron") == n
+assert len(v.cells) == 1 and v.cells[0].type == "hexahedron" and len(v.cells[0].data) == n
+assert np.allclose(m.points, v.points)
+# The phase of each hexahedron: physical tag - 1 in the .msh, cell data in the .vtu, by element id.
+phase_vtu = v.cell_data["phase"][0]
+for block, tags in zip(m.cells, m.cell_data["gmsh:physical"]):
+    for nodes, tag in zip(block.data, tags):
+        # The element's first node is its voxel's lower corner (i, j, k).
+        i, j, k = np.rint(m.points[nodes[0]] * 16).astype(int)
+        assert phase_vtu[i + 16 * (j + 16 * k)] == tag - 1
+assert m.gmsh_periodic and len(m.gmsh_periodic) == 3
+for dim, (slave, master), affine, pairs in m.gmsh_periodic:
+    a = (slave - 2) // 2
+    pairs = np.asarray(pairs)
+    assert len(pairs) == 17 * 17
+    diff = m.points[pairs[:, 0]] - m.points[pairs[:, 1]]
+    want = np.zeros(3); want[a] = 1.0
+    assert np.allclose(diff, want, atol=1e-12), (slave, diff[:2])
+PY
+gmsh -check "$WORK/k/mesh_voxel.msh" >"$WORK/gmsh.log" 2>&1 || fail "gmsh -check: $(tail -3 "$WORK/gmsh.log")"
+grep -q "Error" "$WORK/gmsh.log" && fail "gmsh -check: $(grep Error "$WORK/gmsh.log" | head -3)"
+grep -q "Done checking mesh coherence" "$WORK/gmsh.log" || fail "gmsh did not check the mesh: $(tail -3 "$WORK/gmsh.log")"
+
 run() {  # run DIR NAME ELEMENT -> DIR_ELEMENT/NAME.dat
   local d="$1_$3"
   rm -rf "$d" && cp -r "$1" "$d"

@@ -24,11 +24,9 @@ struct PhaseProperties {
 PhaseProperties phase_properties(const Scene& scene, const VoxelImage& image) {
   PhaseProperties p;
   for (const Phase& ph : image.phases) {
-    std::string key;
-    if (ph.kind == PhaseKind::kMatrix) key = "matrix";
-    if (ph.kind == PhaseKind::kCore) key = scene.families[ph.family].name;
-    if (ph.kind == PhaseKind::kInterphase) key = scene.families[ph.family].name + ".coating";
-    const Material* m = key.empty() ? nullptr : scene.material(key);
+    // Voids carry nothing.
+    const Material* m =
+        ph.kind == PhaseKind::kVoid ? nullptr : scene.material(material_key(scene, ph));
     p.conductivity.push_back(m && m->conductivity >= 0.0 ? m->conductivity : 0.0);
     p.young.push_back(m && m->young >= 0.0 ? m->young : 0.0);
     p.poisson.push_back(m && m->poisson > -1.0 ? m->poisson : 0.0);

@@ -35,52 +35,15 @@ std::vector<uint32_t> zones(const VoxelImage& image, std::map<int, std::vector<i
   return z;
 }
 
-void put(std::FILE* out, const void* data, size_t bytes) {
-  if (bytes > 0 && std::fwrite(data, 1, bytes, out) != bytes) {
-    throw OutputError(std::string("write failed: ") + std::strerror(errno));
-  }
-}
-
-std::string key_of(const Scene& scene, const Phase& p) {
-  if (p.kind == PhaseKind::kMatrix) return "matrix";
-  if (p.family < 0 || p.family >= static_cast<int>(scene.families.size())) return p.name;
-  const std::string& f = scene.families[p.family].name;
-  return p.kind == PhaseKind::kInterphase ? f + ".coating" : f;
-}
-
 }  // namespace
 
 void write_zone_vtk(const VoxelImage& im, std::FILE* out) {
   std::map<int, std::vector<int>> ids;
   const std::vector<uint32_t> z = zones(im, &ids);
-  uint32_t most = 1;
-  for (const auto& [label, list] : ids) most = std::max(most, static_cast<uint32_t>(list.size()));
-  const bool wide = most > 65535;
-  std::ostringstream s;
-  s.precision(17);
-  s << "# vtk DataFile Version 4.5\nZones\nBINARY\nDATASET STRUCTURED_POINTS\n";
-  s << "DIMENSIONS " << im.size(0) + 1 << " " << im.size(1) + 1 << " " << im.size(2) + 1 << "\n";
-  s << "ORIGIN " << im.origin[0] + im.extent[0] * im.spacing[0] << " "
-    << im.origin[1] + im.extent[2] * im.spacing[1] << " "
-    << im.origin[2] + im.extent[4] * im.spacing[2] << "\n";
-  s << "SPACING " << im.spacing[0] << " " << im.spacing[1] << " " << im.spacing[2] << "\n";
-  s << "CELL_DATA " << im.count() << "\n";
-  s << "SCALARS ZoneId " << (wide ? "int" : "unsigned_short") << "\nLOOKUP_TABLE default\n";
-  const std::string header = s.str();
-  put(out, header.data(), header.size());
-  const int width = wide ? 4 : 2;
-  std::vector<unsigned char> block;
-  constexpr size_t kBlock = size_t(1) << 20;
-  for (size_t at = 0; at < z.size(); at += kBlock) {
-    const size_t n = std::min(kBlock, z.size() - at);
-    block.resize(width * n);
-    for (size_t i = 0; i < n; ++i) {
-      for (int b = 0; b < width; ++b) {
-        block[width * i + b] = static_cast<unsigned char>(z[at + i] >> (8 * (width - 1 - b)));
-      }
-    }
-    put(out, block.data(), block.size());
-  }
+  size_t most = 1;
+  for (const auto& [label, list] : ids) most = std::max(most, list.size());
+  write_legacy_cells(
+      im, "Zones", "ZoneId", most > 65535, [&](size_t v) { return z[v]; }, out);
 }
 
 std::string amitex_materials_xml(const Scene& scene, const InclusionSet& set,
@@ -100,7 +63,7 @@ std::string amitex_materials_xml(const Scene& scene, const InclusionSet& set,
     *mu = m.young / (2.0 * (1.0 + m.poisson));
   };
   for (const Phase& p : image.phases) {
-    const Material* m = id[p.label] ? scene.material(key_of(scene, p)) : nullptr;
+    const Material* m = id[p.label] ? scene.material(material_key(scene, p)) : nullptr;
     if (!m || m->young < 0.0) continue;
     double l, mu;
     lame(*m, &l, &mu);
@@ -117,7 +80,7 @@ std::string amitex_materials_xml(const Scene& scene, const InclusionSet& set,
   }
   for (const Phase& p : image.phases) {
     if (!id[p.label]) continue;
-    const std::string key = key_of(scene, p);
+    const std::string key = material_key(scene, p);
     const Material* m = scene.material(key);
     x << "  <!-- " << p.name << " (materials." << key << ") -->\n";
     if (m && m->transverse_elasticity() && p.kind == PhaseKind::kCore) {

@@ -20,13 +20,6 @@ std::string set_name(const std::string& phase) {
   return s;
 }
 
-std::string key_of(const Scene& scene, const Phase& p) {
-  if (p.kind == PhaseKind::kMatrix) return "matrix";
-  if (p.family < 0 || p.family >= static_cast<int>(scene.families.size())) return p.name;
-  const std::string& f = scene.families[p.family].name;
-  return p.kind == PhaseKind::kInterphase ? f + ".coating" : f;
-}
-
 struct Grid {
   int nx, ny, nz;
   long long node(int i, int j, int k) const {
@@ -156,6 +149,103 @@ void write_abaqus_voxel_mesh(const VoxelImage& im, std::FILE* out) {
   put(s.str());
 }
 
+void write_gmsh_voxel_mesh(const VoxelImage& im, std::FILE* out) {
+  const Grid g{im.size(0), im.size(1), im.size(2)};
+  auto put = [&](const std::string& text) {
+    if (!text.empty() && std::fwrite(text.data(), 1, text.size(), out) != text.size()) {
+      throw OutputError(std::string("write failed: ") + std::strerror(errno));
+    }
+  };
+  std::vector<char> present(im.phases.size(), 0);
+  for (uint8_t l : im.phase) present[l] = 1;
+  std::vector<const Phase*> used;
+  for (const Phase& p : im.phases) {
+    if (present[p.label]) used.push_back(&p);
+  }
+  const Vec3 o =
+      im.origin + Vec3(im.extent[0], im.extent[2], im.extent[4]).cwiseProduct(im.spacing);
+  const Vec3 hi = o + Vec3(g.nx, g.ny, g.nz).cwiseProduct(im.spacing);
+  std::ostringstream s;
+  s.precision(17);
+  s << "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$PhysicalNames\n" << used.size() << "\n";
+  for (const Phase* p : used) s << "3 " << p->label + 1 << " \"" << set_name(p->name) << "\"\n";
+  s << "$EndPhysicalNames\n$Entities\n0 0 6 " << used.size() << "\n";
+  for (int a = 0; a < 3; ++a) {
+    for (int end = 0; end < 2; ++end) {
+      Vec3 lo = o, up = hi;
+      lo[a] = up[a] = end ? hi[a] : o[a];
+      s << 1 + 2 * a + end << " " << lo[0] << " " << lo[1] << " " << lo[2] << " " << up[0] << " "
+        << up[1] << " " << up[2] << " 0 0\n";
+    }
+  }
+  for (const Phase* p : used) {
+    s << p->label + 1 << " " << o[0] << " " << o[1] << " " << o[2] << " " << hi[0] << " " << hi[1]
+      << " " << hi[2] << " 1 " << p->label + 1 << " 0\n";
+  }
+  s << "$EndEntities\n$Nodes\n1 " << g.nodes() << " 1 " << g.nodes() << "\n3 "
+    << used.front()->label + 1 << " 0 " << g.nodes() << "\n";
+  for (long long n = 1; n <= g.nodes(); ++n) {
+    s << n << "\n";
+    if (n % 4096 == 0) put(s.str()), s.str("");
+  }
+  for (int k = 0; k <= g.nz; ++k) {
+    for (int j = 0; j <= g.ny; ++j) {
+      for (int i = 0; i <= g.nx; ++i) {
+        s << o[0] + i * im.spacing[0] << " " << o[1] + j * im.spacing[1] << " "
+          << o[2] + k * im.spacing[2] << "\n";
+      }
+      put(s.str());
+      s.str("");
+    }
+  }
+  s << "$EndNodes\n$Elements\n" << used.size() << " " << im.count() << " 1 " << im.count() << "\n";
+  for (const Phase* p : used) {
+    size_t count = 0;
+    for (uint8_t l : im.phase) count += l == p->label;
+    s << "3 " << p->label + 1 << " 5 " << count << "\n";
+    size_t v = 0;
+    for (int k = 0; k < g.nz; ++k) {
+      for (int j = 0; j < g.ny; ++j) {
+        for (int i = 0; i < g.nx; ++i, ++v) {
+          if (im.phase[v] != p->label) continue;
+          s << v + 1 << " " << g.node(i, j, k) << " " << g.node(i + 1, j, k) << " "
+            << g.node(i + 1, j + 1, k) << " " << g.node(i, j + 1, k) << " " << g.node(i, j, k + 1)
+            << " " << g.node(i + 1, j, k + 1) << " " << g.node(i + 1, j + 1, k + 1) << " "
+            << g.node(i, j + 1, k + 1) << "\n";
+        }
+        put(s.str());
+        s.str("");
+      }
+    }
+  }
+  s << "$EndElements\n$Periodic\n3\n";
+  const int n[3] = {g.nx, g.ny, g.nz};
+  for (int a = 0; a < 3; ++a) {
+    // Surface 2 + 2a (upper) is the image of 1 + 2a (lower) by the translation along a.
+    s << "2 " << 2 + 2 * a << " " << 1 + 2 * a << "\n16";
+    for (int r = 0; r < 4; ++r) {
+      for (int c = 0; c < 4; ++c) {
+        s << " " << (r == c ? 1.0 : (c == 3 && r == a ? hi[a] - o[a] : 0.0));
+      }
+    }
+    const int b = (a + 1) % 3, c = (a + 2) % 3;
+    s << "\n" << static_cast<long long>(n[b] + 1) * (n[c] + 1) << "\n";
+    for (int u = 0; u <= n[b]; ++u) {
+      for (int w = 0; w <= n[c]; ++w) {
+        int up[3], lo[3];
+        up[a] = n[a], lo[a] = 0;
+        up[b] = lo[b] = u;
+        up[c] = lo[c] = w;
+        s << g.node(up[0], up[1], up[2]) << " " << g.node(lo[0], lo[1], lo[2]) << "\n";
+      }
+    }
+    put(s.str());
+    s.str("");
+  }
+  s << "$EndPeriodic\n";
+  put(s.str());
+}
+
 std::string abaqus_voxel_deck(const Scene& scene, const VoxelImage& im, bool elasticity) {
   const Grid g{im.size(0), im.size(1), im.size(2)};
   std::vector<char> present(im.phases.size(), 0);
@@ -172,7 +262,7 @@ std::string abaqus_voxel_deck(const Scene& scene, const VoxelImage& im, bool ela
   for (const Phase& p : im.phases) {
     if (!present[p.label]) continue;
     if (p.kind == PhaseKind::kVoid) return "";
-    const Material* m = scene.material(key_of(scene, p));
+    const Material* m = scene.material(material_key(scene, p));
     if (!m) return "";
     const std::string name = set_name(p.name);
     s << "*MATERIAL, NAME=M_" << name << "\n";

@@ -32,6 +32,13 @@ namespace rvegen {
 /// (CORNER_X0Y0Z0 ..), ORIGIN, and the reference nodes REFX, REFY, REFZ (set REFS); EALL.
 void write_abaqus_voxel_mesh(const VoxelImage& image, std::FILE* out);
 
+/// mesh_voxel.msh: the same mesh in Gmsh's format 4.1 (ASCII): a volume entity and a physical
+/// group per phase present (named after it), six surface entities for the faces (XMIN, XMAX,
+/// YMIN, YMAX, ZMIN, ZMAX: tags 1-6), the nodes and hexahedra of mesh_voxel.inp (same ids), and
+/// a $Periodic section tying each upper face's nodes to their images on the lower face (the
+/// translation by the box size as affine transform).
+void write_gmsh_voxel_mesh(const VoxelImage& image, std::FILE* out);
+
 /// run_voxel_conductivity.inp (elasticity false) or run_voxel_elasticity.inp: *INCLUDE of
 /// mesh_voxel.inp, one material and section per phase, the periodic equations and three (unit
 /// mean gradients along x, y, z) or six (unit mean strains 11, 22, 33, 23, 13, 12 in Mandel

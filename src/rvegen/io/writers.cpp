@@ -180,6 +180,66 @@ std::string vti_bytes(const VoxelImage& im, bool compressed) {
   return with_file([&](std::FILE* f) { write_vti(im, f, compressed); });
 }
 
+void write_voxel_mesh_vtu(const VoxelImage& im, std::FILE* out) {
+  const int nx = im.size(0), ny = im.size(1), nz = im.size(2);
+  const size_t cells = im.count();
+  const size_t points = static_cast<size_t>(nx + 1) * (ny + 1) * (nz + 1);
+  auto node = [&](int i, int j, int k) {
+    return static_cast<int64_t>(i) +
+           static_cast<int64_t>(nx + 1) * (j + static_cast<int64_t>(ny + 1) * k);
+  };
+  const Vec3 o =
+      im.origin + Vec3(im.extent[0], im.extent[2], im.extent[4]).cwiseProduct(im.spacing);
+  std::vector<double> xyz(3 * points);
+  for (int k = 0, p = 0; k <= nz; ++k) {
+    for (int j = 0; j <= ny; ++j) {
+      for (int i = 0; i <= nx; ++i, ++p) {
+        xyz[3 * p] = o[0] + i * im.spacing[0];
+        xyz[3 * p + 1] = o[1] + j * im.spacing[1];
+        xyz[3 * p + 2] = o[2] + k * im.spacing[2];
+      }
+    }
+  }
+  std::vector<int64_t> conn(8 * cells), offsets(cells);
+  std::vector<uint8_t> types(cells, 12);  // VTK_HEXAHEDRON
+  for (int k = 0, v = 0; k < nz; ++k) {
+    for (int j = 0; j < ny; ++j) {
+      for (int i = 0; i < nx; ++i, ++v) {
+        const int64_t c[8] = {node(i, j, k),
+                              node(i + 1, j, k),
+                              node(i + 1, j + 1, k),
+                              node(i, j + 1, k),
+                              node(i, j, k + 1),
+                              node(i + 1, j, k + 1),
+                              node(i + 1, j + 1, k + 1),
+                              node(i, j + 1, k + 1)};
+        std::copy(c, c + 8, conn.begin() + 8 * static_cast<size_t>(v));
+        offsets[v] = 8 * (static_cast<int64_t>(v) + 1);
+      }
+    }
+  }
+  AppendedList app(true);
+  const uint64_t at[6] = {app.add(xyz.data(), xyz.size()),
+                          app.add(conn.data(), conn.size()),
+                          app.add(offsets.data(), offsets.size()),
+                          app.add(types.data(), types.size()),
+                          app.add(im.phase.data(), im.phase.size()),
+                          app.add(im.inclusion_id.data(), im.inclusion_id.size())};
+  std::ostringstream s;
+  s << header("UnstructuredGrid", true);
+  s << "  <UnstructuredGrid>\n    <Piece NumberOfPoints=\"" << points << "\" NumberOfCells=\""
+    << cells << "\">\n";
+  s << "    <Points>\n" << array_tag("Float64", "Points", 3, at[0]) << "    </Points>\n";
+  s << "    <Cells>\n"
+    << array_tag("Int64", "connectivity", 1, at[1]) << array_tag("Int64", "offsets", 1, at[2])
+    << array_tag("UInt8", "types", 1, at[3]) << "    </Cells>\n";
+  s << "    <CellData Scalars=\"phase\">\n"
+    << array_tag("UInt8", "phase", 1, at[4]) << array_tag("Int32", "inclusion_id", 1, at[5])
+    << "    </CellData>\n    </Piece>\n  </UnstructuredGrid>\n";
+  put(out, s.str());
+  put_appended(out, app.arrays());
+}
+
 std::vector<uint16_t> amitex_material_ids(const VoxelImage& im) {
   // Phases absent from the image would leave holes in 1..N, which AMITEX rejects: labels are
   // renumbered densely in label order.
@@ -193,33 +253,42 @@ std::vector<uint16_t> amitex_material_ids(const VoxelImage& im) {
   return id;
 }
 
-void write_material_vtk(const VoxelImage& im, std::FILE* out) {
-  // AMITEX_FFTP's header, exactly 10 lines; materials numbered 1..N as big-endian unsigned
-  // shorts.
-  const std::vector<uint16_t> id = amitex_material_ids(im);
+void write_legacy_cells(const VoxelImage& im, const char* title, const char* name, bool wide,
+                        const std::function<uint32_t(size_t)>& value, std::FILE* out) {
   std::ostringstream s;
   s.precision(17);
-  s << "# vtk DataFile Version 4.5\nMateriau\nBINARY\nDATASET STRUCTURED_POINTS\n";
+  s << "# vtk DataFile Version 4.5\n" << title << "\nBINARY\nDATASET STRUCTURED_POINTS\n";
   s << "DIMENSIONS " << im.size(0) + 1 << " " << im.size(1) + 1 << " " << im.size(2) + 1 << "\n";
   s << "ORIGIN " << im.origin[0] + im.extent[0] * im.spacing[0] << " "
     << im.origin[1] + im.extent[2] * im.spacing[1] << " "
     << im.origin[2] + im.extent[4] * im.spacing[2] << "\n";
   s << "SPACING " << im.spacing[0] << " " << im.spacing[1] << " " << im.spacing[2] << "\n";
   s << "CELL_DATA " << im.count() << "\n";
-  s << "SCALARS MaterialId unsigned_short\nLOOKUP_TABLE default\n";
+  s << "SCALARS " << name << " " << (wide ? "int" : "unsigned_short") << "\nLOOKUP_TABLE default\n";
   put(out, s.str());
+  const int width = wide ? 4 : 2;
   std::vector<unsigned char> block;
   constexpr size_t kBlock = size_t(1) << 20;
-  for (size_t at = 0; at < im.phase.size(); at += kBlock) {
-    const size_t n = std::min(kBlock, im.phase.size() - at);
-    block.resize(2 * n);
+  const size_t count = im.count();
+  for (size_t at = 0; at < count; at += kBlock) {
+    const size_t n = std::min(kBlock, count - at);
+    block.resize(width * n);
     for (size_t i = 0; i < n; ++i) {
-      const uint16_t v = id[im.phase[at + i]];
-      block[2 * i] = static_cast<unsigned char>(v >> 8);
-      block[2 * i + 1] = static_cast<unsigned char>(v & 0xff);
+      const uint32_t v = value(at + i);
+      for (int b = 0; b < width; ++b) {
+        block[width * i + b] = static_cast<unsigned char>(v >> (8 * (width - 1 - b)));
+      }
     }
     put(out, block.data(), block.size());
   }
+}
+
+void write_material_vtk(const VoxelImage& im, std::FILE* out) {
+  // Materials numbered 1..N as big-endian unsigned shorts.
+  const std::vector<uint16_t> id = amitex_material_ids(im);
+  write_legacy_cells(
+      im, "Materiau", "MaterialId", false,
+      [&](size_t v) { return static_cast<uint32_t>(id[im.phase[v]]); }, out);
 }
 
 std::string material_vtk_bytes(const VoxelImage& im) {
@@ -394,7 +463,9 @@ const std::vector<std::string>& OutputSet::file_names() {
                                                  "report.json",
                                                  "mesh_voxel.inp",
                                                  "run_voxel_conductivity.inp",
-                                                 "run_voxel_elasticity.inp"};
+                                                 "run_voxel_elasticity.inp",
+                                                 "mesh_voxel.msh",
+                                                 "mesh_voxel.vtu"};
   return names;
 }
 

@@ -28,6 +28,15 @@ std::string vti_bytes(const VoxelImage& image, bool compressed = true);
 /// labels present in the image. Streamed in blocks.
 void write_material_vtk(const VoxelImage& image, std::FILE* out);
 std::string material_vtk_bytes(const VoxelImage& image);
+/// VTK XML UnstructuredGrid of the voxel mesh (the nodes and hexahedra of mesh_voxel.inp, same
+/// numbering less one): Float64 points, VTK_HEXAHEDRON cells, cell data phase (UInt8) and
+/// inclusion_id (Int32); zlib-compressed.
+void write_voxel_mesh_vtu(const VoxelImage& image, std::FILE* out);
+/// Legacy VTK STRUCTURED_POINTS with one binary big-endian cell scalar `name` over the image,
+/// as AMITEX_FFTP reads it (a 10-line header): unsigned short values, or int when `wide`;
+/// value(v) for voxel v (x fastest). Streamed in blocks.
+void write_legacy_cells(const VoxelImage& image, const char* title, const char* name, bool wide,
+                        const std::function<uint32_t(size_t)>& value, std::FILE* out);
 /// The AMITEX material number of each phase label (1..N over the labels present, in label
 /// order; 0 for a label absent from the image): what write_material_vtk writes.
 std::vector<uint16_t> amitex_material_ids(const VoxelImage& image);

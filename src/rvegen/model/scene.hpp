@@ -11,6 +11,7 @@
 #include "rvegen/geometry/random.hpp"
 #include "rvegen/model/inclusion_set.hpp"
 #include "rvegen/model/laws.hpp"
+#include "rvegen/model/phases.hpp"
 
 namespace rvegen {
 
@@ -186,6 +187,9 @@ void validate_scene(const Scene& scene);
 /// The part of validate_scene that checks "materials" and "homogenization" against the
 /// scene's families (for callers that build only those, such as the VTK filter).
 void validate_homogenization(const Scene& scene);
+/// The "materials" key of a phase of the scene's image: "matrix", the family's name, or
+/// "<family>.coating" for its interphase (a void's family name; it carries nothing).
+std::string material_key(const Scene& scene, const Phase& phase);
 /// The built-in default scene.
 Scene default_scene();
 

@@ -212,6 +212,13 @@ void validate_homogenization(const Scene& scene) {
   validate_materials(scene);
 }
 
+std::string material_key(const Scene& scene, const Phase& p) {
+  if (p.kind == PhaseKind::kMatrix) return "matrix";
+  if (p.family < 0 || p.family >= static_cast<int>(scene.families.size())) return p.name;
+  const std::string& f = scene.families[p.family].name;
+  return p.kind == PhaseKind::kInterphase ? f + ".coating" : f;
+}
+
 const Material* OutputSpec::material(const std::string& key) const {
   for (const auto& m : materials) {
     if (m.first == key) return &m.second;

@@ -50,6 +50,16 @@ namespace {
 using md::Body;
 
 constexpr double kMinPressure = 1e-6;
+// Compressions started again after a jam below the target, before the run reports it jammed:
+// each at kRecompressPressure times md.pressure and twice as patient as the last, when the jam
+// left at least kRecompressFrom of the drawn volume. Measured on 10,000 monodisperse spheres,
+// default settings (samples/bench_packing.py): at 0.636 seeds 1, 2, 4 and 8 jammed at
+// 0.6337-0.6360 and now all eight seeds reach it (5.2-5.5 s for those that jammed); at 0.645
+// all eight reach it in 13-28 s, where recompressing at md.pressure alone reached 0.642 after
+// three restarts (30 s) and 0.6445 after six (230 s).
+constexpr int kRecompressions = 4;
+constexpr double kRecompressPressure = 4.0;
+constexpr double kRecompressFrom = 0.95;
 // Chains (see run()): s_out drops by at most kChainDrop m a step; the contacts act on pieces
 // grown by a relative skin min(kChainSkin, kChainSkinPerPressure m); after kChainHold steps
 // without a valid scale, s_out drops by kChainUnjam. Measured on the Figure 5 scene
@@ -75,6 +85,8 @@ class MdPacker {
   void snapshot(double scale);
   void report_progress(bool force);
   void report_fraction() const;
+  /// Volume at the best valid scale over the drawn volume.
+  double reached_share() const;
 
   const PackingSpec& scene_;
   const Box& box_;
@@ -92,6 +104,7 @@ class MdPacker {
   double s_out_ = 0.0, s_start_ = 0.0, m_ = 0.0;
   long long steps_ = 0;
   int hold_ = 0;
+  int recompressions_ = 0;  // compressions started again after a jam
   // Best valid configuration.
   double best_scale_ = -1.0;
   std::vector<Vec3> best_center_;
@@ -143,12 +156,14 @@ void MdPacker::snapshot(double scale) {
   }
 }
 
-void MdPacker::report_fraction() const {
-  if (!monitor_.fraction) return;
+double MdPacker::reached_share() const {
   const double s = std::clamp(best_scale_, 0.0, 1.0);
   const double total = radial_volume_ + other_volume_;
-  monitor_.fraction(total > 0.0 ? (radial_volume_ * s * s + other_volume_ * s * s * s) / total
-                                : 1.0);
+  return total > 0.0 ? (radial_volume_ * s * s + other_volume_ * s * s * s) / total : 1.0;
+}
+
+void MdPacker::report_fraction() const {
+  if (monitor_.fraction) monitor_.fraction(reached_share());
 }
 
 void MdPacker::report_progress(bool force) {
@@ -225,8 +240,17 @@ PackingResult MdPacker::run() {
       }
       mark = best_scale_;
       if (m_ < kMinPressure) {
-        why = StopReason::kJammed;
-        break;
+        // Jammed just below the target: compress again from here, harder at first and twice as
+        // patiently (slower compression near jamming packs denser), up to kRecompressions
+        // times within the budget. A jam far below the target (an unreachable one) ends the
+        // run at once.
+        if (recompressions_ >= kRecompressions || reached_share() < kRecompressFrom) {
+          why = StopReason::kJammed;
+          break;
+        }
+        ++recompressions_;
+        bodies_.patience *= 2;
+        m_ = kRecompressPressure * scene_.md.pressure;
       }
     }
     if (bodies_.chains) {

@@ -131,7 +131,8 @@ run() {  # run DIR NAME ELEMENT -> DIR_ELEMENT/NAME.dat
   rm -rf "$d" && cp -r "$1" "$d"
   sed -i "s/TYPE=C3D8,/TYPE=$3,/" "$d/mesh_voxel.inp"
   (cd "$d" && ccx -i "$2" >ccx.log 2>&1) || fail "ccx $2 ($3): $(tail -5 "$d/ccx.log")"
-  grep -qi "error\|over-constrained\|overconstrained" "$d/ccx.log" && fail "ccx $2 ($3) reports: $(grep -i "error\|constrained" "$d/ccx.log" | head -3)"
+  # CalculiX prints its errors as *ERROR (the iterative solver's progress lines say "error=").
+  grep -qi "\*ERROR\|over-constrained\|overconstrained" "$d/ccx.log" && fail "ccx $2 ($3) reports: $(grep -i "\*ERROR\|constrained" "$d/ccx.log" | head -3)"
   $py "$SAMPLES/ccx_effective.py" "$d" "$2" >"$d/effective.json" || fail "ccx_effective.py $d $2"
 }
 run "$WORK/k" run_voxel_conductivity C3D8R

@@ -320,7 +320,11 @@ std::string abaqus_voxel_deck(const Scene& scene, const VoxelImage& im, bool ela
   const int loads = elasticity ? 6 : 3;
   const char* ref_name[3] = {"REFX", "REFY", "REFZ"};
   for (int load = 0; load < loads; ++load) {
-    s << "*STEP\n" << (elasticity ? "*STATIC\n" : "*HEAT TRANSFER, STEADY STATE\n");
+    // CalculiX's iterative Cholesky solver: at 32^3 it took 2.6 s where the default direct
+    // solver (SPOOLES) took 27 s, with the same result to five digits.
+    s << "*STEP\n"
+      << (elasticity ? "*STATIC, SOLVER=ITERATIVE CHOLESKY\n"
+                     : "*HEAT TRANSFER, STEADY STATE, SOLVER=ITERATIVE CHOLESKY\n");
     s << "*BOUNDARY, OP=NEW\n";
     if (elasticity) {
       s << "ORIGIN, 1, 3, 0.\n";

@@ -1,5 +1,6 @@
 #include "rvegen/io/fe_mesh.hpp"
 
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstring>

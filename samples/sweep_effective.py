@@ -51,7 +51,7 @@ for phi in (0.1, 0.2, 0.3, 0.4, 0.5):
                  "seconds": c["seconds"] + s["seconds"]})
     print("phi %.1f done" % phi, file=sys.stderr)
 
-lines = ["Spheres (k 10, E 70, nu 0.2) in a matrix (k 1, E 3, nu 0.35), %d^3 voxels, rotated scheme, "
+lines = ["Spheres (k 10, E 70, nu 0.2) in a matrix (k 1, E 3, nu 0.35), %d^3 voxels, laminate voxels, rotated scheme, "
          "CG to 1e-6; bounds from the image's phase shares." % res, "",
          "| volume fraction (voxels) | conductivity | HS bounds | bulk modulus | HS bounds | shear modulus | HS bounds | solve (s) |",
          "|---|---|---|---|---|---|---|---|"]

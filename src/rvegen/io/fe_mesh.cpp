@@ -36,15 +36,48 @@ void id_lines(std::ostringstream& s, const std::vector<long long>& ids) {
   }
 }
 
+void put(std::FILE* out, const std::string& text) {
+  if (!text.empty() && std::fwrite(text.data(), 1, text.size(), out) != text.size()) {
+    throw OutputError(std::string("write failed: ") + std::strerror(errno));
+  }
+}
+
+// The phases that label at least one voxel, in label order.
+std::vector<const Phase*> phases_present(const VoxelImage& im) {
+  std::vector<char> present(im.phases.size(), 0);
+  for (uint8_t l : im.phase) present[l] = 1;
+  std::vector<const Phase*> used;
+  for (const Phase& p : im.phases) {
+    if (present[p.label]) used.push_back(&p);
+  }
+  return used;
+}
+
+// One row per hexahedron of phase `label`: element id (voxel + 1), then its eight nodes (the
+// lower face counter-clockwise, then the upper one: C3D8's order and Gmsh's), separated by
+// `sep`; flushed to `out` row of voxels by row.
+void element_rows(const VoxelImage& im, const Grid& g, int label, const char* sep,
+                  std::ostringstream& s, std::FILE* out) {
+  size_t v = 0;
+  for (int k = 0; k < g.nz; ++k) {
+    for (int j = 0; j < g.ny; ++j) {
+      for (int i = 0; i < g.nx; ++i, ++v) {
+        if (im.phase[v] != label) continue;
+        s << v + 1 << sep << g.node(i, j, k) << sep << g.node(i + 1, j, k) << sep
+          << g.node(i + 1, j + 1, k) << sep << g.node(i, j + 1, k) << sep << g.node(i, j, k + 1)
+          << sep << g.node(i + 1, j, k + 1) << sep << g.node(i + 1, j + 1, k + 1) << sep
+          << g.node(i, j + 1, k + 1) << "\n";
+      }
+      put(out, s.str());
+      s.str("");
+    }
+  }
+}
+
 }  // namespace
 
 void write_abaqus_voxel_mesh(const VoxelImage& im, std::FILE* out) {
   const Grid g{im.size(0), im.size(1), im.size(2)};
-  auto put = [&](const std::string& text) {
-    if (!text.empty() && std::fwrite(text.data(), 1, text.size(), out) != text.size()) {
-      throw OutputError(std::string("write failed: ") + std::strerror(errno));
-    }
-  };
   std::ostringstream s;
   s.precision(17);
   s << "** rvegen voxel mesh: " << g.nx << " x " << g.ny << " x " << g.nz
@@ -58,7 +91,7 @@ void write_abaqus_voxel_mesh(const VoxelImage& im, std::FILE* out) {
         s << g.node(i, j, k) << ", " << o[0] + i * im.spacing[0] << ", " << o[1] + j * im.spacing[1]
           << ", " << o[2] + k * im.spacing[2] << "\n";
       }
-      put(s.str());
+      put(out, s.str());
       s.str("");
     }
   }
@@ -67,47 +100,24 @@ void write_abaqus_voxel_mesh(const VoxelImage& im, std::FILE* out) {
   for (int a = 0; a < 3; ++a)
     s << ref + 1 + a << ", " << o[0] << ", " << o[1] << ", " << o[2] << "\n";
   // Elements, one block per phase present.
-  for (const Phase& p : im.phases) {
-    bool any = false;
-    for (uint8_t l : im.phase) {
-      if (l == p.label) {
-        any = true;
-        break;
-      }
-    }
-    if (!any) continue;
-    s << "*ELEMENT, TYPE=C3D8, ELSET=" << set_name(p.name) << "\n";
-    put(s.str());
-    s.str("");
-    size_t v = 0;
-    for (int k = 0; k < g.nz; ++k) {
-      for (int j = 0; j < g.ny; ++j) {
-        for (int i = 0; i < g.nx; ++i, ++v) {
-          if (im.phase[v] != p.label) continue;
-          s << v + 1 << ", " << g.node(i, j, k) << ", " << g.node(i + 1, j, k) << ", "
-            << g.node(i + 1, j + 1, k) << ", " << g.node(i, j + 1, k) << ", " << g.node(i, j, k + 1)
-            << ", " << g.node(i + 1, j, k + 1) << ", " << g.node(i + 1, j + 1, k + 1) << ", "
-            << g.node(i, j + 1, k + 1) << "\n";
-        }
-        put(s.str());
-        s.str("");
-      }
-    }
+  for (const Phase* p : phases_present(im)) {
+    s << "*ELEMENT, TYPE=C3D8, ELSET=" << set_name(p->name) << "\n";
+    element_rows(im, g, p->label, ", ", s, out);
   }
   // Node sets: faces, edges, corners (each the nodes whose coordinates lie at those ends).
   const int n[3] = {g.nx, g.ny, g.nz};
   const char* axis = "XYZ";
   // at[a]: -1 free, 0 lower end, 1 upper end.
   auto nodes_where = [&](const int at[3]) {
+    int lo[3], hi[3];
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = at[a] < 0 ? 0 : (at[a] ? n[a] : 0);
+      hi[a] = at[a] < 0 ? n[a] : lo[a];
+    }
     std::vector<long long> ids;
-    for (int k = 0; k <= g.nz; ++k) {
-      for (int j = 0; j <= g.ny; ++j) {
-        for (int i = 0; i <= g.nx; ++i) {
-          const int c[3] = {i, j, k};
-          bool in = true;
-          for (int a = 0; a < 3 && in; ++a) in = at[a] < 0 || c[a] == (at[a] ? n[a] : 0);
-          if (in) ids.push_back(g.node(i, j, k));
-        }
+    for (int k = lo[2]; k <= hi[2]; ++k) {
+      for (int j = lo[1]; j <= hi[1]; ++j) {
+        for (int i = lo[0]; i <= hi[0]; ++i) ids.push_back(g.node(i, j, k));
       }
     }
     return ids;
@@ -147,22 +157,12 @@ void write_abaqus_voxel_mesh(const VoxelImage& im, std::FILE* out) {
   s << "*NSET, NSET=REFX\n" << ref + 1 << "\n*NSET, NSET=REFY\n" << ref + 2 << "\n";
   s << "*NSET, NSET=REFZ\n" << ref + 3 << "\n*NSET, NSET=REFS\n";
   s << ref + 1 << ", " << ref + 2 << ", " << ref + 3 << "\n";
-  put(s.str());
+  put(out, s.str());
 }
 
 void write_gmsh_voxel_mesh(const VoxelImage& im, std::FILE* out) {
   const Grid g{im.size(0), im.size(1), im.size(2)};
-  auto put = [&](const std::string& text) {
-    if (!text.empty() && std::fwrite(text.data(), 1, text.size(), out) != text.size()) {
-      throw OutputError(std::string("write failed: ") + std::strerror(errno));
-    }
-  };
-  std::vector<char> present(im.phases.size(), 0);
-  for (uint8_t l : im.phase) present[l] = 1;
-  std::vector<const Phase*> used;
-  for (const Phase& p : im.phases) {
-    if (present[p.label]) used.push_back(&p);
-  }
+  const std::vector<const Phase*> used = phases_present(im);
   const Vec3 o =
       im.origin + Vec3(im.extent[0], im.extent[2], im.extent[4]).cwiseProduct(im.spacing);
   const Vec3 hi = o + Vec3(g.nx, g.ny, g.nz).cwiseProduct(im.spacing);
@@ -187,7 +187,7 @@ void write_gmsh_voxel_mesh(const VoxelImage& im, std::FILE* out) {
     << used.front()->label + 1 << " 0 " << g.nodes() << "\n";
   for (long long n = 1; n <= g.nodes(); ++n) {
     s << n << "\n";
-    if (n % 4096 == 0) put(s.str()), s.str("");
+    if (n % 4096 == 0) put(out, s.str()), s.str("");
   }
   for (int k = 0; k <= g.nz; ++k) {
     for (int j = 0; j <= g.ny; ++j) {
@@ -195,7 +195,7 @@ void write_gmsh_voxel_mesh(const VoxelImage& im, std::FILE* out) {
         s << o[0] + i * im.spacing[0] << " " << o[1] + j * im.spacing[1] << " "
           << o[2] + k * im.spacing[2] << "\n";
       }
-      put(s.str());
+      put(out, s.str());
       s.str("");
     }
   }
@@ -204,20 +204,7 @@ void write_gmsh_voxel_mesh(const VoxelImage& im, std::FILE* out) {
     size_t count = 0;
     for (uint8_t l : im.phase) count += l == p->label;
     s << "3 " << p->label + 1 << " 5 " << count << "\n";
-    size_t v = 0;
-    for (int k = 0; k < g.nz; ++k) {
-      for (int j = 0; j < g.ny; ++j) {
-        for (int i = 0; i < g.nx; ++i, ++v) {
-          if (im.phase[v] != p->label) continue;
-          s << v + 1 << " " << g.node(i, j, k) << " " << g.node(i + 1, j, k) << " "
-            << g.node(i + 1, j + 1, k) << " " << g.node(i, j + 1, k) << " " << g.node(i, j, k + 1)
-            << " " << g.node(i + 1, j, k + 1) << " " << g.node(i + 1, j + 1, k + 1) << " "
-            << g.node(i, j + 1, k + 1) << "\n";
-        }
-        put(s.str());
-        s.str("");
-      }
-    }
+    element_rows(im, g, p->label, " ", s, out);
   }
   s << "$EndElements\n$Periodic\n3\n";
   const int n[3] = {g.nx, g.ny, g.nz};
@@ -240,17 +227,15 @@ void write_gmsh_voxel_mesh(const VoxelImage& im, std::FILE* out) {
         s << g.node(up[0], up[1], up[2]) << " " << g.node(lo[0], lo[1], lo[2]) << "\n";
       }
     }
-    put(s.str());
+    put(out, s.str());
     s.str("");
   }
   s << "$EndPeriodic\n";
-  put(s.str());
+  put(out, s.str());
 }
 
 std::string abaqus_voxel_deck(const Scene& scene, const VoxelImage& im, bool elasticity) {
   const Grid g{im.size(0), im.size(1), im.size(2)};
-  std::vector<char> present(im.phases.size(), 0);
-  for (uint8_t l : im.phase) present[l] = 1;
   std::ostringstream s;
   s.precision(17);
   s << "** rvegen: periodic " << (elasticity ? "elasticity" : "conductivity")
@@ -260,8 +245,8 @@ std::string abaqus_voxel_deck(const Scene& scene, const VoxelImage& im, bool ela
     << " at every integration point of EALL (equal hexahedra with equal weights: their mean is "
        "the mean over the box).\n";
   s << "*INCLUDE, INPUT=mesh_voxel.inp\n";
-  for (const Phase& p : im.phases) {
-    if (!present[p.label]) continue;
+  for (const Phase* phase : phases_present(im)) {
+    const Phase& p = *phase;
     if (p.kind == PhaseKind::kVoid) return "";
     const Material* m = scene.material(material_key(scene, p));
     if (!m) return "";

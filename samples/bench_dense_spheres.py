@@ -3,26 +3,25 @@
 
 10,000 spheres in a unit box asked for 0.636 and 0.645 (no "md" settings), seeds 1-8: the exit
 code, status, volume fraction reached and the wall time of the whole `rvegen generate` command
-(outputs: the inclusion files). Prints the table and writes samples/charts/dense_spheres_table.md.
+(outputs: the inclusion files) and its peak memory (GNU time). Prints the table and writes samples/charts/dense_spheres_table.md.
 
 usage: /usr/bin/python3 samples/bench_dense_spheres.py [BUILD_DIR]
 """
 import json
 import os
-import platform
-import resource
-import subprocess
 import sys
 import tempfile
-import time
+
+from bench_util import machine, timed
 
 build = sys.argv[1] if len(sys.argv) > 1 else "build"
 exe = os.path.join(build, "bin", "rvegen")
 here = os.path.dirname(os.path.abspath(__file__))
 work = tempfile.mkdtemp(prefix="rvegen-dense-")
-lines = ["10,000 spheres, default settings, `rvegen generate` wall time (inclusion files written); "
-         "%s, %d cores." % (platform.processor() or platform.machine(), os.cpu_count()), "",
-         "| target | seed | exit | status | volume fraction | seconds |", "|---|---:|---:|---|---:|---:|"]
+lines = ["10,000 spheres, default settings, whole `rvegen generate` command (inclusion files "
+         "written), runs in turn; %s; `/usr/bin/python3 samples/bench_dense_spheres.py`." % machine(),
+         "", "| target | seed | exit | status | volume fraction | wall s | peak MiB |",
+         "|---|---:|---:|---|---:|---:|---:|"]
 summary = []
 for target in (0.636, 0.645):
     reached = 0
@@ -34,18 +33,15 @@ for target in (0.636, 0.645):
         with open(path, "w") as f:
             json.dump(scene, f)
         out = os.path.join(work, "rve")
-        t = time.time()
-        rc = subprocess.run([exe, "generate", "-q", path, "-o", out]).returncode
-        wall = time.time() - t
+        rc, wall, peak, _ = timed([exe, "generate", "-q", path, "-o", out])
         with open(os.path.join(out, "report.json")) as f:
             report = json.load(f)
         reached += rc == 0
-        lines.append("| %.3f | %d | %d | %s | %.4f | %.1f |" % (target, seed, rc, report["status"],
-                                                             report["volume_fraction"], wall))
+        lines.append("| %.3f | %d | %d | %s | %.4f | %.1f | %.0f |" % (
+            target, seed, rc, report["status"], report["volume_fraction"], wall, peak))
         print(lines[-1], flush=True)
     summary.append("%.3f: %d of 8 seeds" % (target, reached))
-peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
-lines += ["", "Reached: " + "; ".join(summary) + ". Largest peak memory of a run: %.0f MiB." % peak]
+lines += ["", "Reached: " + "; ".join(summary) + "."]
 text = "\n".join(lines)
 print(text)
 with open(os.path.join(here, "charts", "dense_spheres_table.md"), "w") as f:

@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 """Packing benchmarks: runs `rvegen generate` on the scenes of the packing targets, audits
 every result with `rvegen check`, prints a table (also written to
-samples/charts/packing_table.md) and draws three charts in samples/charts/:
+samples/charts/packing_table.md: the packing time from report.json, and the whole command's wall
+time and peak memory by GNU time) and draws three charts in samples/charts/:
 
   packing_rsa_vs_md.png      time against volume fraction reached, RSA and MD (RSA's wall)
   packing_scaling.png        time against number of spheres (MD, volume fraction 0.60)
@@ -11,10 +12,11 @@ usage: /usr/bin/python3 samples/bench_packing.py [BUILD_DIR] [--quick]
 """
 import json
 import os
-import platform
 import subprocess
 import sys
 import tempfile
+
+from bench_util import machine, timed
 
 import matplotlib
 
@@ -37,11 +39,12 @@ def run(name, scene):
     scene.setdefault("voxels", {"resolution": 8})
     with open(path, "w") as f:
         json.dump(scene, f)
-    rc = subprocess.run([exe, "generate", path, "-o", out, "--quiet"], capture_output=True).returncode
+    rc, wall, peak, err = timed([exe, "generate", path, "-o", out, "--quiet"])
     if rc not in (0, 3):
-        raise SystemExit("rvegen generate failed on %s (exit %d)" % (name, rc))
+        raise SystemExit("rvegen generate failed on %s (exit %d): %s" % (name, rc, err[-500:]))
     with open(os.path.join(out, "report.json")) as f:
         report = json.load(f)
+    report["wall"], report["peak"] = wall, peak
     audit = subprocess.run([exe, "check", os.path.join(out, "inclusions.json")],
                            capture_output=True, text=True)
     report["overlaps"] = 0 if audit.returncode == 0 else audit.stdout.strip().splitlines()[-1]
@@ -69,7 +72,10 @@ n10k = 2000 if quick else 10000
 targets = [
     ("%d spheres, 0.60" % n10k, spheres(n10k, 0.60), 0.60),
     ("%d spheres, 0.63" % n10k, spheres(n10k, 0.63), 0.63),
-    ("%d spheres, highest (target 0.66, slow compression)" % n10k,
+    ("%d spheres, 0.636, default settings" % n10k, spheres(n10k, 0.636), 0.636),
+    ("%d spheres, 0.645, default settings" % n10k, spheres(n10k, 0.645), 0.645),
+    ("%d spheres, highest (target 0.66), default settings" % n10k, spheres(n10k, 0.66), None),
+    ("%d spheres, highest (target 0.66), tuned: pressure 0.2, patience 300" % n10k,
      spheres(n10k, 0.66, md={"pressure": 0.2, "patience": 300}), None),
     ("spheres + cylinders a=2, 0.60", mix(2, 0.60), 0.60),
     ("spheres + cylinders a=5, 0.55", mix(5, 0.55), 0.55),
@@ -88,9 +94,10 @@ if not quick:
 rows = []
 for i, (label, scene, want) in enumerate(targets):
     r = run("target%d" % i, scene)
-    rows.append((label, r["count"], r["volume_fraction"], r["packing_seconds"], r.get("steps", 0),
-                 r["status"], r["overlaps"], want))
-    print("%-52s %7d  vf %.4f  %7.2f s  %6d steps  %-18s overlaps %s" % rows[-1][:7], flush=True)
+    rows.append((label, r["count"], r["volume_fraction"], r["packing_seconds"], r["wall"],
+                 r["peak"], r.get("steps", 0), r["status"], r["overlaps"], want))
+    print("%-52s %7d  vf %.4f  %7.2f s  wall %7.2f s  %5.0f MiB  %6d steps  %-18s overlaps %s"
+          % rows[-1][:9], flush=True)
 
 # --- RSA against MD: time against volume fraction reached ---------------------------------
 n_cmp = 2000
@@ -123,12 +130,14 @@ for a in ([1, 2, 5] if quick else [0.5, 1, 2, 3, 5, 10, 20]):
     print("a = %g: %.4f in %.2f s (%s)" % aspect[-1], flush=True)
 
 # --- Table and charts -------------------------------------------------------------------------
-machine = "%s, %d CPUs, %s" % (platform.node(), os.cpu_count(), platform.processor() or "?")
-lines = ["Measured on %s with `%s`." % (machine, " ".join(["samples/bench_packing.py"] + sys.argv[1:])),
-         "", "| scene | inclusions | volume fraction reached | seconds | steps | status | overlaps |",
-         "|---|---:|---:|---:|---:|---|---:|"]
-for label, n, vf, sec, steps, status, ov, want in rows:
-    lines.append("| %s | %d | %.4f | %.2f | %d | %s | %s |" % (label, n, vf, sec, steps, status, ov))
+lines = ["Measured on %s with `/usr/bin/python3 %s`, runs in turn; packing seconds from "
+         "report.json, wall time and peak memory of the whole `rvegen generate` command (GNU time)."
+         % (machine(), " ".join(["samples/bench_packing.py"] + sys.argv[1:])),
+         "", "| scene | inclusions | volume fraction reached | packing s | wall s | peak MiB | steps "
+         "| status | overlaps |", "|---|---:|---:|---:|---:|---:|---:|---|---:|"]
+for label, n, vf, sec, wall, peak, steps, status, ov, want in rows:
+    lines.append("| %s | %d | %.4f | %.2f | %.2f | %.0f | %d | %s | %s |"
+                 % (label, n, vf, sec, wall, peak, steps, status, ov))
 table = "\n".join(lines) + "\n"
 print(table)
 with open(os.path.join(charts, "packing_table.md"), "w") as f:

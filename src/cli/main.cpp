@@ -64,7 +64,8 @@ const char* kGenerateUsage =
     "                and equations or Gmsh's $Periodic) and, with\n"
     "                materials, run_voxel_conductivity.inp and run_voxel_elasticity.inp\n"
     "                (CalculiX and Abaqus decks with periodic equations)\n"
-    "  By default inclusions, voxels and levelsets; the scene's \"outputs\" list or\n"
+    "    statistics  g(r) of sphere families and nearest-neighbour distances in report.json\n"
+    "  By default inclusions, voxels, levelsets and statistics; the scene's \"outputs\" list or\n"
     "  --outputs LIST (names separated by commas) chooses others. DIR is replaced as a whole:\n"
     "  it holds the complete new set or, on any failure, the previous one; a DIR holding files\n"
     "  rvegen did not write is refused. The last line gives the count, the volume fraction,\n"
@@ -372,12 +373,15 @@ int cmd_generate(const std::vector<std::string>& args) {
       add("elasticity", "stress", "11 22 33 23 13 12", 6, solved.stress);
     }
     rvegen::ReportStatistics stats;
-    timed("statistics", [&] { stats = rvegen::report_statistics(scene, result); });
+    if (want.statistics) {
+      timed("statistics", [&] { stats = rvegen::report_statistics(scene, result); });
+    }
     auto report_now = [&] {
       timings.total_seconds = seconds_since(t0);
       timings.peak_memory_mb = peak_memory_mb();
-      std::string text = rvegen::report_json(scene, result, want.image() ? &image : nullptr,
-                                             timings, &levelsets, &stats);
+      std::string text =
+          rvegen::report_json(scene, result, want.image() ? &image : nullptr, timings, &levelsets,
+                              want.statistics ? &stats : nullptr);
       if (effective.is_null()) return text;
       nlohmann::ordered_json report = nlohmann::ordered_json::parse(text);
       report["effective"] = effective;

@@ -111,6 +111,24 @@ assert m, last
 value = float(m.group(1)) * {"B": 1, "KB": 1e3, "MB": 1e6, "GB": 1e9}[m.group(2)]
 assert abs(value - int(sys.argv[2])) <= 0.05 * int(sys.argv[2]) + 1000, (value, sys.argv[2])
 PY
+# The statistics are an output: in the default report (g(r) of spheres, nearest neighbours, their
+# timing), absent when the list leaves them out, back when it names them.
+$py - "$WORK/out_default_outputs/report.json" "$WORK/out_cli_list/report.json" <<'PY' || fail "statistics output switch"
+import json, sys
+full, lean = (json.load(open(p)) for p in sys.argv[1:3])
+assert "nearest_neighbour_distance" in full and "statistics" in full["timings"], full.keys()
+assert "radial_distribution" in full["families"][0]
+assert "nearest_neighbour_distance" not in lean and "statistics" not in lean["timings"]
+assert "radial_distribution" not in lean["families"][0]
+PY
+expect_rc 0 "$RVEGEN" generate -q "$WORK/only_inclusions.json" --outputs inclusions,statistics -o "$WORK/out_stats"
+$py - "$WORK/out_stats/report.json" <<'PY' || fail "--outputs inclusions,statistics lacks the statistics"
+import json, sys
+r = json.load(open(sys.argv[1]))
+# five spheres of radius 0.1 that do not overlap: centres at least a diameter apart
+assert r["nearest_neighbour_distance"]["min"] >= 0.2 - 1e-9, r["nearest_neighbour_distance"]
+assert len(r["families"][0]["radial_distribution"]["g"]) == 50
+PY
 expect_rc 2 "$RVEGEN" generate "$WORK/only_inclusions.json" --outputs inclusions,voxel -o "$WORK/out_bad_list"
 grep -q 'unknown output "voxel"' "$WORK/last.err" || fail "--outputs with a typo: $(cat "$WORK/last.err")"
 [ -e "$WORK/out_bad_list" ] && fail "--outputs with a typo wrote $WORK/out_bad_list"
@@ -291,7 +309,7 @@ ls -A "$WORK" | grep -q '\.rvegen-' && fail "killed runs' staging directories we
 # Many families: the report no longer fits an HDF5 attribute; it is a dataset.
 fams=$($py -c "import json; print(json.dumps([{'shape':'sphere','radius':0.03,'count':3,'name':'family number %d with a long name' % k} for k in range(40)]))")
 echo "{\"box\":{\"size\":[1,1,1]},\"families\":$fams,\"voxels\":{\"resolution\":16}}" >"$WORK/many.json"
-expect_rc 0 "$RVEGEN" generate -q "$WORK/many.json" --outputs inclusions,h5 -o "$WORK/many"
+expect_rc 0 "$RVEGEN" generate -q "$WORK/many.json" --outputs inclusions,h5,statistics -o "$WORK/many"
 $py - "$WORK/many" <<'PY' || fail "rve.h5 report dataset"
 import json, sys
 import h5py

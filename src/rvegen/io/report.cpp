@@ -62,11 +62,6 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
                         const RunTimings& timings, const LevelSets* levelsets,
                         const ReportStatistics* stats) {
   using OJson = nlohmann::ordered_json;
-  ReportStatistics own;
-  if (!stats) {
-    own = report_statistics(scene, r);
-    stats = &own;
-  }
   const int nf = static_cast<int>(scene.families.size());
   const std::vector<double> vf = family_volume_fractions(r.set, nf);
   std::vector<double> voxel_vf(nf, 0.0);
@@ -104,7 +99,7 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
       for (int k = 0; k < 3; ++k) trows.push_back({t(k, 0), t(k, 1), t(k, 2)});
       j["target_orientation_tensor"] = trows;
       if (r.placed_count[f] > 0) j["orientation_tensor_error"] = (a - t).cwiseAbs().maxCoeff();
-    } else if (!stats->radial[f].r.empty()) {
+    } else if (stats && !stats->radial[f].r.empty()) {
       const RadialDistribution& g = stats->radial[f];
       j["radial_distribution"] = {{"r", g.r}, {"g", g.g}};
     }
@@ -141,8 +136,8 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
         "shells_may_touch: interphase volume fractions are the sum of the shells, an upper bound "
         "(merged shells count once in the image)";
   }
-  const Summary& nn = stats->nearest;
-  if (nn.n > 0) {
+  if (stats && stats->nearest.n > 0) {
+    const Summary& nn = stats->nearest;
     root["nearest_neighbour_distance"] = {
         {"mean", nn.mean}, {"std", nn.std}, {"min", nn.min}, {"max", nn.max}};
   }

@@ -38,7 +38,8 @@ struct ReportStatistics {
 ReportStatistics report_statistics(const Scene& scene, const PackingResult& result);
 
 /// report.json text. `image` may be null (then no voxel statistics), `levelsets` too (then no
-/// level-set section); `stats` null: computed here (pass them when writing several reports).
+/// level-set section), `stats` too (then no g(r) and no nearest-neighbour section: the
+/// "statistics" output left out).
 std::string report_json(const Scene& scene, const PackingResult& result, const VoxelImage* image,
                         const RunTimings& timings, const LevelSets* levelsets = nullptr,
                         const ReportStatistics* stats = nullptr);

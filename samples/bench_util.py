@@ -1,0 +1,29 @@
+"""What the benchmark scripts share: the machine they ran on, and one `rvegen` command timed as a
+user feels it (wall time and peak memory of the whole process, by GNU time)."""
+import os
+import platform
+import subprocess
+
+
+def machine():
+    """'<CPU model>, <n> cores, <OS>': the line every table states."""
+    model = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    model = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    return "%s, %d cores, %s" % (model, os.cpu_count(), platform.platform(terse=True))
+
+
+def timed(cmd):
+    """Runs cmd under /usr/bin/time; returns (exit code, wall seconds, peak MiB, stderr)."""
+    p = subprocess.run(["/usr/bin/time", "-f", "TIME %e %M"] + list(cmd), capture_output=True,
+                       text=True)
+    lines = p.stderr.strip().splitlines()
+    last = [ln for ln in lines if ln.startswith("TIME ")][-1].split()
+    rest = "\n".join(ln for ln in lines if not ln.startswith("TIME "))
+    return p.returncode, float(last[1]), int(last[2]) / 1024.0, rest

@@ -107,6 +107,33 @@ TEST(Neighbours, SpherePairsMatchBruteForceOverAllImages) {
   }
 }
 
+TEST(Neighbours, SpherePairStreamIsTheListAndStopsWhenAsked) {
+  Box box;
+  Random rng(5);
+  std::vector<Vec3> c(400);
+  std::vector<double> r(400);
+  for (int i = 0; i < 400; ++i) {
+    c[i] = Vec3(rng.uniform(), rng.uniform(), rng.uniform());
+    r[i] = i < 3 ? 0.3 : 0.05;  // large ones too: both passes
+  }
+  std::vector<SpherePair> list, streamed;
+  sphere_pairs(box, c, r, &list);
+  ASSERT_GT(list.size(), 50u);
+  EXPECT_TRUE(for_each_sphere_pair(box, c, r, [&](const SpherePair& p) {
+    streamed.push_back(p);
+    return true;
+  }));
+  ASSERT_EQ(streamed.size(), list.size());
+  for (size_t k = 0; k < list.size(); ++k) {
+    EXPECT_EQ(streamed[k].i, list[k].i);
+    EXPECT_EQ(streamed[k].j, list[k].j);
+    EXPECT_EQ(streamed[k].k, list[k].k);
+  }
+  size_t calls = 0;
+  EXPECT_FALSE(for_each_sphere_pair(box, c, r, [&](const SpherePair&) { return ++calls < 7; }));
+  EXPECT_EQ(calls, 7u);
+}
+
 TEST(Neighbours, GridQueriesFindEveryCentreWithinReach) {
   Box box;
   box.size = Vec3(1.0, 0.7, 1.3);

@@ -13,6 +13,7 @@
 #include <limits>
 #include <string>
 
+#include "rvegen/geometry/random.hpp"
 #include "rvegen/io/inclusions_json.hpp"
 #include "rvegen/io/scene_json.hpp"
 #include "rvegen/io/writers.hpp"
@@ -148,6 +149,19 @@ TEST(Parsing, NumberOverflowNamesItsKey) {
   EXPECT_NE(msg.find("not valid JSON"), std::string::npos) << msg;
 }
 
+TEST(Parsing, ErrorsInsideArraysNameTheElement) {
+  // After complete objects, inside an open one, and at a bare element.
+  std::string msg = scene_error(R"({"box":{"size":[1,1,1]},"families":[
+      {"shape":"sphere","radius":0.05,"volume_fraction":0.1},
+      {"shape":"sphere","radius":1e999,"volume_fraction":0.1}]})");
+  EXPECT_NE(msg.find("families[1].radius"), std::string::npos) << msg;
+  msg = scene_error(R"({"box":{"size":[1,1,1]},"families":[
+      {"shape":"sphere","radius":0.05,"volume_fraction":0.1},{},1e999]})");
+  EXPECT_NE(msg.find("families[2]"), std::string::npos) << msg;
+  msg = scene_error(R"({"box":{"size":[[1],[2],]}})");
+  EXPECT_NE(msg.find("box.size[2]"), std::string::npos) << msg;
+}
+
 TEST(Parsing, HugeDirectionComponentsAreNormalisedWithoutOverflow) {
   const Scene s = parse_scene(R"({"box":{"size":[1,1,1]},"families":[
       {"shape":"cylinder","radius":0.02,"aspect_ratio":5,"volume_fraction":0.1,
@@ -230,6 +244,39 @@ TEST(Audit, StopsAtTheLimitOnAPileOfSpheres) {
   EXPECT_TRUE(r.truncated);
   EXPECT_FALSE(r.clean());
   EXPECT_NE(describe_failure(r, set).find("or more"), std::string::npos);
+}
+
+TEST(Audit, StaysNearLinearForAHundredToOneSizeRatio) {
+  // One sphere of radius 0.3 among 20,000 of radius 0.003 (a 100:1 mixture): a single grid sized
+  // to the large sphere made every small one a candidate of every other (2e8 candidates); the
+  // two-level broad phase gives a few per sphere. Every overlap is still found: two small
+  // spheres pushed into each other and one pushed into the large one.
+  InclusionSet set;
+  Inclusion big;
+  big.shape = Shape::sphere(Vec3(0.5, 0.5, 0.5), 0.3);
+  set.inclusions.push_back(big);
+  Random rng(11);
+  while (set.inclusions.size() < 20001) {
+    Inclusion inc;
+    inc.id = static_cast<int>(set.inclusions.size());
+    inc.shape = Shape::sphere(Vec3(rng.uniform(), rng.uniform(), rng.uniform()), 0.003);
+    if ((inc.shape.center - big.shape.center).norm() > 0.31) set.inclusions.push_back(inc);
+  }
+  const size_t n = set.inclusions.size();
+  AuditReport r = audit(set);
+  const size_t random_overlaps = r.overlaps.size();  // a few small ones drawn into each other
+  EXPECT_LT(r.candidates, 20 * n) << r.candidates;
+  set.inclusions[1].shape.center = big.shape.center + Vec3(0.3025, 0, 0);
+  set.inclusions[2].shape.center = set.inclusions[3].shape.center + Vec3(0, 0.005, 0);
+  r = audit(set);
+  EXPECT_GE(r.overlaps.size(), random_overlaps + 1);
+  bool big_met = false, pair_met = false;
+  for (const OverlapRecord& o : r.overlaps) {
+    big_met |= o.a == 0 && o.b == 1;
+    pair_met |= o.a == 2 && o.b == 3;
+  }
+  EXPECT_TRUE(big_met);
+  EXPECT_TRUE(pair_met);
 }
 
 TEST(Audit, GenerateNeverReturnsAnOverlappingRve) {

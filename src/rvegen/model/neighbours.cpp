@@ -130,10 +130,25 @@ bool NeighbourGrid::nearest_image_suffices() const {
 
 void sphere_pairs(const Box& box, const std::vector<Vec3>& c, const std::vector<double>& r,
                   std::vector<SpherePair>* pairs, const std::function<void()>& tick) {
+  pairs->clear();
+  for_each_sphere_pair(
+      box, c, r,
+      [pairs](const SpherePair& p) {
+        pairs->push_back(p);
+        return true;
+      },
+      tick);
+}
+
+bool for_each_sphere_pair(const Box& box, const std::vector<Vec3>& c, const std::vector<double>& r,
+                          const std::function<bool(const SpherePair&)>& f,
+                          const std::function<void()>& tick) {
   const size_t n = c.size();
-  std::vector<SpherePair>& out = *pairs;
-  out.clear();
-  if (n == 0) return;
+  if (n == 0) return true;
+  bool go = true;  // false once f asked to stop
+  auto emit = [&](const SpherePair& p) {
+    if (go) go = f(p);
+  };
   // Spheres up to twice the median radius are "small": the grid's cells are sized for them.
   std::vector<double> radii(r);
   std::nth_element(radii.begin(), radii.begin() + radii.size() / 2, radii.end());
@@ -171,7 +186,7 @@ void sphere_pairs(const Box& box, const std::vector<Vec3>& c, const std::vector<
     for_each_image(box, c[p], r[p], c[q], r[q], [&](const Vec3& s) {
       const std::array<int, 3> k = lattice(s);
       if (p == q && k[0] == 0 && k[1] == 0 && k[2] == 0) return;
-      out.push_back({p, q, k});
+      emit({p, q, k});
     });
   };
   const bool nearest = grid.nearest_image_suffices();
@@ -186,28 +201,29 @@ void sphere_pairs(const Box& box, const std::vector<Vec3>& c, const std::vector<
     Vec3 d = c[q] - c[p];
     const std::array<int, 3> k = to_nearest_image(box, &d);
     const double rr = r[p] + r[q];
-    if (d.squaredNorm() <= rr * rr) out.push_back({p, q, k});
+    if (d.squaredNorm() <= rr * rr) emit({p, q, k});
   };
-  for (size_t t = 0; t < small.size(); ++t) {
+  for (size_t t = 0; t < small.size() && go; ++t) {
     if (tick && (t & 1023) == 0) tick();
     const int p = small[t];
     grid.for_each_neighbour_cell(c[p], [&](size_t cell) {
       for (int u = start[cell]; u < start[cell + 1]; ++u) candidate(p, order[u]);
     });
   }
-  if (large.empty()) return;
+  if (large.empty() || !go) return go;
   // Large spheres: registered in every cell within their radius plus r_small, so a small
   // sphere that meets one finds it in its own cell.
   NeighbourGrid reach_grid(box, 2.0 * r_small, 4 * small.size());
   for (int q : large) reach_grid.insert_reaching(q, c[q], r[q] + r_small);
-  for (size_t t = 0; t < small.size(); ++t) {
+  for (size_t t = 0; t < small.size() && go; ++t) {
     if (tick && (t & 1023) == 0) tick();
     reach_grid.for_each_in_cell(c[small[t]], [&](int q) { all_images(small[t], q); });
   }
-  for (size_t u = 0; u < large.size(); ++u) {
+  for (size_t u = 0; u < large.size() && go; ++u) {
     if (tick) tick();
-    for (size_t v = u; v < large.size(); ++v) all_images(large[u], large[v]);
+    for (size_t v = u; v < large.size() && go; ++v) all_images(large[u], large[v]);
   }
+  return go;
 }
 
 }  // namespace rvegen

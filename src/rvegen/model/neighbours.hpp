@@ -101,4 +101,10 @@ struct SpherePair {
 void sphere_pairs(const Box& box, const std::vector<Vec3>& c, const std::vector<double>& r,
                   std::vector<SpherePair>* out, const std::function<void()>& tick = nullptr);
 
+/// The same pairs, in the same order, handed to f one by one; f returns false to stop (then
+/// this returns false). Near-linear in the number of spheres and pairs for any size ratio.
+bool for_each_sphere_pair(const Box& box, const std::vector<Vec3>& c, const std::vector<double>& r,
+                          const std::function<bool(const SpherePair&)>& f,
+                          const std::function<void()>& tick = nullptr);
+
 }  // namespace rvegen

@@ -21,9 +21,11 @@ struct OverlapRecord {
 
 /// Every overlapping pair (each pair and image once; an inclusion against its own periodic
 /// image is reported with a == b), sorted by (a, b); the search stops after `limit` records
-/// (so a result of `limit` records means "at least that many").
+/// (so a result of `limit` records means "at least that many"). `candidates` (optional) receives
+/// the number of (pair, image) candidates the exact tests were run on.
 std::vector<OverlapRecord> find_overlaps(const InclusionSet& set,
-                                         size_t limit = static_cast<size_t>(-1));
+                                         size_t limit = static_cast<size_t>(-1),
+                                         size_t* candidates = nullptr);
 
 /// Indices of inclusions not wholly inside a non-periodic box (empty for periodic boxes).
 std::vector<int> find_outside(const InclusionSet& set);
@@ -35,14 +37,17 @@ struct AuditReport {
   bool truncated = false;
   /// Non-periodic boxes: indices of inclusions not wholly inside.
   std::vector<int> outside;
+  /// (pair, image) candidates given to the exact tests: near-linear in the inclusions for any
+  /// size ratio (their bounding spheres meet).
+  size_t candidates = 0;
   double seconds = 0.0;
   bool clean() const { return overlaps.empty() && outside.empty(); }
 };
 
-/// Every pair (and every periodic image that can reach) by the exact pair tests, through the
-/// audit's own broad phase (NeighbourGrid, not a packer's), on the envelopes of modified
-/// inclusions; and, in a non-periodic box, every inclusion against the walls. Stops collecting
-/// overlaps at `limit`.
+/// Every pair (and every periodic image that can reach) by the exact pair tests, on the
+/// envelopes of modified inclusions, the candidates from for_each_sphere_pair (a two-level grid
+/// tested against brute force: one large inclusion does not coarsen the grid for all); and, in a
+/// non-periodic box, every inclusion against the walls. Stops collecting overlaps at `limit`.
 AuditReport audit(const InclusionSet& set, size_t limit = 10000);
 
 /// One line naming the first overlaps or inclusions outside the box of a failed audit.

@@ -452,13 +452,17 @@ TEST_F(OutputSetTest, OrphanedStagingOfAKilledRunIsRemoved) {
 }
 
 TEST_F(OutputSetTest, PlantedLinksAreNeverFollowed) {
-  // Links where earlier versions put predictable temporary names, and inside the staging
-  // directory's parent: the target outside must not change.
+  // A link where earlier versions put predictable temporary names: rvegen writes regular files
+  // only, so a link under one of its names is not its own; the directory is refused and the
+  // target outside does not change.
   const fs::path target = root_ / "outside.txt";
   std::ofstream(target) << "precious";
   fs::create_directories(dir_);
-  fs::create_symlink(target,
-                     fs::path(dir_) / (".inclusions.json.tmp." + std::to_string(::getpid())));
+  const fs::path link = fs::path(dir_) / (".inclusions.json.tmp." + std::to_string(::getpid()));
+  fs::create_symlink(target, link);
+  EXPECT_THROW(OutputSet{dir_}, OutputError);
+  EXPECT_TRUE(fs::is_symlink(link));
+  fs::remove(link);
   {
     OutputSet out(dir_);
     struct stat st {};
@@ -470,6 +474,20 @@ TEST_F(OutputSetTest, PlantedLinksAreNeverFollowed) {
   std::ifstream in(target);
   EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), "precious");
   EXPECT_EQ(read("inclusions.json"), "new");
+}
+
+TEST_F(OutputSetTest, ADirectoryUnderAnOutputNameIsTheUsers) {
+  fs::create_directories(fs::path(dir_) / "levelsets.vdb");
+  std::ofstream(fs::path(dir_) / "levelsets.vdb" / "mine.txt") << "mine";
+  std::ofstream(fs::path(dir_) / "report.json") << "{}";
+  try {
+    OutputSet out(dir_);
+    ADD_FAILURE() << "a directory named levelsets.vdb was taken for an output";
+  } catch (const OutputError& e) {
+    EXPECT_NE(std::string(e.what()).find("levelsets.vdb (not a regular file)"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_TRUE(fs::exists(fs::path(dir_) / "levelsets.vdb" / "mine.txt"));
 }
 
 }  // namespace

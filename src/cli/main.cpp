@@ -397,6 +397,10 @@ int cmd_generate(const std::vector<std::string>& args) {
     }
     out.write("report.json", report_now());
     out.commit();
+    if (!out.leftover().empty()) {
+      std::cerr << "rvegen: the previous set in " << out_dir << " could not be removed (not ours "
+                << "to delete); it stays at " << out.leftover() << "\n";
+    }
     const auto vf =
         rvegen::family_volume_fractions(result.set, static_cast<int>(scene.families.size()));
     double total = 0.0;
@@ -420,6 +424,10 @@ int cmd_generate(const std::vector<std::string>& args) {
   } catch (const rvegen::AuditFailure& e) {
     std::cerr << "rvegen: " << e.what() << "; nothing was written\n";
     return kExitAudit;
+  } catch (const rvegen::NothingPlaced& e) {
+    std::cerr << "rvegen: " << e.what() << "; nothing was written, " << out_dir
+              << " is unchanged\n";
+    return kExitNotReached;
   } catch (const rvegen::InputError& e) {
     // Found during the work (an unlucky draw past the inclusion limit, say).
     std::cerr << "rvegen: invalid scene: " << e.what() << "; nothing was written\n";

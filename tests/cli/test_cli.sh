@@ -78,6 +78,9 @@ bad nan_value "{$BOX,\"families\":[{\"shape\":\"sphere\",\"radius\":NaN,\"count\
 bad impossible_fraction "{$BOX,\"families\":[{\"shape\":\"sphere\",\"radius\":0.05,\"volume_fraction\":0.75}]}" "exceeds"
 bad box_too_small "{\"box\":{\"size\":[0.1,1,1]},\"families\":[{\"shape\":\"sphere\",\"radius\":0.06,\"count\":1}]}" "does not fit"
 bad missing_size "{$BOX,\"families\":[{\"shape\":\"cylinder\",\"radius\":0.02,\"count\":1}]}" "aspect_ratio"
+bad zero_count "{$BOX,\"families\":[{\"shape\":\"sphere\",\"radius\":0.1,\"count\":0}]}" "families\[0\].count: must be an integer in \[1, 1e8\]"
+# A wave far shorter than the fibre's radius: refused up front (it hung in the packer).
+bad tiny_wavelength "{$BOX,\"md\":{\"max_seconds\":20},\"families\":[{\"shape\":\"cylinder\",\"radius\":0.02,\"aspect_ratio\":5,\"volume_fraction\":0.1,\"waviness\":{\"amplitude\":0.2,\"wavelength\":1e-4}}]}" "families\[0\].waviness.wavelength: .*bends too sharply"
 bad unknown_output "{$BOX,\"families\":[{\"shape\":\"sphere\",\"radius\":0.1,\"count\":1}],\"outputs\":[\"inclusions\",\"stl\"]}" "outputs\[1\]"
 
 # Every output has a switch: exactly the files asked for (and report.json) are written; the
@@ -111,6 +114,12 @@ assert m, last
 value = float(m.group(1)) * {"B": 1, "KB": 1e3, "MB": 1e6, "GB": 1e9}[m.group(2)]
 assert abs(value - int(sys.argv[2])) <= 0.05 * int(sys.argv[2]) + 1000, (value, sys.argv[2])
 PY
+# inclusions.vtp stays small: at most 300 bytes an inclusion (it took about 400 uncompressed).
+echo "{$BOX,\"seed\":4,\"families\":[{\"shape\":\"sphere\",\"volume_fraction\":0.3,\"count\":3000}],\"outputs\":[\"inclusions\"]}" >"$WORK/vtp_size.json"
+expect_rc 0 "$RVEGEN" generate -q "$WORK/vtp_size.json" -o "$WORK/vtp_size"
+vtp_bytes=$(stat -c %s "$WORK/vtp_size/inclusions.vtp")
+[ "$vtp_bytes" -le $((300 * 3000)) ] || fail "inclusions.vtp takes $((vtp_bytes / 3000)) bytes an inclusion"
+grep -q 'compressor="vtkZLibDataCompressor"' "$WORK/vtp_size/inclusions.vtp" || fail "inclusions.vtp is not compressed"
 # The statistics are an output: in the default report (g(r) of spheres, nearest neighbours, their
 # timing), absent when the list leaves them out, back when it names them.
 $py - "$WORK/out_default_outputs/report.json" "$WORK/out_cli_list/report.json" <<'PY' || fail "statistics output switch"
@@ -273,6 +282,39 @@ mkdir -p "$WORK/mine" && echo notes >"$WORK/mine/notes.txt"
 expect_rc 1 "$RVEGEN" generate -q "$WORK/closed.json" -o "$WORK/mine"
 grep -q "notes.txt" "$WORK/last.err" || fail "foreign file not named: $(cat "$WORK/last.err")"
 [ "$(cat "$WORK/mine/notes.txt")" = notes ] || fail "foreign file touched"
+
+# A bend radius of 1e300 is a straight fibre (it overflowed R^2 and exhausted memory): packed
+# like one, the bend kept in the inclusion list, no overlap.
+echo "{$BOX,\"seed\":2,\"families\":[{\"shape\":\"cylinder\",\"radius\":0.02,\"aspect_ratio\":5,\"volume_fraction\":0.2,\"curvature\":{\"radius\":1e300}}],\"voxels\":{\"resolution\":16}}" >"$WORK/huge_bend.json"
+expect_rc 0 "$RVEGEN" generate -q "$WORK/huge_bend.json" -o "$WORK/huge_bend"
+expect_rc 0 "$RVEGEN" check "$WORK/huge_bend/inclusions.json"
+grep -q '"bend_radius": 1e+300' "$WORK/huge_bend/inclusions.json" || fail "huge bend radius not kept"
+# Fibres entangled from the start (waves ten radii wide, 0.1 of the box): not one finds a valid
+# place within the budget; exit 3, and an empty box is not written over the previous set.
+expect_rc 0 "$RVEGEN" generate -q "$WORK/closed.json" -o "$WORK/entangled"
+cp "$WORK/entangled/inclusions.json" "$WORK/entangled.before"
+echo "{$BOX,\"md\":{\"max_seconds\":2},\"families\":[{\"shape\":\"cylinder\",\"radius\":0.02,\"aspect_ratio\":5,\"volume_fraction\":0.1,\"waviness\":{\"amplitude\":0.2,\"wavelength\":0.05}}]}" >"$WORK/entangled.json"
+expect_rc 3 "$RVEGEN" generate -q "$WORK/entangled.json" -o "$WORK/entangled"
+grep -q "not one inclusion could be placed" "$WORK/last.err" || fail "nothing placed: $(cat "$WORK/last.err")"
+cmp -s "$WORK/entangled/inclusions.json" "$WORK/entangled.before" || fail "an empty RVE replaced the previous set"
+[ -e "$WORK/entangled/levelsets.vdb" ] && fail "an empty RVE wrote level sets"
+
+# A directory under an rvegen file name is the user's: refused, its content kept.
+expect_rc 0 "$RVEGEN" generate -q "$WORK/closed.json" -o "$WORK/with_dir"
+mkdir "$WORK/with_dir/levelsets.vdb" && echo precious >"$WORK/with_dir/levelsets.vdb/mine.txt"
+expect_rc 1 "$RVEGEN" generate -q "$WORK/modified.json" -o "$WORK/with_dir"
+grep -q "levelsets.vdb (not a regular file)" "$WORK/last.err" || fail "directory under an output name: $(cat "$WORK/last.err")"
+[ "$(cat "$WORK/with_dir/levelsets.vdb/mine.txt")" = precious ] || fail "a user's directory in DIR was deleted"
+# DIR as a symbolic link: the directory it points to gets the new set, the link stays a link;
+# a link to a directory holding the user's files is refused like the directory itself.
+expect_rc 0 "$RVEGEN" generate -q "$WORK/closed.json" -o "$WORK/link_target"
+ln -s "$WORK/link_target" "$WORK/link_dir"
+expect_rc 0 "$RVEGEN" generate -q "$WORK/modified.json" -o "$WORK/link_dir"
+[ -L "$WORK/link_dir" ] || fail "the link DIR was replaced by a directory"
+[ -e "$WORK/link_target/levelsets.vdb" ] || fail "the link's target did not get the new set"
+ln -s "$WORK/mine" "$WORK/link_mine"
+expect_rc 1 "$RVEGEN" generate -q "$WORK/closed.json" -o "$WORK/link_mine"
+[ "$(cat "$WORK/mine/notes.txt")" = notes ] || fail "foreign file behind a link touched"
 
 # A set without level sets replaces one with them: no stale levelsets.vdb.
 expect_rc 0 "$RVEGEN" generate -q "$WORK/modified.json" -o "$WORK/swap"

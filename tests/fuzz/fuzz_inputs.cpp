@@ -39,6 +39,8 @@ void try_scene(const std::string& text) {
     result = rvegen::generate(scene);
   } catch (const rvegen::InputError&) {
     return;  // e.g. an unlucky draw past the count limit
+  } catch (const rvegen::NothingPlaced&) {
+    return;  // entangled within the budget: no RVE, reported as such
   }
   rvegen::voxelize(result.set, {6, 5, 4});
 }

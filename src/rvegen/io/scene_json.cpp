@@ -163,13 +163,12 @@ Family parse_family(const Json& j, const std::string& p, double box_volume) {
   }
   if (has_n) {
     const double n = number(j["count"], p + ".count");
-    if (n != std::floor(n) || n < 0 || n > 1e8)
-      fail(p + ".count", "must be an integer in [0, 1e8]");
+    if (n != std::floor(n) || n < 1 || n > 1e8)
+      fail(p + ".count", "must be an integer in [1, 1e8]");
     f.count = static_cast<int>(n);
   }
   // Both given: the size follows (the paper's set-up), so no size key may be given.
   const bool derived = has_vf && has_n;
-  if (derived && f.count < 1) fail(p + ".count", "must be >= 1 with a volume fraction");
   const double per = derived ? f.volume_fraction * box_volume / f.count : 0.0;
   switch (f.shape) {
     case ShapeKind::Sphere:

@@ -359,9 +359,12 @@ void write_points_vtp(const InclusionSet& set, const std::string& inclusions_jso
     conn[i] = static_cast<int64_t>(i);
     offs[i] = static_cast<int64_t>(i + 1);
   }
-  AppendedList app;
+  // zlib-compressed like the other VTK files: most arrays are constant or repeat (a sphere's
+  // axes, quaternion and flags) and the inclusion list is text (100,000 spheres: 393 bytes an
+  // inclusion raw; see the README for the compressed figure).
+  AppendedList app(true);
   std::ostringstream s;
-  s << header("PolyData") << "  <PolyData>\n";
+  s << header("PolyData", app.compressed()) << "  <PolyData>\n";
   field_data_inclusions(s, &app, inclusions_json);
   const uint64_t o_pts = app.add(g.points.data(), g.points.size());
   const uint64_t o_conn = app.add(conn.data(), conn.size());
@@ -500,7 +503,15 @@ OutputSet::OutputSet(const std::string& dir) : dir_(dir) {
     std::vector<std::string> foreign;
     for (fs::directory_iterator it(target, ec), end; !ec && it != end; it.increment(ec)) {
       const std::string name = it->path().filename().string();
-      if (!own_file(name)) foreign.push_back(name);
+      // rvegen writes regular files only: a directory, link or device under one of its names
+      // is the user's.
+      std::error_code kind;
+      const bool regular = fs::is_regular_file(it->symlink_status(kind)) && !kind;
+      if (!own_file(name)) {
+        foreign.push_back(name);
+      } else if (!regular) {
+        foreign.push_back(name + " (not a regular file)");
+      }
     }
     if (ec) throw OutputError("output directory " + dir + ": " + ec.message());
     if (!foreign.empty()) {
@@ -590,6 +601,7 @@ void OutputSet::commit() {
     // The staging name now holds the previous set.
     committed_ = true;
     fs::remove_all(stage_, ec);
+    if (ec) leftover_ = stage_;
     return;
   }
   if (errno != EINVAL && errno != ENOSYS && errno != ENOTSUP) {
@@ -608,6 +620,7 @@ void OutputSet::commit() {
   }
   committed_ = true;
   fs::remove_all(aside, ec);
+  if (ec) leftover_ = aside;
 }
 
 std::string read_file(const std::string& path, size_t max_bytes) {

@@ -90,9 +90,12 @@ class OutputSet {
   /// The output directory as given, and the staging directory.
   const std::string& dir() const { return dir_; }
   const std::string& staging_dir() const { return stage_; }
+  /// After commit(): where the previous set stays when it could not be removed (a DIR of
+  /// another user, in a parent both may write: its files are not ours to delete); else empty.
+  const std::string& leftover() const { return leftover_; }
 
  private:
-  std::string dir_, target_, stage_;
+  std::string dir_, target_, stage_, leftover_;
   bool committed_ = false;
 };
 

@@ -88,8 +88,7 @@ double deformation_volume_scale(const Modifiers& m) {
 
 double bend_reach(double bend_radius, double h, double s_max) {
   // The bend's offset grows with |s| from -m at s = 0 to at least +m at |s| = h.
-  const double R = bend_radius;
-  return (R - std::sqrt(R * R - s_max * s_max)) - 0.5 * (R - std::sqrt(R * R - h * h));
+  return arc_sagitta(bend_radius, s_max) - 0.5 * arc_sagitta(bend_radius, h);
 }
 
 CentreLine::CentreLine(const Inclusion& inc) {
@@ -107,7 +106,7 @@ CentreLine::CentreLine(const Inclusion& inc) {
     Rc = m.bend_radius;
     h = f.h;
     s_max = f.h + m.coating;
-    mid = 0.5 * (Rc - std::sqrt(Rc * Rc - f.h * f.h));
+    mid = 0.5 * arc_sagitta(Rc, f.h);
     w = std::cos(m.bend_angle) * e1 + std::sin(m.bend_angle) * e2;
   }
 }
@@ -117,11 +116,15 @@ double CentreLine::reach() const {
 }
 
 double CentreLine::slope() const {
-  return A * k + (Rc > 0.0 ? s_max / std::sqrt(Rc * Rc - s_max * s_max) : 0.0);
+  if (Rc <= 0.0) return A * k;
+  const double q = s_max / Rc;
+  return A * k + q / std::sqrt((1.0 - q) * (1.0 + q));
 }
 
 double CentreLine::curvature() const {
-  return A * k * k + (Rc > 0.0 ? Rc * Rc / std::pow(Rc * Rc - s_max * s_max, 1.5) : 0.0);
+  if (Rc <= 0.0) return A * k * k;
+  const double q = s_max / Rc;
+  return A * k * k + 1.0 / (Rc * std::pow((1.0 - q) * (1.0 + q), 1.5));
 }
 
 Shape envelope(const Inclusion& inc) {
@@ -151,10 +154,7 @@ ChainPlan chain_plan(const Inclusion& inc, const CentreLine& line) {
   c.reach = line.reach();
   c.slope = line.slope();
   const double K = line.curvature();
-  // Pieces of length ds with K ds^2 / 8 <= kChainSagitta R (the count is a ratio of lengths,
-  // the same at every scale; the 1e-9 keeps an exact integer from rounding either way).
-  const double span = 2.0 * c.H * std::sqrt(K / (8.0 * kChainSagitta * c.R));
-  c.n = std::max(1, static_cast<int>(std::ceil(span * (1.0 - 1e-9))));
+  c.n = static_cast<int>(std::min(chain_piece_count(c.H, c.R, K), kMaxChainPieces));
   c.ds = 2.0 * c.H / c.n;
   c.sag = std::min(2.0 * c.reach, K * c.ds * c.ds / 8.0);
   return c;

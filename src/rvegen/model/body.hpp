@@ -37,6 +37,13 @@ Shape outer_bound(const Inclusion& inc);
 /// The offsets over the fibre and its shell stay within lateral_reach of the axis; their
 /// slope within A k + s_max / sqrt(Rc^2 - s_max^2) and their second derivative within
 /// A k^2 + Rc^2 / (Rc^2 - s_max^2)^(3/2) (s_max = h + coating).
+/// Height of the arc of radius R over the half chord c <= R: R - sqrt(R^2 - c^2), written so
+/// that no square of R is formed (a radius of 1e300 is a straight fibre, not an overflow).
+inline double arc_sagitta(double R, double c) {
+  const double q = c / R;
+  return c * q / (1.0 + std::sqrt((1.0 - q) * (1.0 + q)));
+}
+
 struct CentreLine {
   explicit CentreLine(const Inclusion& inc);
   Vec3 offset(double s) const {
@@ -44,7 +51,7 @@ struct CentreLine {
     if (A > 0.0) o += A * std::sin(k * s + phase) * v;
     if (Rc > 0.0) {
       const double c = std::clamp(s, -s_max, s_max);
-      o += (Rc - std::sqrt(Rc * Rc - c * c) - mid) * w;
+      o += (arc_sagitta(Rc, c) - mid) * w;
     }
     return o;
   }
@@ -83,6 +90,18 @@ inline double lateral_reach(const Inclusion& inc) {
 /// (a few pieces follow it; planar fibres of a = 20 bent to 10 lengths: the envelope, 1.27 times
 /// the fibre, jammed at 0.150, chains of 3 pieces reached 0.20).
 constexpr double kChainSagitta = 0.03, kChainFrom = 0.75;
+/// The pieces of a chain cut from a straight cylinder of half length H and radius R whose
+/// centre line bends by at most K (second derivative of the offsets): pieces of length ds with
+/// K ds^2 / 8 <= kChainSagitta R (a ratio of lengths, the same at every scale; the 1e-9 keeps an
+/// exact integer from rounding either way). As a double: it may be far beyond what is packed.
+inline double chain_piece_count(double H, double R, double K) {
+  const double span = 2.0 * H * std::sqrt(K / (8.0 * kChainSagitta * R));
+  return std::max(1.0, std::ceil(span * (1.0 - 1e-9)));
+}
+/// The most pieces a fibre's chain may have: a wave far shorter than the fibre's radius makes a
+/// chain of thousands of pieces and a pair of fibres millions of piece pairs (the scene is
+/// refused up front, naming the wavelength).
+constexpr double kMaxChainPieces = 256;
 inline bool packs_as_chain(const Inclusion& inc) {
   const Modifiers& m = inc.mod;
   return inc.shape.kind == ShapeKind::Cylinder &&

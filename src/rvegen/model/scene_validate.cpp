@@ -294,7 +294,7 @@ void validate_scene(const Scene& s) {
     check_orientation(f.orientation, p + ".orientation");
     if (f.count < 0 && !(f.volume_fraction > 0.0 && f.volume_fraction < 1.0))
       fail(p + ".volume_fraction", "must be in (0, 1)");
-    if (f.count > 100000000) fail(p + ".count", "must be an integer in [0, 1e8]");
+    if (f.count == 0 || f.count > 100000000) fail(p + ".count", "must be an integer in [1, 1e8]");
     const double small = mean_smallest_size(f);
     if (!(small >= 1e-6 * s.box.size.maxCoeff())) {
       char buf[160];
@@ -331,6 +331,36 @@ void validate_scene(const Scene& s) {
         std::snprintf(buf, sizeof buf,
                       "must be at least the longest fibre's length with its coating (%.4g)",
                       longest);
+        fail(p + ".curvature.radius", buf);
+      }
+    }
+    if (f.shape == ShapeKind::Cylinder && (m.wave_amplitude > 0.0 || m.bend_radius > 0.0)) {
+      // A wave far shorter than the fibre's radius (or a bend far tighter) folds the fibre into
+      // itself and makes chains of thousands of pieces: refused here, not stuck in the packer.
+      const double shell = m.shells_may_touch ? 0.0 : m.coating;
+      const double H = f.longest_half() + shell, R = f.radius.lower() + shell;
+      const double k = m.wave_amplitude > 0.0 ? 2.0 * M_PI / m.wave_length : 0.0;
+      double K = m.wave_amplitude * k * k;
+      if (m.bend_radius > 0.0) {
+        const double q = H / m.bend_radius;
+        K += 1.0 / (m.bend_radius * std::pow((1.0 - q) * (1.0 + q), 1.5));
+      }
+      const double pieces = chain_piece_count(H, R, K);
+      if (!(pieces <= kMaxChainPieces)) {
+        char buf[400];
+        if (m.wave_amplitude > 0.0) {
+          std::snprintf(buf, sizeof buf,
+                        "a wave of amplitude %.3g and wavelength %.3g on fibres of radius %.3g "
+                        "and length %.3g bends too sharply to pack (%.3g chain pieces per fibre, "
+                        "at most %.0f): give a wavelength of at least %.3g or a smaller amplitude",
+                        m.wave_amplitude, m.wave_length, f.radius.lower(), 2.0 * f.longest_half(),
+                        pieces, kMaxChainPieces, m.wave_length * pieces / kMaxChainPieces);
+          fail(p + ".waviness.wavelength", buf);
+        }
+        std::snprintf(buf, sizeof buf,
+                      "bends fibres of radius %.3g too sharply to pack (%.3g chain pieces per "
+                      "fibre, at most %.0f)",
+                      f.radius.lower(), pieces, kMaxChainPieces);
         fail(p + ".curvature.radius", buf);
       }
     }

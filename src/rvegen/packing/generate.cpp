@@ -1,4 +1,5 @@
 #include <cstdio>
+#include <string>
 
 #include "rvegen/packing/audit.hpp"
 #include "rvegen/packing/packing.hpp"
@@ -30,6 +31,13 @@ PackingResult generate(const PackingSpec& scene, const Monitor& monitor,
   PackingResult r =
       scene.method == Method::kRsa ? pack_rsa(scene, monitor) : pack_md(scene, monitor);
   if (monitor.cancelled && monitor.cancelled()) throw Cancelled();
+  if (r.set.inclusions.empty()) {
+    throw NothingPlaced(
+        std::string("not one inclusion could be placed before the packing stopped (") +
+        stop_reason_name(r.stop_reason) +
+        "): lower the volume fraction or the modifiers (waviness, curvature), "
+        "or give more time (md.max_seconds)");
+  }
   for (const Family& f : scene.families) r.set.family_names.push_back(f.name);
   if (before_audit) before_audit(r.set);
   const AuditReport a = audit(r.set, 16);

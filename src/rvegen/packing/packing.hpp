@@ -61,6 +61,13 @@ class Cancelled : public std::runtime_error {
   Cancelled() : std::runtime_error("cancelled") {}
 };
 
+/// Thrown by generate() when the packing stopped (time or step budget, jam) before a single
+/// inclusion had a valid place: an empty box is no RVE, so nothing is returned.
+class NothingPlaced : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 /// Random sequential adsorption: the population is drawn (draw_population), then inclusions are
 /// placed one at a time (largest first) at uniform random positions and kept when clear of every
 /// placed one (and their periodic images) by scene.min_gap. Each inclusion gets at most
@@ -80,7 +87,8 @@ inline PackingResult pack_md(const PackingSpec& scene, const ProgressFn& progres
 
 /// Runs the scene's method, then the exact audit (audit.hpp) of the result. Throws AuditFailure
 /// when the audit finds an overlap (or, in a non-periodic box, an inclusion leaving it): no
-/// overlapping RVE is ever returned, whatever the status. `before_audit` is a test hook that may
+/// overlapping RVE is ever returned, whatever the status; NothingPlaced when not one inclusion
+/// was placed. `before_audit` is a test hook that may
 /// alter the packed set before the audit (fault injection).
 PackingResult generate(const PackingSpec& scene, const Monitor& monitor,
                        const std::function<void(InclusionSet&)>& before_audit = nullptr);

@@ -20,27 +20,30 @@ class GradientProjection {
  public:
   GradientProjection(const std::array<int, 3>& dims, const Vec3& box, GradientScheme scheme,
                      int threads)
-      : grid_(dims, box, scheme, threads) {
+      : grid_(dims, box, scheme, threads), spectrum_(3) {
     for (auto& s : spectrum_) s.resize(grid_.frequencies());
   }
   size_t size() const { return grid_.size(); }
   void apply(const double* in, double* out) {
     const size_t n = grid_.size();
     for (int a = 0; a < 3; ++a) grid_.forward(in + a * n, spectrum_[a].data());
-    spectral::parallel_blocks(grid_.frequencies(), [&](size_t lo, size_t hi) {
-      for (size_t at = lo; at < hi; ++at) {
-        const cplx* k = grid_.unit_k(at);
-        const cplx s = std::conj(k[0]) * spectrum_[0][at] + std::conj(k[1]) * spectrum_[1][at] +
-                       std::conj(k[2]) * spectrum_[2][at];
-        for (int a = 0; a < 3; ++a) spectrum_[a][at] = k[a] * s;
-      }
-    });
+    spectral::parallel_blocks(grid_.frequencies(), [&](size_t lo, size_t hi) { project(lo, hi); });
     for (int a = 0; a < 3; ++a) grid_.inverse(spectrum_[a].data(), out + a * n);
   }
+  /// P on the spectra at frequencies [lo, hi).
+  void project(size_t lo, size_t hi) {
+    grid_.for_each_unit_k(lo, hi, [&](size_t at, const cplx* k) {
+      const cplx s = std::conj(k[0]) * spectrum_[0][at] + std::conj(k[1]) * spectrum_[1][at] +
+                     std::conj(k[2]) * spectrum_[2][at];
+      for (int a = 0; a < 3; ++a) spectrum_[a][at] = k[a] * s;
+    });
+  }
+  spectral::Grid& grid() { return grid_; }
+  std::vector<std::vector<cplx>>& spectra() { return spectrum_; }
 
  private:
   spectral::Grid grid_;
-  std::vector<cplx> spectrum_[3];
+  std::vector<std::vector<cplx>> spectrum_;
 };
 
 using spectral::dot;
@@ -130,12 +133,18 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
     };
     spectral::CgOutcome out;
     if (opt.solver == LinearSolver::kConjugateGradient) {
-      out = spectral::conjugate_gradients(
-          [&](const std::vector<double>& p, std::vector<double>* ap) {
-            times_k(p, ap);
-            project.apply(ap->data(), ap->data());
-          },
-          std::move(b), &x, opt.tolerance, opt.max_iterations, progress);
+      spectral::GalerkinOperator op;
+      op.components = 3;
+      op.flux = [&](int c, const double* p, double* o, size_t lo, size_t hi) {
+        for (size_t i = lo; i < hi; ++i) {
+          const Mat3& t = medium.at(i);
+          o[i] = t(c, 0) * p[i] + t(c, 1) * p[n + i] + t(c, 2) * p[2 * n + i];
+        }
+      };
+      op.project = [&](size_t lo, size_t hi) { project.project(lo, hi); };
+      out = spectral::conjugate_gradients_galerkin(project.grid(), project.spectra(), op,
+                                                   std::move(b), &x, opt.tolerance,
+                                                   opt.max_iterations, progress);
     } else if (bnorm > 0.0) {
       // Basic scheme with the reference k0 = (kmin + kmax) / 2: x <- -P[(k - k0)(E + x)] / k0;
       // the residual is the gradient part of the flux of the new iterate.

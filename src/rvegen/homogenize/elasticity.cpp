@@ -14,7 +14,7 @@ namespace {
 
 using spectral::cplx;
 using Vec6 = Eigen::Matrix<double, 6, 1>;
-const double kSqrt2 = std::sqrt(2.0);
+const double kSqrt2 = std::sqrt(2.0), kInvSqrt2 = 1.0 / kSqrt2;
 // Mandel index of the tensor component (i, j), and its pair.
 constexpr int kMandel[3][3] = {{0, 5, 4}, {5, 1, 3}, {4, 3, 2}};
 constexpr int kPair[6][2] = {{0, 0}, {1, 1}, {2, 2}, {1, 2}, {0, 2}, {0, 1}};
@@ -27,26 +27,29 @@ class StrainProjection {
  public:
   StrainProjection(const std::array<int, 3>& dims, const Vec3& box, GradientScheme scheme,
                    int threads)
-      : grid_(dims, box, scheme, threads) {
+      : grid_(dims, box, scheme, threads), spectrum_(6) {
     for (auto& s : spectrum_) s.resize(grid_.frequencies());
   }
   void apply(const double* in, double* out) {
     const size_t n = grid_.size();
     for (int c = 0; c < 6; ++c) grid_.forward(in + c * n, spectrum_[c].data());
-    spectral::parallel_blocks(grid_.frequencies(), [&](size_t lo, size_t hi) {
-      for (size_t at = lo; at < hi; ++at) project_at(at);
-    });
+    spectral::parallel_blocks(grid_.frequencies(), [&](size_t lo, size_t hi) { project(lo, hi); });
     for (int c = 0; c < 6; ++c) grid_.inverse(spectrum_[c].data(), out + c * n);
   }
+  /// P on the spectra at frequencies [lo, hi).
+  void project(size_t lo, size_t hi) {
+    grid_.for_each_unit_k(lo, hi, [&](size_t at, const cplx* k) { project_at(at, k); });
+  }
+  spectral::Grid& grid() { return grid_; }
+  std::vector<std::vector<cplx>>& spectra() { return spectrum_; }
 
  private:
-  void project_at(size_t at) {
-    const cplx* k = grid_.unit_k(at);
+  void project_at(size_t at, const cplx* k) {
     cplx t[3][3];
     for (int i = 0; i < 3; ++i) {
       for (int j = 0; j < 3; ++j) {
         const int m = kMandel[i][j];
-        t[i][j] = i == j ? spectrum_[m][at] : spectrum_[m][at] / kSqrt2;
+        t[i][j] = i == j ? spectrum_[m][at] : spectrum_[m][at] * kInvSqrt2;
       }
     }
     cplx d[3], kd = 0.0;
@@ -64,7 +67,7 @@ class StrainProjection {
   }
 
   spectral::Grid grid_;
-  std::vector<cplx> spectrum_[6];
+  std::vector<std::vector<cplx>> spectrum_;
 };
 
 }  // namespace
@@ -152,10 +155,21 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
   };
   StrainProjection project(dims, box_size, opt.scheme, opt.threads);
   ElasticityResult res;
-  // At peak: x and the solver's residual, direction and product (four 6-component fields); the
-  // stress and its projection are computed in place (the projection reads every component
-  // before it writes one).
+  // At peak: x and the solver's residual and direction (three 6-component fields), the six
+  // spectra and the grid's real field; the right-hand side's stress and its projection are
+  // computed in place (the projection reads every component before it writes one).
   std::vector<double> x(6 * n);
+  spectral::GalerkinOperator op;
+  op.components = 6;
+  op.flux = [&](int c, const double* p, double* out, size_t lo, size_t hi) {
+    for (size_t i = lo; i < hi; ++i) {
+      const Mat6& t = medium.at(i);
+      double s = 0.0;
+      for (int k = 0; k < 6; ++k) s += t(c, k) * p[k * n + i];
+      out[i] = s;
+    }
+  };
+  op.project = [&](size_t lo, size_t hi) { project.project(lo, hi); };
   for (int load = 0; load < 6; ++load) {
     // Right-hand side: minus the projected stress of the uniform unit strain `load`.
     std::vector<double> b(6 * n, 0.0);
@@ -163,12 +177,8 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
     stress(b, &b);
     project.apply(b.data(), b.data());
     for (double& v : b) v = -v;
-    const spectral::CgOutcome out = spectral::conjugate_gradients(
-        [&](const std::vector<double>& p, std::vector<double>* ap) {
-          stress(p, ap);
-          project.apply(ap->data(), ap->data());
-        },
-        std::move(b), &x, opt.tolerance, opt.max_iterations,
+    const spectral::CgOutcome out = spectral::conjugate_gradients_galerkin(
+        project.grid(), project.spectra(), op, std::move(b), &x, opt.tolerance, opt.max_iterations,
         [&](int it, double rel) { return !opt.progress || opt.progress(load, it, rel); });
     if (out.stopped) throw Cancelled();
     res.iterations[load] = out.iterations;

@@ -9,8 +9,10 @@ The decks print the heat flux or the stress at every integration point of every 
 so the plain mean of a block is the mean over the box. Conductivity: column k is minus the mean
 flux of step k (a unit mean gradient along k; CalculiX's flux is -k grad T). Elasticity: column
 k is the mean stress of step k (the unit Mandel strain k) in Mandel form (rows 11, 22, 33, 23,
-13, 12, shear times sqrt 2), as rvegen's report states it. Prints JSON:
-{"conductivity": [[...]]} or {"stiffness": [[...]]}.
+13, 12, shear times sqrt 2), as rvegen's report states it. Elements with an orientation (the
+cores of transversely isotropic fibres) print in their local frame, named at the end of the line:
+the values are turned back to the box's frame with the *ORIENTATION cards of NAME.inp. Prints
+JSON: {"conductivity": [[...]]} or {"stiffness": [[...]]}.
 """
 import json
 import math
@@ -18,20 +20,77 @@ import os
 import sys
 
 
-def blocks(path):
-    """The numeric rows of each printed block: {block header: [[values], ...]} in file order."""
-    out, rows = [], None
+def orientations(path):
+    """{NAME: 3x3 rotation whose columns are the local axes} of the *ORIENTATION cards
+    (SYSTEM=RECTANGULAR: local 1 along a, local 2 in the plane of a and b)."""
+    out, pending = {}, None
+    with open(path) as f:
+        for line in f:
+            text = line.strip()
+            if text.upper().startswith("*ORIENTATION"):
+                pending = [w.split("=")[1].strip().upper() for w in text.split(",")
+                           if w.strip().upper().startswith("NAME=")][0]
+                continue
+            if pending is not None:
+                v = [float(w) for w in text.split(",")[:6]]
+                a, b = v[:3], v[3:6]
+                e1 = unit(a)
+                e3 = unit(cross(a, b))
+                e2 = cross(e3, e1)
+                out[pending] = [[e1[i], e2[i], e3[i]] for i in range(3)]
+                pending = None
+    return out
+
+
+def unit(v):
+    n = math.sqrt(sum(x * x for x in v))
+    return [x / n for x in v]
+
+
+def cross(a, b):
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
+def to_box(kind, values, r):
+    """Flux (3) or stress (xx, yy, zz, xy, xz, yz) from the local frame r to the box's."""
+    if kind == "heat":
+        return [sum(r[i][k] * values[k] for k in range(3)) for i in range(3)]
+    xx, yy, zz, xy, xz, yz = values
+    s = [[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]
+    g = [[sum(r[i][k] * s[k][l] * r[j][l] for k in range(3) for l in range(3)) for j in range(3)]
+         for i in range(3)]
+    return [g[0][0], g[1][1], g[2][2], g[0][1], g[0][2], g[1][2]]
+
+
+def blocks(path, frames):
+    """The rows of each printed block, in the box's frame: [(kind, [[values], ...])] in file
+    order."""
+    out, rows, kind = [], None, None
     with open(path) as f:
         for line in f:
             words = line.split()
             if not words:
                 continue
             if words[0] in ("heat", "stresses"):
+                kind = words[0]
                 rows = []
-                out.append((words[0], rows))
+                out.append((kind, rows))
                 continue
             if rows is not None:
-                rows.append([float(w) for w in words[2:]])
+                # Element, integration point, the values; then, for elements with an
+                # orientation, its name.
+                values, frame = [], None
+                for w in words[2:]:
+                    try:
+                        values.append(float(w))
+                    except ValueError:
+                        frame = w.upper()
+                        break
+                if frame is not None:
+                    if frame not in frames:
+                        sys.exit("orientation %s is not in the deck" % frame)
+                    values = to_box(kind, values, frames[frame])
+                rows.append(values)
     return out
 
 
@@ -44,7 +103,8 @@ def main():
     if len(sys.argv) != 3:
         sys.exit(__doc__)
     directory, name = sys.argv[1:3]
-    found = blocks(os.path.join(directory, name + ".dat"))
+    frames = orientations(os.path.join(directory, name + ".inp"))
+    found = blocks(os.path.join(directory, name + ".dat"), frames)
     if not found:
         sys.exit("no flux or stress blocks in %s.dat" % name)
     kind = found[0][0]

@@ -345,7 +345,7 @@ int cmd_generate(const std::vector<std::string>& args) {
         out.write_with("mesh_voxel.vtu",
                        [&](std::FILE* f) { rvegen::write_voxel_mesh_vtu(image, f); });
         for (const bool elastic : {false, true}) {
-          const std::string deck = rvegen::abaqus_voxel_deck(scene, image, elastic);
+          const std::string deck = rvegen::abaqus_voxel_deck(scene, result.set, image, elastic);
           if (!deck.empty()) {
             out.write(elastic ? "run_voxel_elasticity.inp" : "run_voxel_conductivity.inp", deck);
           }

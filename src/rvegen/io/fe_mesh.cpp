@@ -1,9 +1,11 @@
 #include "rvegen/io/fe_mesh.hpp"
 
+#include <algorithm>
 #include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <map>
 #include <sstream>
 #include <vector>
 
@@ -74,12 +76,47 @@ void element_rows(const VoxelImage& im, const Grid& g, int label, const char* se
   }
 }
 
+// Significant digits of numbers in Abaqus files: CalculiX reads a field of at most 20
+// characters, and -1.2345678901234e-05 is 20 with 14 digits (17 digits overflowed it).
+constexpr int kAbaqusDigits = 14;
+
+// A void's modulus against the stiffest phase's in the decks.
+constexpr double kVoidShare = 1e-6;
+
+// The core voxels of phase p, inclusion by inclusion: an element set I<id>, the orientation
+// O<id> whose local direction 1 is the inclusion's axis, and a section of material M_<name> in
+// that orientation.
+void turned_sections(const InclusionSet& set, const VoxelImage& im, const Phase& p,
+                     const std::string& name, std::ostringstream& s) {
+  std::map<int, std::vector<long long>> elements;
+  for (size_t v = 0; v < im.phase.size(); ++v) {
+    if (im.phase[v] == p.label)
+      elements[im.inclusion_id[v]].push_back(static_cast<long long>(v + 1));
+  }
+  std::map<int, const Inclusion*> by_id;
+  for (const Inclusion& inc : set.inclusions) by_id[inc.id] = &inc;
+  for (const auto& [id, ids] : elements) {
+    const auto it = by_id.find(id);
+    if (it == by_id.end()) throw OutputError("voxel mesh: a core voxel of no listed inclusion");
+    const Vec3 a = principal_axis(it->second->shape);
+    const Vec3 b = any_orthogonal(a);
+    s.precision(kAbaqusDigits);
+    s << "*ELSET, ELSET=I" << id << "\n";
+    id_lines(s, ids);
+    s << "*ORIENTATION, NAME=O" << id << ", SYSTEM=RECTANGULAR\n"
+      << a[0] << ", " << a[1] << ", " << a[2] << ", " << b[0] << ", " << b[1] << ", " << b[2]
+      << "\n";
+    s << "*SOLID SECTION, ELSET=I" << id << ", MATERIAL=M_" << name << ", ORIENTATION=O" << id
+      << "\n";
+  }
+}
+
 }  // namespace
 
 void write_abaqus_voxel_mesh(const VoxelImage& im, std::FILE* out) {
   const Grid g{im.size(0), im.size(1), im.size(2)};
   std::ostringstream s;
-  s.precision(17);
+  s.precision(kAbaqusDigits);
   s << "** rvegen voxel mesh: " << g.nx << " x " << g.ny << " x " << g.nz
     << " hexahedra (C3D8), element sets per phase, periodic node sets, reference nodes REFX, "
        "REFY, REFZ.\n*NODE, NSET=ALLNODES\n";
@@ -234,10 +271,11 @@ void write_gmsh_voxel_mesh(const VoxelImage& im, std::FILE* out) {
   put(out, s.str());
 }
 
-std::string abaqus_voxel_deck(const Scene& scene, const VoxelImage& im, bool elasticity) {
+std::string abaqus_voxel_deck(const Scene& scene, const InclusionSet& set, const VoxelImage& im,
+                              bool elasticity) {
   const Grid g{im.size(0), im.size(1), im.size(2)};
   std::ostringstream s;
-  s.precision(17);
+  s.precision(kAbaqusDigits);
   s << "** rvegen: periodic " << (elasticity ? "elasticity" : "conductivity")
     << " of the voxel mesh (CalculiX: ccx -i run_voxel_"
     << (elasticity ? "elasticity" : "conductivity") << "). Each step prints the "
@@ -245,18 +283,58 @@ std::string abaqus_voxel_deck(const Scene& scene, const VoxelImage& im, bool ela
     << " at every integration point of EALL (equal hexahedra with equal weights: their mean is "
        "the mean over the box).\n";
   s << "*INCLUDE, INPUT=mesh_voxel.inp\n";
-  for (const Phase* phase : phases_present(im)) {
+  const std::vector<const Phase*> present = phases_present(im);
+  // Voids get kVoidShare of the stiffest phase's modulus (an element needs a material; zero
+  // would leave the nodes inside a void free).
+  double largest = 0.0;
+  for (const Phase* phase : present) {
+    const Material* m =
+        phase->kind == PhaseKind::kVoid ? nullptr : scene.material(material_key(scene, *phase));
+    if (!m) continue;
+    largest = std::max({largest, elasticity ? m->young : m->conductivity,
+                        elasticity ? std::max(m->axial_young, m->transverse_young)
+                                   : std::max(m->axial_conductivity, m->transverse_conductivity)});
+  }
+  for (const Phase* phase : present) {
     const Phase& p = *phase;
-    if (p.kind == PhaseKind::kVoid) return "";
+    const std::string name = set_name(p.name);
+    if (p.kind == PhaseKind::kVoid) {
+      s << "*MATERIAL, NAME=M_" << name << "\n";
+      if (elasticity) {
+        s << "*ELASTIC\n" << kVoidShare * largest << ", 0.\n";
+      } else {
+        s << "*CONDUCTIVITY\n" << kVoidShare * largest << "\n";
+      }
+      s << "*SOLID SECTION, ELSET=" << name << ", MATERIAL=M_" << name << "\n";
+      continue;
+    }
     const Material* m = scene.material(material_key(scene, p));
     if (!m) return "";
-    const std::string name = set_name(p.name);
+    const bool turned = elasticity ? m->transverse_elasticity() : m->transverse_conduction();
     s << "*MATERIAL, NAME=M_" << name << "\n";
+    if (turned) {
+      // About each inclusion's own axis: local direction 1 is the axis.
+      if (p.kind != PhaseKind::kCore) return "";
+      if (elasticity) {
+        const double g_tt = m->transverse_young / (2.0 * (1.0 + m->transverse_poisson));
+        s << "*ELASTIC, TYPE=ENGINEERING CONSTANTS\n"
+          << m->axial_young << ", " << m->transverse_young << ", " << m->transverse_young << ", "
+          << m->axial_poisson << ", " << m->axial_poisson << ", " << m->transverse_poisson << ", "
+          << m->axial_shear << ", " << m->axial_shear << "\n"
+          << g_tt << "\n";
+      } else {
+        s << "*CONDUCTIVITY, TYPE=ORTHO\n"
+          << m->axial_conductivity << ", " << m->transverse_conductivity << ", "
+          << m->transverse_conductivity << "\n";
+      }
+      turned_sections(set, im, p, name, s);
+      continue;
+    }
     if (elasticity) {
-      if (!(m->young > 0.0) || m->transverse_elasticity()) return "";
+      if (!(m->young > 0.0)) return "";
       s << "*ELASTIC\n" << m->young << ", " << m->poisson << "\n";
     } else {
-      if (!(m->conductivity > 0.0) || m->transverse_conduction()) return "";
+      if (!(m->conductivity > 0.0)) return "";
       s << "*CONDUCTIVITY\n" << m->conductivity << "\n";
     }
     s << "*SOLID SECTION, ELSET=" << name << ", MATERIAL=M_" << name << "\n";
@@ -289,7 +367,7 @@ std::string abaqus_voxel_deck(const Scene& scene, const VoxelImage& im, bool ela
           for (int a = 0; a < 3; ++a) {
             if (!wrap[a]) continue;
             std::ostringstream t;
-            t.precision(17);
+            t.precision(kAbaqusDigits);
             t << ref + 1 + a << ", " << dof << ", " << -len[a];
             terms.push_back(t.str());
           }

@@ -42,9 +42,12 @@ void write_gmsh_voxel_mesh(const VoxelImage& image, std::FILE* out);
 /// run_voxel_conductivity.inp (elasticity false) or run_voxel_elasticity.inp: *INCLUDE of
 /// mesh_voxel.inp, one material and section per phase, the periodic equations and three (unit
 /// mean gradients along x, y, z) or six (unit mean strains 11, 22, 33, 23, 13, 12 in Mandel
-/// form: shear components 1 / sqrt 2) load steps printing the flux or stress of EALL. Empty when a
-/// phase present lacks the isotropic property the physics needs (or is a void, or is
-/// transversely isotropic: not yet written).
-std::string abaqus_voxel_deck(const Scene& scene, const VoxelImage& image, bool elasticity);
+/// form: shear components 1 / sqrt 2) load steps printing the flux or stress of EALL. Cores of a
+/// transversely isotropic family get, inclusion by inclusion, an element set I<id>, an
+/// orientation O<id> along the inclusion's axis (`set`) and an orthotropic section (engineering
+/// constants; TYPE=ORTHO conductivity); voids a modulus of 1e-6 of the stiffest phase's. Empty
+/// when a phase present lacks the property the physics needs.
+std::string abaqus_voxel_deck(const Scene& scene, const InclusionSet& set, const VoxelImage& image,
+                              bool elasticity);
 
 }  // namespace rvegen

@@ -11,6 +11,7 @@
 #include "rvegen/model/body.hpp"
 #include "rvegen/model/deformed_support.hpp"
 #include "rvegen/model/neighbours.hpp"
+#include "rvegen/packing/piece_contacts.hpp"
 
 namespace rvegen {
 
@@ -63,23 +64,16 @@ Contact chain_contact(const Inclusion& a, const Shape& env_a, const DeformedSupp
     pb.push_back(env_b);
   }
   for (Shape& p : pb) p = p.translated(shift);
-  const auto support_a = [&](const Vec3& u) { return envelope_support(a, *ta, u); };
-  const auto support_b = [&](const Vec3& u) { return envelope_support(b, *tb, u); };
-  for (const Shape& x : pa) {
-    for (const Shape& y : pb) {
-      if ((x.center - y.center).norm() > x.bounding_radius() + y.bounding_radius()) continue;
-      const Contact c = intersect(x, y);
-      if (!c.overlap) continue;
-      // (A grain's plane, as packed: apart when it separates.)
-      Vec3 n;
-      if (ta && !packs_as_chain(a) && plane_gap(a.shape.center, y, support_a, &n) >= 0.0) continue;
-      if (tb && !packs_as_chain(b) && plane_gap(b.shape.center + shift, x, support_b, &n) >= 0.0) {
-        continue;
-      }
-      return c;
-    }
-  }
-  return Contact{};
+  std::vector<const Shape*> near_a;
+  for (const Shape& p : pa) near_a.push_back(&p);
+  // A deformed grain (not a chain) meets the pieces by its support function, as packed.
+  const bool is_grain_a = ta && !packs_as_chain(a), is_grain_b = tb && !packs_as_chain(b);
+  const Grain ga{a.shape.center, [&](const Vec3& u) { return envelope_support(a, *ta, u); }};
+  const Grain gb{b.shape.center + shift,
+                 [&](const Vec3& u) { return envelope_support(b, *tb, u); }};
+  std::vector<Contact> found;
+  piece_contacts(near_a, pb, is_grain_a ? &ga : nullptr, is_grain_b ? &gb : nullptr, true, &found);
+  return found.empty() ? Contact{} : found.front();
 }
 
 }  // namespace

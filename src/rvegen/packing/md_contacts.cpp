@@ -5,6 +5,7 @@
 
 #include "rvegen/geometry/convex.hpp"
 #include "rvegen/model/body.hpp"
+#include "rvegen/packing/piece_contacts.hpp"
 
 namespace rvegen::md {
 
@@ -13,21 +14,6 @@ constexpr double kRelaxation = 1.0;  // scale of the summed contact impulses
 // Axes closer to parallel than this (squared sine) skip the line test: their lines' distance
 // says little about their segments'.
 constexpr double kLineTestMinSine2 = 1e-6;
-
-// A capsule holding a shape: segment p-q and radius.
-struct Capsule {
-  Vec3 p, q;
-  double r;
-};
-Capsule capsule_of(const Shape& s) {
-  if (s.kind == ShapeKind::Cylinder)
-    return {s.center - s.half_axis, s.center + s.half_axis, s.radius};
-  const double r = s.bounding_radius();
-  return {s.center, s.center, r};
-}
-bool capsules_meet(const Capsule& a, const Capsule& b) {
-  return segment_distance2(a.p, a.q, b.p, b.q) < (a.r + b.r) * (a.r + b.r);
-}
 
 // Pieces of every body at one scale, computed when first asked for (a body's chain costs a
 // place_like and a sine per piece; it meets many others), grown by a relative `grow`: radius
@@ -98,40 +84,18 @@ bool chain_overlaps(const std::vector<Body>& bodies, const std::vector<Vec3>& ax
     const Shape q = p.translated(e.shift);
     if (capsules_meet(capsule_of(q), cap_a)) near->b.push_back(q);
   }
-  // A deformed grain's piece is its bounding ball: a plane that separates the grain (its
-  // certified support function, grown like the pieces) from a piece separates the pair too;
-  // otherwise the contact is the plane's (its overlap along its normal), not the ball's.
-  auto grain_plane = [&](const Body& g, const Vec3& gc, const Shape& piece, Vec3* n) {
-    return plane_gap(
-        gc, piece,
-        [&](const Vec3& u) { return g.force_scale(s) * (1.0 + grow) * g.support_along(u); }, n);
+  // A deformed grain's piece is its bounding ball (its support function at the force scale,
+  // grown like the pieces, gives the plane test).
+  auto grain_of = [&](const Body& g, const Vec3& gc) {
+    return Grain{gc, [&g, s, grow](const Vec3& u) {
+                   return g.force_scale(s) * (1.0 + grow) * g.support_along(u);
+                 }};
   };
-  const bool grain_a = ba.support && !ba.chain, grain_b = bb.support && !bb.chain;
-  bool any = false;
-  for (const Shape* pa : near->a) {
-    for (const Shape& pb : near->b) {
-      if ((pa->center - pb.center).squaredNorm() >=
-          std::pow(pa->bounding_radius() + pb.bounding_radius(), 2)) {
-        continue;
-      }
-      if (!capsules_meet(capsule_of(*pa), capsule_of(pb))) continue;
-      Contact c = intersect(*pa, pb);
-      if (!c.overlap) continue;
-      if (grain_a || grain_b) {
-        Vec3 n;
-        const double gap = grain_a ? grain_plane(ba, ca, pb, &n) : grain_plane(bb, cb, *pa, &n);
-        if (gap >= 0.0) continue;
-        if (gap > -c.depth) {
-          c.depth = -gap;
-          c.normal = grain_a ? n : Vec3(-n);
-        }
-      }
-      any = true;
-      if (found) found->push_back(c);
-      if (first_only) return true;
-    }
-  }
-  return any;
+  const bool is_grain_a = ba.support && !ba.chain, is_grain_b = bb.support && !bb.chain;
+  const Grain ga = is_grain_a ? grain_of(ba, ca) : Grain{},
+              gb = is_grain_b ? grain_of(bb, cb) : Grain{};
+  return piece_contacts(near->a, near->b, is_grain_a ? &ga : nullptr, is_grain_b ? &gb : nullptr,
+                        first_only, found);
 }
 // The valid scale of the overlapping pairs `limits` (scale certified by the contact plane,
 // pair): the plane of the contact normal is not the best separating plane of every pair (end

@@ -31,6 +31,28 @@ Mat3 rotated(const Mat3& d) {
   return r * d * r.transpose();
 }
 
+TEST(OrientationLaws, NullSpaceIsWhatTheLawForbids) {
+  OrientationLaw law;  // isotropic
+  EXPECT_EQ(law.null_space().count, 0);
+  law.kind = OrientationLaw::Kind::kVonMisesFisher;
+  law.kappa = 5.0;
+  law.axis = Vec3(0, 1, 0);
+  EXPECT_EQ(law.null_space().count, 0);
+  law.kind = OrientationLaw::Kind::kPlanar;
+  law.axis = Vec3(1, 0, 0);
+  OrientationLaw::NullSpace n = law.null_space();
+  EXPECT_EQ(n.count, 1);
+  EXPECT_NEAR(std::abs(n.normal.x()), 1.0, 1e-12);
+  law.kind = OrientationLaw::Kind::kTensor;
+  law.a2 = Vec3(0.7, 0.0, 0.3).asDiagonal();
+  n = law.null_space();
+  EXPECT_EQ(n.count, 1);
+  EXPECT_NEAR(std::abs(n.normal.y()), 1.0, 1e-12);
+  law.kind = OrientationLaw::Kind::kAligned;
+  law.axis = Vec3(0, 0, 1);
+  EXPECT_GE(law.null_space().count, 2);
+}
+
 TEST(Acg, SecondMomentsOfKnownCases) {
   // Isotropic: B = I gives I/3; scaling B does not change the law.
   EXPECT_NEAR(acg_second_moments(Vec3(1, 1, 1))[0], 1.0 / 3.0, 1e-14);

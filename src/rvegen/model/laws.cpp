@@ -1,5 +1,6 @@
 #include "rvegen/model/laws.hpp"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 
@@ -142,6 +143,14 @@ Vec3 OrientationLaw::sample(Random& rng) const {
       return fit_acg(a2).sample(rng);
   }
   return axis;
+}
+
+OrientationLaw::NullSpace OrientationLaw::null_space() const {
+  const Eigen::SelfAdjointEigenSolver<Mat3> es(tensor());
+  NullSpace out;
+  for (int k = 0; k < 3; ++k) out.count += es.eigenvalues()[k] <= kNullEigenvalue ? 1 : 0;
+  if (out.count == 1) out.normal = es.eigenvectors().col(0);
+  return out;
 }
 
 Mat3 OrientationLaw::tensor() const {

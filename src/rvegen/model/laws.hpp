@@ -46,6 +46,16 @@ struct OrientationLaw {
   Vec3 sample(Random& rng) const;
   /// The law's second-order orientation tensor <p p^T> (exact).
   Mat3 tensor() const;
+  /// What the law forbids: the directions it never takes, the null space of its tensor
+  /// (eigenvalues at most kNullEigenvalue). `count` 0: every direction is taken; 1: the axes
+  /// stay in the plane normal to `normal` (planar laws, and tensors of that kind); 2 or more:
+  /// one direction only (aligned).
+  struct NullSpace {
+    int count = 0;
+    Vec3 normal = Vec3::Zero();
+  };
+  NullSpace null_space() const;
+  static constexpr double kNullEigenvalue = 1e-12;
 };
 
 }  // namespace rvegen

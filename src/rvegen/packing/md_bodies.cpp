@@ -2,7 +2,6 @@
 
 #include <tbb/parallel_for.h>
 
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -121,12 +120,10 @@ Turn turn_mode(const OrientationLaw& law, MdSettings::Rotation rotation, Vec3* a
   }
   // Directions the law never takes (eigenvalue 0 of its tensor) stay out of reach: turning is
   // free, about the one null direction (planar), or none (aligned).
-  const Eigen::SelfAdjointEigenSolver<Mat3> es(law.tensor());
-  int zeros = 0;
-  for (int k = 0; k < 3; ++k) zeros += es.eigenvalues()[k] <= 1e-12 ? 1 : 0;
-  if (zeros >= 2) return Turn::kNone;
-  if (zeros == 1) {
-    *axis = es.eigenvectors().col(0);
+  const OrientationLaw::NullSpace null = law.null_space();
+  if (null.count >= 2) return Turn::kNone;
+  if (null.count == 1) {
+    *axis = null.normal;
     return Turn::kAboutAxis;
   }
   return Turn::kFree;
@@ -188,9 +185,8 @@ Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, R
       if (b.turn != Turn::kNone && spec.md.rotation == MdSettings::Rotation::kKeepTensor) {
         out.held[b.family].push_back(static_cast<int>(i));
       }
-      const Eigen::SelfAdjointEigenSolver<Mat3> es(law.tensor());
       if (b.turn == Turn::kNone && b.shape.kind == ShapeKind::Cylinder && !pop[i].mod.any() &&
-          es.eigenvalues()[1] <= 1e-12 && b.shape.half_axis.norm() >= 2.0 * b.shape.radius &&
+          law.null_space().count >= 2 && b.shape.half_axis.norm() >= 2.0 * b.shape.radius &&
           (!box.periodic ||
            2.0 * (b.shape.half_axis.norm() + 0.5 * spec.min_gap) < box.size.minCoeff())) {
         // (a fibre at least as long as the periodic box could meet its own image end to end

@@ -1,6 +1,5 @@
 #include "rvegen/packing/md_layers.hpp"
 
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -35,9 +34,9 @@ constexpr double kTimeShare = 0.5;       // of md.max_seconds at most, then no s
 // The box axis k normal to the plane the family's law confines axes to, or -1.
 int plane_normal_axis(const OrientationLaw& law) {
   if (law.kind == OrientationLaw::Kind::kAligned) return -1;
-  const Eigen::SelfAdjointEigenSolver<Mat3> es(law.tensor());
-  if (es.eigenvalues()[0] > 1e-12 || es.eigenvalues()[1] <= 1e-12) return -1;
-  const Vec3 n = es.eigenvectors().col(0);
+  const OrientationLaw::NullSpace null = law.null_space();
+  if (null.count != 1) return -1;
+  const Vec3& n = null.normal;
   for (int k = 0; k < 3; ++k) {
     if (std::abs(n[k]) > 1.0 - 1e-9) return k;
   }

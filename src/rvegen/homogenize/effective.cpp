@@ -51,7 +51,7 @@ TensorMedium<D> build_medium(const InclusionSet& set, const VoxelImage& image, c
   std::unordered_map<int, uint32_t> own_by_id;
   for (size_t m = 0; m < set.inclusions.size(); ++m) {
     const Inclusion& inc = set.inclusions[m];
-    const Material* mat = props.material[inc.family + 1];
+    const Material* mat = props.material[core_label(inc.family)];
     T t;
     if (!mat || !own_tensor(*mat, principal_axis(inc.shape), &t)) continue;
     own[m] = static_cast<int64_t>(rows.size());

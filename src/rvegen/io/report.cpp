@@ -68,8 +68,8 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
   std::vector<double> label_vf;
   if (image) {
     label_vf = label_fractions(*image);
-    for (int f = 0; f < nf && f + 1 < static_cast<int>(label_vf.size()); ++f)
-      voxel_vf[f] = label_vf[f + 1];
+    for (int f = 0; f < nf && core_label(f) < static_cast<int>(label_vf.size()); ++f)
+      voxel_vf[f] = label_vf[core_label(f)];
   }
   OJson root;
   root["status"] = status_name(r.status);

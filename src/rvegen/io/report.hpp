@@ -7,7 +7,7 @@
 
 #include "rvegen/model/stats.hpp"
 #include "rvegen/packing/packing.hpp"
-#include "rvegen/raster/levelset.hpp"
+#include "rvegen/raster/levelset_info.hpp"
 #include "rvegen/raster/voxelize.hpp"
 
 namespace rvegen {

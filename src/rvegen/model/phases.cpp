@@ -32,7 +32,7 @@ std::vector<Phase> phase_table(const InclusionSet& set) {
   };
   std::vector<Phase> out;
   out.push_back({0, "matrix", PhaseKind::kMatrix, -1});
-  for (int f = 0; f < nf; ++f) out.push_back({f + 1, name_of(f), PhaseKind::kCore, f});
+  for (int f = 0; f < nf; ++f) out.push_back({core_label(f), name_of(f), PhaseKind::kCore, f});
   for (int f = 0; f < nf; ++f) {
     if (coated[f]) {
       out.push_back(

@@ -28,4 +28,9 @@ struct Phase {
 /// with debonded ones.
 std::vector<Phase> phase_table(const InclusionSet& set);
 
+/// The label of family f's cores (the numbering above).
+constexpr int core_label(int family) {
+  return family + 1;
+}
+
 }  // namespace rvegen

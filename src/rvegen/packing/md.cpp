@@ -41,6 +41,7 @@
 
 #include "rvegen/model/body.hpp"
 #include "rvegen/packing/md_integrator.hpp"
+#include "rvegen/packing/md_layers.hpp"
 #include "rvegen/packing/packing.hpp"
 
 namespace rvegen {
@@ -135,7 +136,10 @@ class MdPacker {
 void MdPacker::init() {
   Random rng(scene_.seed);
   pop_ = draw_population(scene_, rng);
-  bodies_ = md::make_bodies(scene_, pop_, rng, progress_);
+  bodies_ = md::make_bodies(scene_, pop_, rng);
+  // Planar fibres start at heights in layers, aligned ones in slots (md_layers.hpp).
+  md::layer_planar_fibres(scene_, rng, &bodies_, progress_);
+  md::slot_aligned_fibres(scene_, rng, &bodies_);
   drawn_.resize(bodies_.all.size());
   for (size_t i = 0; i < drawn_.size(); ++i) drawn_[i] = static_cast<int>(i);
   if (bodies_.all.size() >= md::kSpaceOrderFrom) drawn_ = md::order_in_space(box_, &bodies_);

@@ -8,7 +8,6 @@
 #include <utility>
 
 #include "rvegen/model/body.hpp"
-#include "rvegen/packing/md_layers.hpp"
 
 namespace rvegen::md {
 
@@ -137,8 +136,7 @@ void wrap(const Box& box, Body* b) {
   }
 }
 
-Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, Random& rng,
-                   const ProgressFn& progress) {
+Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, Random& rng) {
   Bodies out;
   std::vector<Body>& bodies = out.all;
   const Box& box = spec.box;
@@ -206,9 +204,6 @@ Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, R
     // Random centre: anywhere in a periodic box, inside (as far as the scale allows) otherwise.
     for (int a = 0; a < 3; ++a) b.shape.center[a] = box.origin[a] + box.size[a] * rng.uniform();
   }
-  // Planar fibres start at heights in layers (md_layers.hpp).
-  layer_planar_fibres(spec, rng, &out, progress);
-  slot_aligned_fibres(spec, rng, &out);
   // Deformed spheres are kept apart by their support functions (tables built in parallel).
   tbb::parallel_for(size_t(0), pop.size(), [&](size_t i) {
     if (auto table = support_table(pop[i])) {

@@ -98,8 +98,8 @@ struct Bodies {
   // with a = 5 cylinders, e = 3.05, took 20 % more steps with 122). Chains: at least 6.
   long long patience = 100;
 };
-Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, Random& rng,
-                   const ProgressFn& progress = nullptr);
+/// (Planar and aligned fibres are then placed in layers and slots: md_layers.hpp.)
+Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, Random& rng);
 
 /// Bodies from this many on are put in space order (order_in_space): below, they fit in the
 /// caches and the order makes no difference (and the packing stays as it always was).

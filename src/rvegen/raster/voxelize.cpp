@@ -122,7 +122,7 @@ long long voxelize_into(const InclusionSet& set, const VoxelImage& img, const Vo
       const Footprint& f = fp[m];
       const int kk = periodic ? wrap(k, dims[2]) : k;
       const double z = img.origin[2] + (k + 0.5) * img.spacing[2];
-      const uint8_t core_label = static_cast<uint8_t>(inc.family + 1);
+      const uint8_t core = static_cast<uint8_t>(core_label(inc.family));
       auto in_x = [&](int i, int* ii) {
         *ii = periodic ? wrap(i, dims[0]) : i;
         return *ii >= img.extent[0] && *ii < img.extent[1];
@@ -130,7 +130,7 @@ long long voxelize_into(const InclusionSet& set, const VoxelImage& img, const Vo
       auto label_core = [&](size_t idx) {
         uint8_t& ph = phase_out[idx];
         if (is_core[ph]) ++conflicts[p];
-        ph = core_label;
+        ph = core;
         id_out[idx] = inc.id;
       };
       auto label_outer = [&](size_t idx, Region r) {

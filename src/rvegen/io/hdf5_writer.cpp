@@ -18,8 +18,8 @@ void check(herr_t status, const char* what) {
 }
 
 // A dataset written at once. With `image_slices` (a [nz][ny][nx] voxel image) it is chunked by
-// z slices and deflated: label images compress well. Tables stay contiguous (chunked by row, a
-// table of a million rotations took 12.9 s and 3 GB of chunk index).
+// z slices and deflated: label images compress well. Tables stay contiguous (chunked by row,
+// a long table costs an index entry per row).
 template <class T>
 void dataset(hid_t parent, const char* name, hid_t type, const std::vector<hsize_t>& dims,
              const T* data, bool image_slices = false) {

@@ -360,8 +360,7 @@ void write_points_vtp(const InclusionSet& set, const std::string& inclusions_jso
     offs[i] = static_cast<int64_t>(i + 1);
   }
   // zlib-compressed like the other VTK files: most arrays are constant or repeat (a sphere's
-  // axes, quaternion and flags) and the inclusion list is text (100,000 spheres: 393 bytes an
-  // inclusion raw; see the README for the compressed figure).
+  // axes, quaternion and flags) and the inclusion list is text.
   AppendedList app(true);
   std::ostringstream s;
   s << header("PolyData", app.compressed()) << "  <PolyData>\n";

@@ -85,10 +85,9 @@ inline double lateral_reach(const Inclusion& inc) {
 /// the chord's angle to the axis). Each piece is that cylinder, grown by the packing pad:
 /// together they hold what the envelope holds. n keeps the sagitta below kChainSagitta of R.
 /// Chains pay where the envelope is far larger than the fibre: for waves from a lateral reach of
-/// kChainFrom times R (measured, samples/bench_deformed.py: at A = r / 2 the envelope packed as
-/// densely, at A = r chains reached 0.27 where the envelope jammed at 0.14), and for every bend
-/// (a few pieces follow it; planar fibres of a = 20 bent to 10 lengths: the envelope, 1.27 times
-/// the fibre, jammed at 0.150, chains of 3 pieces reached 0.20).
+/// kChainFrom times R (below it the envelope packs as densely at a fraction of the cost), and for
+/// every bend (a few pieces follow it, where the envelope wastes the bend's sagitta all along).
+/// The measurements behind kChainFrom: docs/benchmarks.md, deformed and wavy inclusions.
 constexpr double kChainSagitta = 0.03, kChainFrom = 0.75;
 /// The pieces of a chain cut from a straight cylinder of half length H and radius R whose
 /// centre line bends by at most K (second derivative of the offsets): pieces of length ds with

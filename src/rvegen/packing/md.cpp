@@ -53,21 +53,19 @@ using md::Body;
 constexpr double kMinPressure = 1e-6;
 // Compressions started again after a jam below the target, before the run reports it jammed:
 // each at kRecompressPressure times md.pressure and twice as patient as the last, when the jam
-// left at least kRecompressFrom of the drawn volume. Measured on 10,000 monodisperse spheres,
-// default settings (samples/bench_packing.py): at 0.636 seeds 1, 2, 4 and 8 jammed at
-// 0.6337-0.6360 and now all eight seeds reach it (5.2-5.5 s for those that jammed); at 0.645
-// all eight reach it in 13-28 s, where recompressing at md.pressure alone reached 0.642 after
-// three restarts (30 s) and 0.6445 after six (230 s).
+// left at least kRecompressFrom of the drawn volume: a jam just below the target is a schedule
+// that compressed too fast, which a slower one gets past, while a jam far below is the shapes'
+// limit. The harder restart pressure shakes the jammed configuration loose first (restarting at
+// md.pressure alone crept up far more slowly). Seeds and times: docs/benchmarks.md.
 constexpr int kRecompressions = 4;
 constexpr double kRecompressPressure = 4.0;
 constexpr double kRecompressFrom = 0.95;
 // Chains (see run()): s_out drops by at most kChainDrop m a step; the contacts act on pieces
 // grown by a relative skin min(kChainSkin, kChainSkinPerPressure m); after kChainHold steps
-// without a valid scale, s_out drops by kChainUnjam. Measured on the Figure 5 scene
-// (samples/bench_deformed.py, 120 s): without the skin and the drop of held scales, 0.3204
-// (seed 1) and 0.2958 (seed 2); skin 0.01, 0.005, 0.002 with drops of 0.01 after 50 steps:
-// 0.3352, 0.3367, 0.3397; drops of 0.003: 0.3423 (seed 2: 0.3416); the skin following the
-// pressure: 0.3442. A skin of 0.02 jammed at 0.3261; drops after 20 steps: 0.3328.
+// without a valid scale, s_out drops by kChainUnjam. The skin lets the contacts part pieces a
+// little beyond touching, so the pass can certify the force scale itself; a thick skin pushes
+// chains apart that would fit, and early or large drops undo the compression (the values were
+// tuned on the Figure 5 scene, samples/bench_deformed.py).
 constexpr double kChainDrop = 2.0;
 constexpr double kChainSkin = 0.002, kChainSkinPerPressure = 0.1;
 constexpr int kChainHold = 50;

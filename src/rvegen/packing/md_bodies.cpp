@@ -14,9 +14,8 @@ namespace rvegen::md {
 namespace {
 constexpr double kStartFraction = 0.25;  // volume fraction of the initial force scale
 // Chains get at least kChainPatience times md.patience: a chain pair caught across another's
-// wave blocks every certificate until it parts. Figure 5 scene (samples/bench_deformed.py),
-// 120 s budget, seed 1: 0.3487 (jammed at 62 s) with 3, reached in 74 s with 6 and in 96 s with
-// 9 (seed 2: reached in 50 s with 6). The wavy and curved rows do not stall: same steps.
+// wave blocks every certificate until it parts, so a stall is not yet a jam (tuned on the
+// Figure 5 scene, samples/bench_deformed.py).
 constexpr double kChainPatience = 6.0;
 }  // namespace
 

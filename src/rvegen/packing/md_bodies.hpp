@@ -90,12 +90,10 @@ struct Bodies {
   double start_scale = 1.0;              // where few bodies touch (see make_bodies)
   // Steps over which a stalled valid scale halves the pressure: md.patience times
   // 1 + (e - 3.5) / 1.3, between 1 and 6, e the mean elongation of the bodies (bounding radius
-  // over smallest size, weighted by volume), as long bodies rearrange more slowly. Measured
-  // with 2,500 fibres: isotropic L/D 10 (e = 10.05) jammed at 0.387-0.393 with 150-250 steps and
-  // at 0.3994 with 402 (seed 1), and reaches 0.40 in 32-36 s with 600 for seeds 1-3; L/D 20 and
-  // longer get 600 (anisotropic L/D 20 then takes 41 s where 300 took 22 s; L/D 40 at 0.14
-  // ended on its 120 s budget once with 500); bodies up to e = 3.5 keep md.patience (spheres
-  // with a = 5 cylinders, e = 3.05, took 20 % more steps with 122). Chains: at least 6.
+  // over smallest size, weighted by volume), as long bodies rearrange more slowly: halving the
+  // pressure too soon jams long fibres short of targets they reach with more patience, too late
+  // wastes steps on compact bodies (so up to e = 3.5 they keep md.patience). Chains: at least
+  // kChainPatience. The fibre table of docs/benchmarks.md is what the constants were tuned on.
   long long patience = 100;
 };
 /// (Planar and aligned fibres are then placed in layers and slots: md_layers.hpp.)

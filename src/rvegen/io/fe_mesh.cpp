@@ -100,7 +100,6 @@ void turned_sections(const InclusionSet& set, const VoxelImage& im, const Phase&
     if (it == by_id.end()) throw OutputError("voxel mesh: a core voxel of no listed inclusion");
     const Vec3 a = principal_axis(it->second->shape);
     const Vec3 b = any_orthogonal(a);
-    s.precision(kAbaqusDigits);
     s << "*ELSET, ELSET=I" << id << "\n";
     id_lines(s, ids);
     s << "*ORIENTATION, NAME=O" << id << ", SYSTEM=RECTANGULAR\n"

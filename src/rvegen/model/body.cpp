@@ -122,9 +122,7 @@ double CentreLine::slope() const {
 }
 
 double CentreLine::curvature() const {
-  if (Rc <= 0.0) return A * k * k;
-  const double q = s_max / Rc;
-  return A * k * k + 1.0 / (Rc * std::pow((1.0 - q) * (1.0 + q), 1.5));
+  return centre_line_curvature(A, k, Rc, s_max);
 }
 
 Shape envelope(const Inclusion& inc) {

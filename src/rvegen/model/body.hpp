@@ -44,6 +44,15 @@ inline double arc_sagitta(double R, double c) {
   return c * q / (1.0 + std::sqrt((1.0 - q) * (1.0 + q)));
 }
 
+/// Bound on the second derivative of a centre line's offsets over |s| <= s_max: a wave of
+/// amplitude A and angular wavenumber k plus a bend of radius Rc (0: none), A k^2 +
+/// Rc^2 / (Rc^2 - s_max^2)^(3/2), written without squares of Rc.
+inline double centre_line_curvature(double A, double k, double Rc, double s_max) {
+  if (Rc <= 0.0) return A * k * k;
+  const double q = s_max / Rc;
+  return A * k * k + 1.0 / (Rc * std::pow((1.0 - q) * (1.0 + q), 1.5));
+}
+
 struct CentreLine {
   explicit CentreLine(const Inclusion& inc);
   Vec3 offset(double s) const {

@@ -338,13 +338,11 @@ void validate_scene(const Scene& s) {
       // A wave far shorter than the fibre's radius (or a bend far tighter) folds the fibre into
       // itself and makes chains of thousands of pieces: refused here, not stuck in the packer.
       const double shell = m.shells_may_touch ? 0.0 : m.coating;
+      // The longest, thinnest fibre, counted as chain_plan counts it (CentreLine's bound).
       const double H = f.longest_half() + shell, R = f.radius.lower() + shell;
       const double k = m.wave_amplitude > 0.0 ? 2.0 * M_PI / m.wave_length : 0.0;
-      double K = m.wave_amplitude * k * k;
-      if (m.bend_radius > 0.0) {
-        const double q = H / m.bend_radius;
-        K += 1.0 / (m.bend_radius * std::pow((1.0 - q) * (1.0 + q), 1.5));
-      }
+      const double K =
+          centre_line_curvature(m.wave_amplitude, k, m.bend_radius, f.longest_half() + m.coating);
       const double pieces = chain_piece_count(H, R, K);
       if (!(pieces <= kMaxChainPieces)) {
         char buf[400];

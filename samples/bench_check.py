@@ -10,12 +10,11 @@ Prints a table and writes samples/charts/check_table.md.
 
 usage: /usr/bin/python3 samples/bench_check.py [BUILD_DIR]
 """
-import json
 import os
 import sys
 import tempfile
 
-from bench_util import machine, timed
+from bench_util import generate, machine, timed
 
 build = sys.argv[1] if len(sys.argv) > 1 else "build"
 exe = os.path.join(build, "bin", "rvegen")
@@ -53,13 +52,7 @@ for m in (50, 100):
 scene = {"box": {"size": [1, 1, 1]}, "seed": 1, "md": {"max_seconds": 10},
          "families": [{"shape": "sphere", "radius": 0.3, "volume_fraction": 0.11},
                       {"shape": "sphere", "radius": 0.003, "volume_fraction": 0.01}]}
-path = os.path.join(work, "bidisperse.json")
-with open(path, "w") as f:
-    json.dump(scene, f)
-out = os.path.join(work, "bidisperse")
-rc, wall, peak, err = timed([exe, "generate", "-q", path, "-o", out])
-with open(os.path.join(out, "report.json")) as f:
-    r = json.load(f)
+rc, wall, peak, r = generate(exe, scene, work, "bidisperse")
 lines.append("| generate, 100:1 mixture, budget 10 s | %d | %d | %.2f | %.0f | packing %.2f s, audit "
              "%.2f s |" % (r["count"], rc, wall, peak, r["timings"]["packing"],
                            r["timings"]["audit"]))

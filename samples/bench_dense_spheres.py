@@ -7,12 +7,11 @@ code, status, volume fraction reached and the wall time of the whole `rvegen gen
 
 usage: /usr/bin/python3 samples/bench_dense_spheres.py [BUILD_DIR]
 """
-import json
 import os
 import sys
 import tempfile
 
-from bench_util import machine, timed
+from bench_util import generate, machine
 
 build = sys.argv[1] if len(sys.argv) > 1 else "build"
 exe = os.path.join(build, "bin", "rvegen")
@@ -29,13 +28,7 @@ for target in (0.636, 0.645):
         scene = {"box": {"size": [1, 1, 1]}, "seed": seed,
                  "families": [{"shape": "sphere", "volume_fraction": target, "count": 10000}],
                  "outputs": ["inclusions"]}
-        path = os.path.join(work, "s.json")
-        with open(path, "w") as f:
-            json.dump(scene, f)
-        out = os.path.join(work, "rve")
-        rc, wall, peak, _ = timed([exe, "generate", "-q", path, "-o", out])
-        with open(os.path.join(out, "report.json")) as f:
-            report = json.load(f)
+        rc, wall, peak, report = generate(exe, scene, work, "rve")
         reached += rc == 0
         lines.append("| %.3f | %d | %d | %s | %.4f | %.1f | %.0f |" % (
             target, seed, rc, report["status"], report["volume_fraction"], wall, peak))

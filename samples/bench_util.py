@@ -1,5 +1,6 @@
 """What the benchmark scripts share: the machine they ran on, and one `rvegen` command timed as a
 user feels it (wall time and peak memory of the whole process, by GNU time)."""
+import json
 import os
 import platform
 import subprocess
@@ -27,3 +28,20 @@ def timed(cmd):
     last = [ln for ln in lines if ln.startswith("TIME ")][-1].split()
     rest = "\n".join(ln for ln in lines if not ln.startswith("TIME "))
     return p.returncode, float(last[1]), int(last[2]) / 1024.0, rest
+
+
+def generate(exe, scene, work, name, extra=()):
+    """Writes `scene` to WORK/NAME.json, runs `rvegen generate -q` on it into WORK/NAME under
+    GNU time; returns (exit code, wall seconds, peak MiB, report.json as a dict)."""
+    path = os.path.join(work, name + ".json")
+    out = os.path.join(work, name)
+    with open(path, "w") as f:
+        json.dump(scene, f)
+    rc, wall, peak, err = timed([exe, "generate", "-q", path, "-o", out] + list(extra))
+    try:
+        with open(os.path.join(out, "report.json")) as f:
+            report = json.load(f)
+    except OSError:
+        raise SystemExit("rvegen generate wrote no report for %s (exit %d): %s"
+                         % (name, rc, err[-500:]))
+    return rc, wall, peak, report

@@ -11,7 +11,7 @@
 #include "rvegen/model/body.hpp"
 #include "rvegen/model/deformed_support.hpp"
 #include "rvegen/model/neighbours.hpp"
-#include "rvegen/packing/piece_contacts.hpp"
+#include "rvegen/packing/body_contacts.hpp"
 
 namespace rvegen {
 
@@ -23,26 +23,19 @@ void tables_of(const std::vector<Inclusion>& inc,
   tbb::parallel_for(size_t(0), inc.size(), [&](size_t i) { (*table)[i] = support_table(inc[i]); });
 }
 
-// Spheres of which one at least is deformed, b shifted by `shift`: a plane normal to the line of
-// centres separates them when their support functions along it (certified upper bounds, an
-// undeformed sphere's being its radius) sum to at most the distance. Otherwise the record says
-// overlap, with that excess as its depth.
+// Spheres of which one at least is deformed, b shifted by `shift`: by their support functions
+// (certified upper bounds; an undeformed sphere's is its radius), with the exact tests'
+// tolerance.
 Contact support_contact(const Inclusion& a, const DeformedSupport* ta, const Inclusion& b,
                         const DeformedSupport* tb, const Vec3& shift) {
-  Contact c;
   const Vec3 d = b.shape.center + shift - a.shape.center;
-  const double dist = d.norm();
-  const Vec3 u = dist > 0.0 ? Vec3(d / dist) : Vec3::UnitX();
-  const double ha = ta ? envelope_support(a, *ta, u) : envelope(a).radius;
-  const double hb = tb ? envelope_support(b, *tb, -u) : envelope(b).radius;
   const double tol = kContactRelTolerance * std::min(a.shape.min_size(), b.shape.min_size());
-  if (ha + hb - dist <= tol) return c;
-  c.overlap = true;
-  c.type = ContactType::kSupport;
-  c.depth = ha + hb - dist;
-  c.normal = u;
-  c.point = a.shape.center + ha * u;
-  return c;
+  double ha = 0.0, hb = 0.0;
+  return round_contact(
+      a.shape.center, d, d.norm(), 1.0,
+      [&](const Vec3& u) { return ta ? envelope_support(a, *ta, u) : envelope(a).radius; }, 1.0,
+      [&](const Vec3& u) { return tb ? envelope_support(b, *tb, u) : envelope(b).radius; }, tol,
+      &ha, &hb);
 }
 
 // Pairs with a wavy fibre: its chain of pieces (body.hpp) against the other's chain or

@@ -5,7 +5,7 @@
 
 #include "rvegen/geometry/convex.hpp"
 #include "rvegen/model/body.hpp"
-#include "rvegen/packing/piece_contacts.hpp"
+#include "rvegen/packing/body_contacts.hpp"
 
 namespace rvegen::md {
 
@@ -169,25 +169,23 @@ double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& ori
     const Body &ba = bodies[e.a], &bb = bodies[e.b];
     const double fa = ba.force_scale(s_out), fb = bb.force_scale(s_out);
     if (ba.shape.kind == ShapeKind::Sphere && bb.shape.kind == ShapeKind::Sphere) {
-      // Sphere pairs in closed form: intersect_sphere_sphere's test without its tolerance (any
-      // overlap pushes; validity comes from s_in, not from this decision), and without a square
-      // root for the many listed pairs that are apart.
-      double ra = ba.shape.radius, rb = bb.shape.radius;
+      // Round pairs (balls, grains): round_contact without a tolerance (any overlap pushes;
+      // validity comes from s_in, not from this decision), after the bounding balls' test
+      // without a square root for the many listed pairs that are apart.
+      const double ra0 = ba.shape.radius, rb0 = bb.shape.radius;
       const Vec3 d = bb.shape.center + e.shift - ba.shape.center;
-      double rr = fa * ra + fb * rb;
+      const double rr0 = fa * ra0 + fb * rb0;
       const double d2 = d.squaredNorm();
-      if (d2 >= rr * rr) continue;
+      if (d2 >= rr0 * rr0) continue;
       const double dist = std::sqrt(d2);
-      const Vec3 nrm = dist > 0.0 ? Vec3(d / dist) : Vec3::UnitX();
-      if (ba.support || bb.support) {
-        // Deformed spheres: their support functions along the line of centres (a plane
-        // normal to it separates them when these sum to at most the distance).
-        ra = ba.support_along(nrm);
-        rb = bb.support_along(-nrm);
-        rr = fa * ra + fb * rb;
-        if (dist >= rr) continue;
-      }
-      const double depth = rr - dist;
+      double ra = 0.0, rb = 0.0;
+      const auto support_a = [&](const Vec3& u) { return ba.support_along(u); };
+      const auto support_b = [&](const Vec3& u) { return bb.support_along(u); };
+      const Contact c =
+          round_contact(ba.shape.center, d, dist, fa, support_a, fb, support_b, 0.0, &ra, &rb);
+      if (!c.overlap) continue;
+      const Vec3& nrm = c.normal;
+      const double depth = c.depth;
       max_overlap = std::max(max_overlap, depth / std::min(fa * ra, fb * rb));
       s_in = std::min(s_in, (dist - ba.pad * ra - bb.pad * rb) / (ra + rb));
       const Vec3 J = (kRelaxation * depth / (1.0 / ba.volume + 1.0 / bb.volume)) * nrm;

@@ -1,4 +1,4 @@
-#include "rvegen/packing/piece_contacts.hpp"
+#include "rvegen/packing/body_contacts.hpp"
 
 #include <cmath>
 

@@ -6,8 +6,14 @@
 #include <limits>
 #include <vector>
 
+#include "rvegen/geometry/tolerances.hpp"
+
 namespace rvegen {
 namespace {
+
+// Shapes whose centres are this near (relative to their bounding radii) start GJK from a fixed
+// direction: their difference has none.
+constexpr double kCoincidentCentres = 1e-13;
 
 // A vertex of the Minkowski difference D = a - b with the support points that made it.
 struct Vertex {
@@ -38,7 +44,7 @@ class SupportMap {
         Vec3 radial = d - du * u_;
         radial -= radial.dot(u_) * u_;  // second Gram-Schmidt pass, as in Shape::support
         const double rn2 = radial.squaredNorm();
-        if (rn2 > 1e-28 * d.squaredNorm()) x += (s_.radius / std::sqrt(rn2)) * radial;
+        if (rn2 > kRoundoff2 * d.squaredNorm()) x += (s_.radius / std::sqrt(rn2)) * radial;
         return x;
       }
       case ShapeKind::Ellipsoid: {
@@ -155,7 +161,7 @@ void solve_tetrahedron(Simplex& s) {
     // The origin is outside this face when it is strictly on the other side from D; a
     // degenerate (flat) tetrahedron makes every face a candidate.
     const double scale = n.norm() * ((D - A).norm() + A.norm());
-    const bool flat = std::abs(sd) <= 1e-14 * scale;
+    const bool flat = std::abs(sd) <= kRoundoff * scale;
     if (!flat && so * sd >= 0.0) continue;
     any_outside = true;
     Simplex t = s;
@@ -305,7 +311,7 @@ struct Polytope {
     const int e1 = (e + 1) % 3;
     const Face& g = f[fk];
     const Vec3& w = v[wi].w;
-    if (!(g.n.dot(w) - g.d > 1e-14 * (1.0 + std::abs(g.d)))) {
+    if (!(g.n.dot(w) - g.d > kRoundoff * (1.0 + std::abs(g.d)))) {
       const int nf = make(g.i[e1], g.i[e], wi);
       if (nf < 0) return false;
       bind(nf, 0, fk, e);
@@ -383,7 +389,7 @@ void epa(const PairSupport& support, const Simplex& s, double tol, double rel, C
       break;
     }
     // w does not see the nearest face beyond round-off: numerically converged.
-    if (!(hw - dmin > 1e-14 * (1.0 + std::abs(dmin)))) break;
+    if (!(hw - dmin > kRoundoff * (1.0 + std::abs(dmin)))) break;
     // Expand: the faces that see w die, the horizon is stitched to w.
     const int wi = P.nv;
     P.v[P.nv++] = w;
@@ -432,7 +438,7 @@ ConvexQuery convex_query(const Shape& a, const Shape& b, double tolerance, bool 
                          double depth_rel) {
   ConvexQuery q;
   const double scale = a.bounding_radius() + b.bounding_radius();
-  const double tiny = 1e-13 * scale;
+  const double tiny = kCoincidentCentres * scale;
   const PairSupport support{SupportMap(a), SupportMap(b)};
   Simplex s;
   Vec3 v = a.center - b.center;  // a point of D = a - b
@@ -454,7 +460,7 @@ ConvexQuery convex_query(const Shape& a, const Shape& b, double tolerance, bool 
       if (!need_distance) break;
     }
     // Converged: the support point does not improve on the current closest point.
-    if (vn * vn - vw <= 1e-12 * vn * vn || vn - lower <= 0.25 * tolerance) break;
+    if (vn * vn - vw <= kIterationStop * vn * vn || vn - lower <= 0.25 * tolerance) break;
     bool duplicate = false;
     for (int i = 0; i < s.n; ++i) duplicate |= (s.v[i].w - w.w).squaredNorm() <= tiny * tiny;
     if (duplicate) break;
@@ -497,19 +503,19 @@ double segment_closest(const Vec3& p1, const Vec3& q1, const Vec3& p2, const Vec
   const Vec3 d1 = q1 - p1, d2 = q2 - p2, r = p1 - p2;
   const double a = d1.squaredNorm(), e = d2.squaredNorm(), f = d2.dot(r);
   double s = 0.0, t = 0.0;
-  if (a <= 1e-300 && e <= 1e-300) {
+  if (a <= kNoDirection && e <= kNoDirection) {
     *s_out = *t_out = 0.0;
     return r.squaredNorm();
   }
-  if (a <= 1e-300) {
+  if (a <= kNoDirection) {
     t = std::clamp(f / e, 0.0, 1.0);
   } else {
     const double c = d1.dot(r);
-    if (e <= 1e-300) {
+    if (e <= kNoDirection) {
       s = std::clamp(-c / a, 0.0, 1.0);
     } else {
       const double b = d1.dot(d2), den = a * e - b * b;
-      s = den > 1e-14 * a * e ? std::clamp((b * f - c * e) / den, 0.0, 1.0) : 0.0;
+      s = den > kRoundoff * a * e ? std::clamp((b * f - c * e) / den, 0.0, 1.0) : 0.0;
       t = (b * s + f) / e;
       if (t < 0.0) {
         t = 0.0;

@@ -4,8 +4,15 @@
 #include <cmath>
 
 #include "rvegen/geometry/convex.hpp"
+#include "rvegen/geometry/tolerances.hpp"
 
 namespace rvegen {
+
+namespace {
+// A contact point this near a cylinder's end plane (relative to the half length) is on the cap:
+// it names the contact type only (the paper's d1, d2 against cd1), not the overlap decision.
+constexpr double kOnCapRel = 1e-6;
+}  // namespace
 
 const char* contact_type_name(ContactType t) {
   switch (t) {
@@ -74,7 +81,7 @@ Contact intersect_sphere_cylinder(const Shape& s, const Shape& cyl) {
   const double L = w.norm();  // paper: L, distance of p_s to the axis
   const double r = cyl.radius;
   // Sphere centre on the axis: any radial direction is a nearest one; choose a fixed one.
-  const Vec3 e = L > 1e-14 * (h + r) ? Vec3(w / L) : any_orthogonal(u);
+  const Vec3 e = L > kRoundoff * (h + r) ? Vec3(w / L) : any_orthogonal(u);
   const double sgn = X >= 0.0 ? 1.0 : -1.0;
   const double ax = std::abs(X) - h;  // > 0: beyond an end plane
   const double rd = L - r;            // > 0: outside the infinite cylinder
@@ -130,12 +137,13 @@ ContactType classify_cylinder_disk(const Shape& cyl, const Disk& dk) {
   const Vec3 u = cyl.half_axis / h;
   const double nl = dk.n.dot(cyl.half_axis);
   // Axis parallel to the disk plane: the axis never meets it; no cd-type contact.
-  if (std::abs(nl) <= 1e-12 * h) return ContactType::kNone;
+  if (std::abs(nl) <= kParallelSine * h) return ContactType::kNone;
   const double t = dk.n.dot(dk.p - cyl.center) / nl;
   const Vec3 a = cyl.center + t * cyl.half_axis;  // axis meets the disk plane
   const Vec3 ad = a - dk.p;
   const double dist_a = ad.norm();
-  if (dist_a <= 1e-14 * dk.r) return std::abs(t) <= 1.0 ? ContactType::kCD3 : ContactType::kNone;
+  if (dist_a <= kRoundoff * dk.r)
+    return std::abs(t) <= 1.0 ? ContactType::kCD3 : ContactType::kNone;
   const Vec3 pt = dk.p + dk.r * ad / dist_a;  // rim point nearest a
   const double X = (pt - cyl.center).dot(u);
   const Vec3 b = cyl.center + X * u;
@@ -152,7 +160,7 @@ ContactType classify_cylinder_disk(const Shape& cyl, const Disk& dk) {
 // the second disk's plane only with the opposite sign, which is used here.
 ContactType classify_disk_disk(const Disk& d1, const Disk& d2) {
   const Vec3 n = d1.n.cross(d2.n);
-  if (n.norm() <= 1e-12) return ContactType::kNone;  // parallel planes: no common line
+  if (n.norm() <= kParallelSine) return ContactType::kNone;  // parallel planes: no common line
   const Vec3 v = n.cross(d1.n);
   const double t = d2.n.dot(d2.p - d1.p) / d2.n.dot(v);
   const Vec3 pt = d1.p + t * v;
@@ -191,7 +199,7 @@ ContactType classify_end_contact(const Shape& c1, const Shape& c2, const ConvexQ
   }
   auto on_cap = [](const Shape& c, const Vec3& x) {
     const double h = c.half_axis.norm();
-    return std::abs((x - c.center).dot(c.half_axis) / h) >= h * (1.0 - 1e-6);
+    return std::abs((x - c.center).dot(c.half_axis) / h) >= h * (1.0 - kOnCapRel);
   };
   const bool cap1 = on_cap(c1, q.point_a), cap2 = on_cap(c2, q.point_b);
   if (cap1 && cap2) return c1.radius >= c2.radius ? ContactType::kD1 : ContactType::kD2;
@@ -245,7 +253,7 @@ Contact intersect_cylinder_cylinder(const Shape& c1, const Shape& c2, double dep
   const double r1 = c1.radius, r2 = c2.radius;
   const Vec3 cr = u1.cross(u2);
   const double s = cr.norm();
-  if (s <= 1e-12) {
+  if (s <= kParallelSine) {
     // Parallel axes: D = c1 - c2 is a cylinder of radius r1+r2 and half-length h1+h2.
     const double X = d.dot(u1);
     const Vec3 w = d - X * u1;
@@ -254,7 +262,7 @@ Contact intersect_cylinder_cylinder(const Shape& c1, const Shape& c2, double dep
     const double ax = h1 + h2 - std::abs(X);
     if (!(std::min(rad, ax) > tol)) return c;
     c.overlap = true;
-    const Vec3 e = delta > 1e-14 * (r1 + r2) ? Vec3(w / delta) : any_orthogonal(u1);
+    const Vec3 e = delta > kRoundoff * (r1 + r2) ? Vec3(w / delta) : any_orthogonal(u1);
     // Middle of the overlap, radially and axially, in c1's frame.
     const double mr = 0.5 * (std::max(-r1, delta - r2) + std::min(r1, delta + r2));
     const double mx = 0.5 * (std::max(-h1, X - h2) + std::min(h1, X + h2));
@@ -412,7 +420,7 @@ double pw_maximum(const PwFrame& f, double* l_out, double stop_above) {
     }
     double next = d2 < 0.0 ? l - d1 / d2 : 0.5 * (lo + hi);
     if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
-    if (std::abs(next - l) <= 1e-15 * std::max(l, 1e-300) || hi - lo <= 1e-15) break;
+    if (std::abs(next - l) <= kRootStop * std::max(l, kNoDirection) || hi - lo <= kRootStop) break;
     l = next;
   }
   *l_out = f.swapped ? 1.0 - best_l : best_l;

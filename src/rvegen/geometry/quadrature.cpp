@@ -1,5 +1,7 @@
 #include "rvegen/geometry/quadrature.hpp"
 
+#include "rvegen/geometry/tolerances.hpp"
+
 namespace rvegen {
 
 void gauss_legendre(int n, std::vector<double>* x, std::vector<double>* w) {
@@ -17,7 +19,7 @@ void gauss_legendre(int n, std::vector<double>* x, std::vector<double>* w) {
       dp = n * (z * p1 - p0) / (z * z - 1.0);
       const double dz = p1 / dp;
       z -= dz;
-      if (std::abs(dz) < 1e-15) break;
+      if (std::abs(dz) < kRootStop) break;
     }
     (*x)[i] = -z;
     (*x)[n - 1 - i] = z;

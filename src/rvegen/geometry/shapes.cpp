@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "rvegen/geometry/tolerances.hpp"
+
 namespace rvegen {
 
 const char* shape_name(ShapeKind kind) {
@@ -109,7 +111,7 @@ Vec3 Shape::support(const Vec3& d) const {
       const double rn = radial.norm();
       // When d is (numerically) along the axis every rim point is a support point; the disk
       // centre is then returned, which is also one (h(d) is the same).
-      if (rn > 1e-14 * d.norm()) x += radius * radial / rn;
+      if (rn > kRoundoff * d.norm()) x += radius * radial / rn;
       return x;
     }
     case ShapeKind::Ellipsoid: {
@@ -207,7 +209,7 @@ double ellipsoid_distance(const Shape& e, const Vec3& x) {
     return sum - 1.0;
   };
   double lo = 0.0, hi = a.maxCoeff() * y.norm() + a.maxCoeff() * a.maxCoeff();
-  for (int it = 0; it < 200 && hi - lo > 1e-15 * (hi + 1e-300); ++it) {
+  for (int it = 0; it < 200 && hi - lo > kRootStop * (hi + kNoDirection); ++it) {
     const double mid = 0.5 * (lo + hi);
     (F(mid) > 0.0 ? lo : hi) = mid;
   }

@@ -12,6 +12,9 @@ namespace rvegen {
 
 namespace {
 
+// Conductivity tensors are positive semi-definite to this share of their size.
+constexpr double kTensorRounding = 1e-12;
+
 using spectral::cplx;
 
 // The orthogonal projection onto discrete gradient fields, k k^H / |k|^2 at each frequency,
@@ -88,7 +91,7 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
   for (const Mat3& t : medium.tensors) {
     if (!t.allFinite()) throw InputError("homogenization: conductivities must be finite");
     const Vec3 ev = Eigen::SelfAdjointEigenSolver<Mat3>(t).eigenvalues();
-    if (ev.minCoeff() < -1e-12 * std::max(1.0, ev.maxCoeff())) {
+    if (ev.minCoeff() < -kTensorRounding * std::max(1.0, ev.maxCoeff())) {
       throw InputError("homogenization: conductivities must be positive semi-definite");
     }
     kmin = std::min(kmin, ev.minCoeff());

@@ -9,6 +9,14 @@ namespace rvegen {
 
 namespace {
 
+// The laminate mix of two tensors inverts their difference projected on the normal: this share
+// of their size is added so that equal tensors (no jump) invert too.
+constexpr double kMixRegularization = 1e-13;
+// Material tensors are symmetric, and positive semi-definite, to this share of their size.
+constexpr double kTensorRounding = 1e-12;
+// A cut voxel's interface normal has norm 1 to this.
+constexpr double kNormalTolerance = 1e-6;
+
 const double kSqrt2 = std::sqrt(2.0);
 constexpr int kPair[6][2] = {{0, 0}, {1, 1}, {2, 2}, {1, 2}, {0, 2}, {0, 1}};
 
@@ -41,7 +49,7 @@ Eigen::Matrix<double, D, D> harmonic_mean(const Eigen::Matrix<double, D, D>& a,
   using M = Eigen::Matrix<double, D, D>;
   const double scale = std::max(a.cwiseAbs().maxCoeff(), b.cwiseAbs().maxCoeff());
   if (scale == 0.0) return M::Zero();
-  const M eps = 1e-13 * scale * M::Identity();
+  const M eps = kMixRegularization * scale * M::Identity();
   const M s = f * (a + eps).inverse() + (1.0 - f) * (b + eps).inverse();
   M r = s.inverse() - eps;
   return 0.5 * (r + r.transpose());
@@ -101,12 +109,12 @@ void check_material(const Eigen::Matrix<double, D, D>& c, size_t row) {
   const double scale = c.cwiseAbs().maxCoeff();
   const std::string which = "homogenization: material tensor " + std::to_string(row);
   if (!std::isfinite(scale)) throw InputError(which + " is not finite");
-  if ((c - c.transpose()).cwiseAbs().maxCoeff() > 1e-12 * scale) {
+  if ((c - c.transpose()).cwiseAbs().maxCoeff() > kTensorRounding * scale) {
     throw InputError(which + " is not symmetric");
   }
   if (scale == 0.0) return;
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, D, D>> eig(c);
-  if (eig.eigenvalues().minCoeff() < -1e-12 * scale) {
+  if (eig.eigenvalues().minCoeff() < -kTensorRounding * scale) {
     throw InputError(which + " is not positive semi-definite");
   }
 }
@@ -166,7 +174,7 @@ TensorMedium<D> compose_medium(const std::vector<uint32_t>& material,
       throw InputError("homogenization: a composite voxel refers to no voxel or no material");
     }
     if (!(c.fraction >= 0.0 && c.fraction <= 1.0) || !c.normal.allFinite() ||
-        std::abs(c.normal.norm() - 1.0) > 1e-6) {
+        std::abs(c.normal.norm() - 1.0) > kNormalTolerance) {
       throw InputError(
           "homogenization: a composite voxel's share must lie in [0, 1] and its "
           "normal be a unit vector");

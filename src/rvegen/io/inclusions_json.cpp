@@ -11,6 +11,13 @@
 namespace rvegen {
 
 namespace {
+
+// What a written inclusion list may carry of rounding: lengths and weights compared with the
+// bounds they meet to kWrittenRounding (relative), unit vectors of norm 1 to kUnitRounding, and
+// rotation matrices orthonormal to kRotationTolerance (lists written by other tools round more).
+constexpr double kWrittenRounding = 1e-9, kUnitRounding = 1e-12, kRotationTolerance = 1e-6;
+// Inclusions smaller than this share of the box are refused (the message says so).
+constexpr double kMinRelativeSize = 1e-9;
 Modifiers read_modifiers(const json_util::Json& j, const Shape& shape, const std::string& p) {
   using namespace json_util;
   only_keys(j,
@@ -38,7 +45,7 @@ Modifiers read_modifiers(const json_util::Json& j, const Shape& shape, const std
     m.bend_radius = positive(j["bend_radius"], p + ".bend_radius");
     // As in scenes: at least the fibre's length with its coating (the arc turns by at most
     // about a radian, and the chain's pieces stay few).
-    if (!(m.bend_radius >= 2.0 * (shape.half_axis.norm() + m.coating) * (1.0 - 1e-9)))
+    if (!(m.bend_radius >= 2.0 * (shape.half_axis.norm() + m.coating) * (1.0 - kWrittenRounding)))
       fail(p + ".bend_radius", "must be at least the fibre's length with its coating");
     num("bend_angle", &m.bend_angle);
   }
@@ -56,7 +63,7 @@ Modifiers read_modifiers(const json_util::Json& j, const Shape& shape, const std
       DeformationWave w;
       w.direction = vec3(require(waves[k], "direction", q), q + ".direction");
       // Unit vectors written by rvegen read back bit for bit; others are normalised.
-      if (!(std::abs(w.direction.norm() - 1.0) <= 1e-12))
+      if (!(std::abs(w.direction.norm() - 1.0) <= kUnitRounding))
         w.direction = unit_vector(require(waves[k], "direction", q), q + ".direction");
       w.weight = positive(require(waves[k], "weight", q), q + ".weight");
       w.wavenumber = positive(require(waves[k], "wavenumber", q), q + ".wavenumber");
@@ -64,7 +71,7 @@ Modifiers read_modifiers(const json_util::Json& j, const Shape& shape, const std
       sum += w.weight;
       m.deform_waves.push_back(w);
     }
-    if (sum > 1.0 + 1e-9) fail(p + ".deform_waves", "weights must sum to at most 1");
+    if (sum > 1.0 + kWrittenRounding) fail(p + ".deform_waves", "weights must sum to at most 1");
     m.deform_peak = deformation_peak(m);
   }
   if (j.contains("packing_pad")) {
@@ -77,7 +84,7 @@ Modifiers read_modifiers(const json_util::Json& j, const Shape& shape, const std
     m.debond_fraction = positive(require(j, "debond_fraction", p), p + ".debond_fraction");
     if (m.debond_fraction > 1.0) fail(p + ".debond_fraction", "must be in (0, 1]");
     const Vec3 a = vec3(require(j, "debond_axis", p), p + ".debond_axis");
-    m.debond_axis = std::abs(a.norm() - 1.0) <= 1e-12
+    m.debond_axis = std::abs(a.norm() - 1.0) <= kUnitRounding
                         ? a
                         : unit_vector(require(j, "debond_axis", p), p + ".debond_axis");
   }
@@ -141,7 +148,8 @@ InclusionSet read_inclusions_json(const std::string& text) {
         Mat3 R;
         for (int r = 0; r < 3; ++r)
           R.row(r) = vec3(rj[r], p + ".rotation[" + std::to_string(r) + "]");
-        if ((R.transpose() * R - Mat3::Identity()).norm() > 1e-6 || R.determinant() < 0.0) {
+        if ((R.transpose() * R - Mat3::Identity()).norm() > kRotationTolerance ||
+            R.determinant() < 0.0) {
           fail(p + ".rotation", "must be a proper rotation matrix (orthonormal, determinant +1)");
         }
         inc.shape = Shape::ellipsoid(c, s, R);
@@ -158,7 +166,7 @@ InclusionSet read_inclusions_json(const std::string& text) {
       fail(p, "larger than twice the periodic box (bounding radius " + std::to_string(reach) +
                   "); such an inclusion overlaps its own images");
     }
-    if (small < 1e-9 * b.size.maxCoeff()) fail(p, "smaller than 1e-9 of the box");
+    if (small < kMinRelativeSize * b.size.maxCoeff()) fail(p, "smaller than 1e-9 of the box");
     for (int k = 0; k < 3; ++k) {
       if (std::abs(c[k] - b.origin[k]) > 1000.0 * b.size[k])
         fail(p + ".center", "more than 1000 box sizes away from the box");

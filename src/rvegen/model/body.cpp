@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "rvegen/geometry/quadrature.hpp"
+#include "rvegen/geometry/tolerances.hpp"
 
 namespace rvegen {
 namespace {
@@ -168,8 +169,8 @@ Shape chain_bound(const Inclusion& inc) {
   // e sin(alpha) sideways and e along the axis (sin(alpha) <= slope / sqrt(1 + slope^2)).
   const double sin_a = c.slope / std::sqrt(1.0 + c.slope * c.slope);
   const double e = (c.R + c.sag) * sin_a + c.pad, reach = c.R + c.sag + c.pad;
-  const double radius = (c.reach + e * sin_a + reach) * (1.0 + 1e-12);
-  const double half = (c.H + e + reach) * (1.0 + 1e-12);
+  const double radius = (c.reach + e * sin_a + reach) * (1.0 + kBoundMargin);
+  const double half = (c.H + e + reach) * (1.0 + kBoundMargin);
   return Shape::cylinder(inc.shape.center, radius, f.u * half);
 }
 
@@ -187,8 +188,8 @@ void chain_pieces(const Inclusion& inc, std::vector<Shape>* out) {
     const double sin_a = std::sqrt(std::max(0.0, 1.0 - std::pow((s1 - s0) / len, 2)));
     const double half = 0.5 * len + (R + sag) * sin_a + pad;
     // Grown by a relative 1e-12 against rounding (the exact tests decide to 1e-9 of the size).
-    out->push_back(Shape::cylinder(0.5 * (p0 + p1), (R + sag + pad) * (1.0 + 1e-12),
-                                   chord * (half * (1.0 + 1e-12) / len)));
+    out->push_back(Shape::cylinder(0.5 * (p0 + p1), (R + sag + pad) * (1.0 + kBoundMargin),
+                                   chord * (half * (1.0 + kBoundMargin) / len)));
   }
 }
 
@@ -381,7 +382,7 @@ bool BodyQuery::x_interval(const Vec3& p, double* t0, double* t1) const {
         return false;
       }
       const double s0 = d.dot(u_), ux = u_.x();
-      if (std::abs(ux) < 1e-14) {
+      if (std::abs(ux) < kRoundoff) {
         if (std::abs(s0) > h_) return false;
       } else {
         double e0 = (-h_ - s0) / ux, e1 = (h_ - s0) / ux;

@@ -100,11 +100,13 @@ inline double lateral_reach(const Inclusion& inc) {
 constexpr double kChainSagitta = 0.03, kChainFrom = 0.75;
 /// The pieces of a chain cut from a straight cylinder of half length H and radius R whose
 /// centre line bends by at most K (second derivative of the offsets): pieces of length ds with
-/// K ds^2 / 8 <= kChainSagitta R (a ratio of lengths, the same at every scale; the 1e-9 keeps an
-/// exact integer from rounding either way). As a double: it may be far beyond what is packed.
+/// K ds^2 / 8 <= kChainSagitta R (a ratio of lengths, the same at every scale; kCountRounding
+/// keeps an exact integer from rounding either way). As a double: it may be far beyond what is
+/// packed.
+constexpr double kCountRounding = 1e-9;
 inline double chain_piece_count(double H, double R, double K) {
   const double span = 2.0 * H * std::sqrt(K / (8.0 * kChainSagitta * R));
-  return std::max(1.0, std::ceil(span * (1.0 - 1e-9)));
+  return std::max(1.0, std::ceil(span * (1.0 - kCountRounding)));
 }
 /// The most pieces a fibre's chain may have: a wave far shorter than the fibre's radius makes a
 /// chain of thousands of pieces and a pair of fibres millions of piece pairs (the scene is

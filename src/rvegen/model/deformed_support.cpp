@@ -4,9 +4,16 @@
 #include <cmath>
 #include <limits>
 
+#include "rvegen/geometry/tolerances.hpp"
 #include "rvegen/model/body.hpp"
 
 namespace rvegen {
+
+namespace {
+// The floor of a deformation amplitude the table's accuracy is divided by (an undeformed sphere
+// needs no table; the floor keeps the division finite).
+constexpr double kAmplitudeFloor = 1e-12;
+}  // namespace
 namespace {
 
 constexpr int kMaxSampleCells = 96;   // finest sample grid (6 x 97^2 directions)
@@ -70,7 +77,7 @@ double deformation_peak(const Modifiers& m) {
   // every direction is within angle s / sqrt(2) of c, and along the great circle
   // g <= g(c) + |grad g(c)| theta + M theta^2 / 2 with M = sum w (k^2 + k).
   const double M = b.wk2 + b.wk;
-  const double tol = 0.001 / std::max(m.deform_amplitude, 1e-12);  // 0.001 of the radius
+  const double tol = 0.001 / std::max(m.deform_amplitude, kAmplitudeFloor);  // 0.001 of the radius
   struct Cell {
     int f;
     double x, y, s;  // centre and side on the face
@@ -116,7 +123,7 @@ double deformation_peak(const Modifiers& m) {
     }
   }
   // The relative 1e-12 covers the rounding of the sums.
-  return std::min(b.w, std::max(best, bound) + 1e-12 * b.w);
+  return std::min(b.w, std::max(best, bound) + kBoundMargin * b.w);
 }
 
 std::shared_ptr<const DeformedSupport> DeformedSupport::make(const Modifiers& m) {
@@ -128,7 +135,7 @@ std::shared_ptr<const DeformedSupport> DeformedSupport::make(const Modifiers& m)
   const int ns = sample_cells(M, kTolerance * lam);
   if (ns == 0) return nullptr;
   const double delta = std::sqrt(2.0) / ns;
-  const double margin = 0.5 * M * delta * delta + 1e-12 * lam * (1.0 + e * b.w);
+  const double margin = 0.5 * M * delta * delta + kBoundMargin * lam * (1.0 + e * b.w);
 
   // Surface points at the sample directions, and a bounding sphere of each block of them.
   const std::vector<Vec3> dirs = cube_directions(ns);
@@ -154,7 +161,7 @@ std::shared_ptr<const DeformedSupport> DeformedSupport::make(const Modifiers& m)
         B.radius = std::max(B.radius, (pts[(f * side + j) * side + i] - B.center).norm());
       }
     }
-    B.radius *= 1.0 + 1e-12;
+    B.radius *= 1.0 + kBoundMargin;
     return B;
   };
   std::vector<Ball> group_ball;
@@ -234,7 +241,7 @@ double DeformedSupport::operator()(const Vec3& u) const {
   const double v = (1.0 - ty) * ((1.0 - tx) * row0[0] + tx * row0[1]) +
                    ty * ((1.0 - tx) * row1[0] + tx * row1[1]);
   // The relative 1e-12 covers the rounding of this arithmetic.
-  return w * v * (1.0 + 1e-12);
+  return w * v * (1.0 + kBoundMargin);
 }
 
 std::shared_ptr<const DeformedSupport> support_table(const Inclusion& inc) {

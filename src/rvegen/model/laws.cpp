@@ -9,6 +9,14 @@
 namespace rvegen {
 
 namespace {
+// A truncated normal size law keeps at least this share of its mean as its smallest size.
+constexpr double kMinSizeShare = 1e-6;
+// Concentrations below kUniformKappa draw as the uniform law (the closed form's logarithm would
+// lose every digit); below kSeriesKappa the second moment is taken from its series.
+constexpr double kUniformKappa = 1e-8, kSeriesKappa = 1e-3;
+}  // namespace
+
+namespace {
 // Parameters of the lognormal law with the given mean and std of the size itself.
 void lognormal_params(double mean, double std, double* mu, double* sigma) {
   const double s2 = std::log(1.0 + (std * std) / (mean * mean));
@@ -29,7 +37,7 @@ double SizeLaw::lower() const {
     case Kind::kUniform:
       return p1;
     case Kind::kNormal:
-      return std::max(p1 - kTails * p2, 1e-6 * p1);
+      return std::max(p1 - kTails * p2, kMinSizeShare * p1);
     case Kind::kLognormal: {
       double mu, sigma;
       lognormal_params(p1, p2, &mu, &sigma);
@@ -127,8 +135,9 @@ Vec3 OrientationLaw::sample(Random& rng) const {
     case Kind::kVonMisesFisher: {
       // Wood (1994) in three dimensions: w = cos(angle to the axis) has density ~ exp(kappa w).
       const double u = rng.uniform();
-      const double w = kappa > 1e-8 ? 1.0 + std::log(u + (1.0 - u) * std::exp(-2.0 * kappa)) / kappa
-                                    : 2.0 * u - 1.0;
+      const double w = kappa > kUniformKappa
+                           ? 1.0 + std::log(u + (1.0 - u) * std::exp(-2.0 * kappa)) / kappa
+                           : 2.0 * u - 1.0;
       const double phi = 2.0 * M_PI * rng.uniform();
       const Vec3 e1 = any_orthogonal(axis), e2 = axis.cross(e1);
       const double s = std::sqrt(std::max(0.0, 1.0 - w * w));
@@ -162,8 +171,8 @@ Mat3 OrientationLaw::tensor() const {
     case Kind::kVonMisesFisher: {
       // <(p.mu)^2> = 1 - 2 (coth k - 1/k) / k; series below k = 1e-3 (isotropic limit 1/3).
       const double k = kappa;
-      const double c2 = k < 1e-3 ? 1.0 / 3.0 + 2.0 * k / 45.0 * k
-                                 : 1.0 - 2.0 * (1.0 / std::tanh(k) - 1.0 / k) / k;
+      const double c2 = k < kSeriesKappa ? 1.0 / 3.0 + 2.0 * k / 45.0 * k
+                                         : 1.0 - 2.0 * (1.0 / std::tanh(k) - 1.0 / k) / k;
       return c2 * axis * axis.transpose() +
              0.5 * (1.0 - c2) * (Mat3::Identity() - axis * axis.transpose());
     }

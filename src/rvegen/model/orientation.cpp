@@ -5,19 +5,34 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "rvegen/geometry/tolerances.hpp"
+
 namespace rvegen {
+
+namespace {
+// Carlson's duplication for R_D stops when its arguments agree to this (relative): the
+// fifth-order series that follows is then accurate to about 1e-18.
+constexpr double kCarlsonStop = 1e-3;
+// The Newton solve for a law's parameters stops at this residual (entries of an orientation
+// tensor, at most 1); its Jacobian is taken by forward differences of this step.
+constexpr double kNewtonResidual = 1e-14, kDifferenceStep = 1e-6;
+// Eigenvalues of a target tensor at most kAbsentEigenvalue are directions it does not want; a
+// sample whose tensor has one below kLackingEigenvalue where the target wants it cannot be
+// turned to match.
+constexpr double kAbsentEigenvalue = 1e-12, kLackingEigenvalue = 1e-6;
+}  // namespace
 
 Vec3 AcgLaw::sample(Random& rng) const {
   for (;;) {
     const Vec3 z(rng.normal(), rng.normal(), rng.normal());
     const Vec3 x = frame * scale.cwiseProduct(z);
     const double n = x.norm();
-    if (n > 1e-300) return x / n;
+    if (n > kNoDirection) return x / n;
   }
 }
 
 double carlson_rd(double x, double y, double z) {
-  // Carlson (1995), duplication to |1 - x/mu| < 1e-3, then the fifth-order series (error
+  // Carlson (1995), duplication to |1 - x/mu| < kCarlsonStop, then the fifth-order series (error
   // about 1e-18 relative).
   constexpr double c1 = 3.0 / 14.0, c2 = 1.0 / 6.0, c3 = 9.0 / 22.0, c4 = 3.0 / 26.0,
                    c5 = 0.25 * c3, c6 = 1.5 * c4;
@@ -34,7 +49,7 @@ double carlson_rd(double x, double y, double z) {
     dx = (ave - x) / ave;
     dy = (ave - y) / ave;
     dz = (ave - z) / ave;
-    if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) < 1e-3) break;
+    if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) < kCarlsonStop) break;
   }
   const double ea = dx * dy, eb = dz * dz, ec = ea - eb, ed = ea - 6.0 * eb, ee = ed + ec + ec;
   return 3.0 * sum + fac *
@@ -84,12 +99,12 @@ Vec3 solve_acg(const Vec3& e) {
     return Eigen::Vector2d(std::log(m[1] / e[1]), std::log(m[2] / e[2]));
   };
   Eigen::Vector2d r = residual(lb);
-  for (int it = 0; it < 100 && r.cwiseAbs().maxCoeff() > 1e-14; ++it) {
+  for (int it = 0; it < 100 && r.cwiseAbs().maxCoeff() > kNewtonResidual; ++it) {
     Eigen::Matrix2d J;
     for (int k = 0; k < 2; ++k) {
       Vec3 l = lb;
-      l[k + 1] += 1e-6;
-      J.col(k) = (residual(l) - r) / 1e-6;
+      l[k + 1] += kDifferenceStep;
+      J.col(k) = (residual(l) - r) / kDifferenceStep;
     }
     const Eigen::Vector2d step = J.colPivHouseholderQr().solve(-r);
     double alpha = 1.0;
@@ -152,15 +167,16 @@ bool match_orientation_tensor(std::vector<Vec3>* dirs, const Mat3& target, doubl
     Mat3 inv_half = Mat3::Zero();  // pseudo-inverse of s^(1/2) on target's support
     for (int k = 0; k < 3; ++k) {
       const double l = es.eigenvalues()[k];
-      if (l <= 1e-12) continue;
-      if (l < 1e-6) return false;  // a direction the target wants but the sample lacks
+      if (l <= kAbsentEigenvalue) continue;
+      if (l < kLackingEigenvalue)
+        return false;  // a direction the target wants but the sample lacks
       inv_half += es.eigenvectors().col(k) * es.eigenvectors().col(k).transpose() / std::sqrt(l);
     }
     const Mat3 t = half * inv_half;
     for (Vec3& v : q) {
       const Vec3 w = t * v;
       const double n = w.norm();
-      if (!(n > 1e-300)) return false;
+      if (!(n > kNoDirection)) return false;
       v = w / n;
     }
   }

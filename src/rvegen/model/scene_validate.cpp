@@ -11,6 +11,14 @@ namespace rvegen {
 
 namespace {
 
+// Orientation tensors typed by users: symmetric and of trace 1 to this (their messages say so).
+constexpr double kTensorInputTolerance = 1e-6;
+// Unit vectors given by users have norm 1 to this, and a tensor's eigenvalues may fall this far
+// below 0 (rounding of a tensor computed elsewhere).
+constexpr double kUnitInputTolerance = 1e-9;
+// Inclusions smaller than this share of the box lose the precision the exact tests need.
+constexpr double kMinRelativeSize = 1e-6;
+
 [[noreturn]] void fail(const std::string& path, const std::string& what) {
   throw InputError(path + ": " + what);
 }
@@ -43,17 +51,17 @@ void check_orientation(const OrientationLaw& law, const std::string& p) {
     const Mat3& a = law.a2;
     const std::string q = p + ".a2";
     if (!a.allFinite()) fail(q, "must be finite");
-    if ((a - a.transpose()).cwiseAbs().maxCoeff() > 1e-6) {
+    if ((a - a.transpose()).cwiseAbs().maxCoeff() > kTensorInputTolerance) {
       fail(q, "must be symmetric (a_ij = a_ji to 1e-6)");
     }
     char buf[160];
-    if (std::abs(a.trace() - 1.0) > 1e-6) {
+    if (std::abs(a.trace() - 1.0) > kTensorInputTolerance) {
       std::snprintf(buf, sizeof buf, "must have trace 1 (to 1e-6), has %.9g", a.trace());
       fail(q, buf);
     }
     const double low =
         Eigen::SelfAdjointEigenSolver<Mat3>(0.5 * (a + a.transpose())).eigenvalues().minCoeff();
-    if (low < -1e-9) {
+    if (low < -kUnitInputTolerance) {
       std::snprintf(buf, sizeof buf,
                     "must be positive semi-definite, has the eigenvalue %.6g (an orientation "
                     "tensor <p p^T> has none below 0)",
@@ -63,7 +71,7 @@ void check_orientation(const OrientationLaw& law, const std::string& p) {
     return;
   }
   const char* key = law.kind == OrientationLaw::Kind::kPlanar ? ".normal" : ".axis";
-  if (!law.axis.allFinite() || std::abs(law.axis.norm() - 1.0) > 1e-9) {
+  if (!law.axis.allFinite() || std::abs(law.axis.norm() - 1.0) > kUnitInputTolerance) {
     fail(p + key, "must be a unit vector");
   }
   if (!(law.kappa >= 0.0 && law.kappa <= 1e6)) fail(p + ".kappa", "must be in [0, 1e6]");
@@ -296,7 +304,7 @@ void validate_scene(const Scene& s) {
       fail(p + ".volume_fraction", "must be in (0, 1)");
     if (f.count == 0 || f.count > 100000000) fail(p + ".count", "must be an integer in [1, 1e8]");
     const double small = mean_smallest_size(f);
-    if (!(small >= 1e-6 * s.box.size.maxCoeff())) {
+    if (!(small >= kMinRelativeSize * s.box.size.maxCoeff())) {
       char buf[160];
       std::snprintf(buf, sizeof buf,
                     "inclusions smaller than 1e-6 of the box are not supported (mean smallest "

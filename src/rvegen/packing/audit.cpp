@@ -139,7 +139,7 @@ std::vector<int> find_outside(const InclusionSet& set) {
   for (int i = 0; i < static_cast<int>(set.inclusions.size()); ++i) {
     Vec3 lo, hi;
     set.inclusions[i].shape.aabb(&lo, &hi);
-    const double tol = 1e-9 * set.inclusions[i].shape.min_size();
+    const double tol = kContactRelTolerance * set.inclusions[i].shape.min_size();
     if ((lo.array() < lo_box.array() - tol).any() || (hi.array() > hi_box.array() + tol).any()) {
       out.push_back(i);
     }

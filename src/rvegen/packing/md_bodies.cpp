@@ -7,11 +7,17 @@
 #include <cstdint>
 #include <utility>
 
+#include "rvegen/geometry/tolerances.hpp"
 #include "rvegen/model/body.hpp"
 
 namespace rvegen::md {
 
 namespace {
+
+// A volume fraction floor for the start scale (a scene of no volume starts at scale 1).
+constexpr double kMinFraction = 1e-12;
+// Just below 1: a centre on the box's far face goes in the last Morton cell.
+constexpr double kBelowOne = 1.0 - 1e-12;
 constexpr double kStartFraction = 0.25;  // volume fraction of the initial force scale
 // Chains get at least kChainPatience times md.patience: a chain pair caught across another's
 // wave blocks every certificate until it parts, so a stall is not yet a jam (tuned on the
@@ -98,7 +104,7 @@ double separating_scale(const Body& a, const Body& b, const Vec3& shift, const V
   a.support_line(n, &alpha_a, &beta_a);
   b.support_line(-n, &alpha_b, &beta_b);
   const double room = n.dot(b.shape.center + shift - a.shape.center) - alpha_a - alpha_b;
-  if (beta_a + beta_b <= 1e-300) return room >= 0.0 ? 1e300 : 0.0;  // holds at every scale
+  if (beta_a + beta_b <= kNoDirection) return room >= 0.0 ? 1e300 : 0.0;  // holds at every scale
   return room / (beta_a + beta_b);
 }
 
@@ -215,12 +221,12 @@ Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, R
   });
   double elongation = 0.0;
   for (const Body& b : bodies) elongation += b.volume * b.bound / b.shape.min_size();
-  elongation /= std::max(total, 1e-300);
+  elongation /= std::max(total, kNoDirection);
   out.patience = std::llround(spec.md.patience *
                               std::max(out.chains ? kChainPatience : 1.0,
                                        std::clamp(1.0 + (elongation - 3.5) / 1.3, 1.0, 6.0)));
   const double vf = crowding / box.volume();
-  out.start_scale = std::min(1.0, std::cbrt(kStartFraction / std::max(vf, 1e-12)));
+  out.start_scale = std::min(1.0, std::cbrt(kStartFraction / std::max(vf, kMinFraction)));
   if (radial > 0.0)
     out.start_scale = std::min(out.start_scale, std::sqrt(kStartFraction * box.volume() / radial));
   return out;
@@ -246,7 +252,7 @@ std::vector<int> order_in_space(const Box& box, Bodies* bodies) {
     uint32_t cell[3];
     for (int a = 0; a < 3; ++a) {
       const double t = (all[i].shape.center[a] - box.origin[a]) / box.size[a];
-      cell[a] = static_cast<uint32_t>(std::clamp(t, 0.0, 1.0 - 1e-12) * 1024.0);
+      cell[a] = static_cast<uint32_t>(std::clamp(t, 0.0, kBelowOne) * 1024.0);
     }
     keyed[i] = {spread_bits(cell[0]) | spread_bits(cell[1]) << 1 | spread_bits(cell[2]) << 2,
                 static_cast<int>(i)};

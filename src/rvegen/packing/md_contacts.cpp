@@ -10,6 +10,8 @@
 namespace rvegen::md {
 
 namespace {
+// Aligned fibres whose axes' cosine is within this of 1 take the parallel closed form.
+constexpr double kParallelCos = 1e-12;
 constexpr double kRelaxation = 1.0;  // scale of the summed contact impulses
 // Axes closer to parallel than this (squared sine) skip the line test: their lines' distance
 // says little about their segments'.
@@ -193,7 +195,7 @@ double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& ori
       move[e.b] += J / bb.volume;
       continue;
     }
-    if (ba.radial && bb.radial && std::abs(axis[e.a].dot(axis[e.b])) >= 1.0 - 1e-12) {
+    if (ba.radial && bb.radial && std::abs(axis[e.a].dot(axis[e.b])) >= 1.0 - kParallelCos) {
       // Parallel fibres in closed form: they overlap exactly when their axial ranges do and
       // their axes are nearer than the sum of the radii; the push is sideways only, so aligned
       // fibres never butt end to end in columns.

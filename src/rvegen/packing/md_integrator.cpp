@@ -8,6 +8,9 @@
 namespace rvegen::md {
 
 namespace {
+
+// The orientation tensor held by md.rotation keep_tensor is matched to this (entries at most 1).
+constexpr double kHeldTensorTolerance = 1e-10;
 constexpr double kMomentum = 0.9;  // fraction of the last step's motion kept (damping 0.1)
 constexpr double kMaxTurn = 0.2;   // radians per step
 }  // namespace
@@ -39,7 +42,8 @@ void hold_tensors(const PackingSpec& spec, const std::map<int, std::vector<int>>
   for (const auto& [family, members] : held) {
     std::vector<Vec3> dirs(members.size());
     for (size_t k = 0; k < members.size(); ++k) dirs[k] = law_axis((*bodies)[members[k]].shape);
-    if (!match_orientation_tensor(&dirs, spec.families[family].orientation.tensor(), 1e-10)) {
+    if (!match_orientation_tensor(&dirs, spec.families[family].orientation.tensor(),
+                                  kHeldTensorTolerance)) {
       continue;
     }
     for (size_t k = 0; k < members.size(); ++k) {

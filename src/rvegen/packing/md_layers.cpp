@@ -15,6 +15,11 @@ namespace rvegen::md {
 
 namespace {
 
+// A plane normal within kOnAxisCos of a box axis (1 - |cos|) is that axis; a fibre whose axis
+// leaves the plane by at most kInPlaneSine of its length lies in it; a fibre within
+// kOnAxisRounding of a box axis runs along it (rounding of an axis drawn along it).
+constexpr double kOnAxisCos = 1e-9, kInPlaneSine = 1e-9, kOnAxisRounding = 1e-12;
+
 constexpr int kMoves = 30;       // in-plane moves of a fibre to find a free layer
 constexpr int kSlides = 3000;    // then places where it slides out of a few fibres of a layer,
 constexpr int kSlideFibres = 3;  // at most that many,
@@ -38,7 +43,7 @@ int plane_normal_axis(const OrientationLaw& law) {
   if (null.count != 1) return -1;
   const Vec3& n = null.normal;
   for (int k = 0; k < 3; ++k) {
-    if (std::abs(n[k]) > 1.0 - 1e-9) return k;
+    if (std::abs(n[k]) > 1.0 - kOnAxisCos) return k;
   }
   return -1;
 }
@@ -400,7 +405,7 @@ void layer_planar_fibres(const PackingSpec& spec, Random& rng, Bodies* bodies,
     const Body& b = bodies->all[i];
     if (b.shape.kind != ShapeKind::Cylinder || b.radial) continue;
     const int k = plane_normal_axis(spec.families[b.family].orientation);
-    if (k < 0 || std::abs(b.shape.half_axis[k]) > 1e-9 * b.shape.half_axis.norm()) continue;
+    if (k < 0 || std::abs(b.shape.half_axis[k]) > kInPlaneSine * b.shape.half_axis.norm()) continue;
     Vec3 half = b.shape.half_axis * (1.0 + b.pad);
     half[k] = 0.0;
     const double t = b.shape.radius * (1.0 + b.pad);
@@ -450,7 +455,7 @@ void slot_aligned_fibres(const PackingSpec& spec, Random& rng, Bodies* bodies) {
     if (!b.radial) continue;
     const Vec3 u = b.shape.half_axis / b.cap_half;
     for (int k = 0; k < 3; ++k) {
-      if (std::abs(u[k]) > 1.0 - 1e-12) {
+      if (std::abs(u[k]) > 1.0 - kOnAxisRounding) {
         by_axis[k].push_back(static_cast<int>(i));
         longest[k] = std::max(longest[k], 2.0 * (b.cap_half + b.half_gap));
       }

@@ -11,6 +11,9 @@ namespace rvegen {
 
 namespace {
 
+// The step of the central differences that give an interface normal, as a share of the voxel.
+constexpr double kGradientStep = 1e-6;
+
 int wrap(int i, int n) {
   i %= n;
   return i < 0 ? i + n : i;
@@ -92,7 +95,7 @@ CutVoxels cut_voxels(const InclusionSet& set, const VoxelImage& img, int subsamp
           v.inside = static_cast<uint8_t>(inc.family + 1);
           v.fraction = share;
           // The distance's gradient by central differences.
-          const double e = 1e-6 * img.spacing.maxCoeff();
+          const double e = kGradientStep * img.spacing.maxCoeff();
           Vec3 g;
           for (int a = 0; a < 3; ++a) {
             const Vec3 d = e * Vec3::Unit(a);

@@ -134,6 +134,57 @@ double refined_scale(const std::vector<Body>& bodies, double s_out,
   return s;
 }
 
+// The walls of a closed box, a pass of their own (each body against the six faces): contacts
+// push the shape at the force scale s_out back inside, summed into *sums with the pairs'; returns
+// the largest scale at which every (unpadded) shape is inside.
+double wall_pass(const std::vector<Body>& bodies, const Box& box, double s_out, ContactSums* sums) {
+  const size_t n = bodies.size();
+  double s_in = s_out;
+  double& max_overlap = sums->max_overlap;
+  auto add = [&](int i, const Vec3& dx, const Vec3& dw) {
+    sums->move[i] += dx;
+    sums->turn[i] += dw;
+  };
+  for (size_t i = 0; i < n; ++i) {
+    const Body& b = bodies[i];
+    Vec3 half, lo, hi;
+    b.shape.scaled(1.0).translated(-b.shape.center).aabb(&lo, &half);  // half extents
+    const Shape cur = b.at_scale(s_out);
+    cur.aabb(&lo, &hi);
+    for (int a = 0; a < 3; ++a) {
+      const double c = b.shape.center[a], w0 = box.origin[a], w1 = w0 + box.size[a];
+      // Half extent along axis a at growth s: al + s be (unpadded).
+      double al = 0.0, be = half[a];
+      if (b.radial) {
+        const double u = std::min(1.0, std::abs(b.shape.half_axis[a]) / b.cap_half);
+        al = b.cap_half * u;
+        be = b.shape.radius * std::sqrt(std::max(0.0, 1.0 - u * u));
+      }
+      const double room = std::min(c - w0, w1 - c) - al;
+      s_in = std::min(s_in, be > 0.0 ? room / be : (room >= 0.0 ? 1e300 : 0.0));
+      const double below = w0 - lo[a], above = hi[a] - w1;
+      for (int side = 0; side < 2; ++side) {
+        const double depth = side == 0 ? below : above;
+        if (!(depth > 0.0)) continue;
+        Vec3 nrm = Vec3::Zero();
+        nrm[a] = side == 0 ? 1.0 : -1.0;  // into the box
+        const Vec3 p = cur.support(-nrm);
+        max_overlap = std::max(max_overlap, depth / cur.min_size());
+        // The wall is an immovable body beyond the face (normal from the inclusion to it).
+        Contact c;
+        c.overlap = true;
+        c.depth = depth;
+        c.normal = -nrm;
+        c.point = p;
+        const ContactResponse r =
+            contact_response(cur.center, b.mobility(cur), p, BodyMobility{}, c, 1.0);
+        add(static_cast<int>(i), r.move_a, r.turn_a);
+      }
+    }
+  }
+  return s_in;
+}
+
 }  // namespace
 
 double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& oriented,
@@ -273,47 +324,8 @@ double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& ori
     add(e.b, r.move_b, r.turn_b);
   }
   s_in = std::min(s_in, refined_scale(bodies, s_out, &limits));
-  if (!box.periodic) {
-    // Walls: contacts push the shape at the force scale back inside; the valid scale is the
-    // largest at which the (unpadded) shape is inside.
-    for (size_t i = 0; i < n; ++i) {
-      const Body& b = bodies[i];
-      Vec3 half, lo, hi;
-      b.shape.scaled(1.0).translated(-b.shape.center).aabb(&lo, &half);  // half extents
-      const Shape cur = b.at_scale(s_out);
-      cur.aabb(&lo, &hi);
-      for (int a = 0; a < 3; ++a) {
-        const double c = b.shape.center[a], w0 = box.origin[a], w1 = w0 + box.size[a];
-        // Half extent along axis a at growth s: al + s be (unpadded).
-        double al = 0.0, be = half[a];
-        if (b.radial) {
-          const double u = std::min(1.0, std::abs(b.shape.half_axis[a]) / b.cap_half);
-          al = b.cap_half * u;
-          be = b.shape.radius * std::sqrt(std::max(0.0, 1.0 - u * u));
-        }
-        const double room = std::min(c - w0, w1 - c) - al;
-        s_in = std::min(s_in, be > 0.0 ? room / be : (room >= 0.0 ? 1e300 : 0.0));
-        const double below = w0 - lo[a], above = hi[a] - w1;
-        for (int side = 0; side < 2; ++side) {
-          const double depth = side == 0 ? below : above;
-          if (!(depth > 0.0)) continue;
-          Vec3 nrm = Vec3::Zero();
-          nrm[a] = side == 0 ? 1.0 : -1.0;  // into the box
-          const Vec3 p = cur.support(-nrm);
-          max_overlap = std::max(max_overlap, depth / cur.min_size());
-          // The wall is an immovable body beyond the face (normal from the inclusion to it).
-          Contact c;
-          c.overlap = true;
-          c.depth = depth;
-          c.normal = -nrm;
-          c.point = p;
-          const ContactResponse r =
-              contact_response(cur.center, b.mobility(cur), p, BodyMobility{}, c, 1.0);
-          add(static_cast<int>(i), r.move_a, r.turn_a);
-        }
-      }
-    }
-  }
+  // Walls: their own pass.
+  if (!box.periodic) s_in = std::min(s_in, wall_pass(bodies, box, s_out, sums));
   if (!chain_pairs.empty()) {
     // A chain is not convex: shrunk about its centre, a piece behind it moves towards what lies
     // beyond, so no pair is valid below a scale merely because it is valid at s_out. The scale

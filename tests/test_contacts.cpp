@@ -127,6 +127,43 @@ TEST_P(PairKindSweep, PackerAndAuditDecideAlike) {
   EXPECT_GT(apart, 10) << GetParam().name;
 }
 
+// Two spheres that touch at the target (scale 1) as far as coordinates in doubles can say: the
+// distance of their rounded centres falls a unit in the last place short of the sum of their
+// radii, so the certified scale is a ratio just below 1. The packer counts it as the target
+// reached (a run reported "jammed" at the target's volume fraction to 15 digits), and the
+// audit of the two spheres placed at scale 1 passes.
+TEST(TargetRounding, TouchingAtTheTargetReachesIt) {
+  const char* json = R"({"box":{"size":[2,1,1],"periodic":true},"seed":1,"families":[
+    {"shape":"sphere","radius":0.1,"count":2}]})";
+  const Scene scene = parse_scene(json);
+  Random rng(scene.seed);
+  const std::vector<Inclusion> pop = draw_population(scene, rng);
+  md::Bodies bodies = md::make_bodies(scene, pop, rng);
+  std::vector<md::Body>& b = bodies.all;
+  // A centre x where x + 0.2 - x rounds below 0.2 (the first of a fixed list that does).
+  double x = -1.0;
+  for (double c = 0.5; c < 1.5 && x < 0.0; c += 0.0137) {
+    if ((c + 0.2) - c < 0.2) x = c;
+  }
+  ASSERT_GT(x, 0.0);
+  b[0].shape.center = Vec3(x, 0.5, 0.5);
+  b[1].shape.center = Vec3(x + 0.2, 0.5, 0.5);
+  md::VerletList list;
+  list.build(&b, scene.box, 1.0, nullptr);
+  md::ContactSums sums;
+  const double s =
+      md::contact_pass(b, bodies.oriented, list.pairs(), scene.box, 1.0, 0.0, 0.0, &sums, nullptr);
+  EXPECT_LT(s, 1.0);          // rounding: not certified at 1 as computed
+  EXPECT_GT(s, 1.0 - 1e-15);  // but within rounding of it
+  EXPECT_EQ(md::round_to_target(s), 1.0);
+  EXPECT_LT(md::round_to_target(0.999), 1.0);  // a real shortfall stays one
+  InclusionSet set;
+  set.box = scene.box;
+  for (int i = 0; i < 2; ++i) set.inclusions.push_back(place_like(pop[i], b[i].shape, 1.0));
+  set.inclusions[1].id = 1;
+  EXPECT_TRUE(find_overlaps(set, 1, nullptr).empty());
+}
+
 INSTANTIATE_TEST_SUITE_P(AllKinds, PairKindSweep, ::testing::ValuesIn(kKinds),
                          [](const ::testing::TestParamInfo<PairKind>& info) {
                            std::string n;

@@ -71,12 +71,6 @@ constexpr double kChainSkin = 0.002, kChainSkinPerPressure = 0.1;
 constexpr int kChainHold = 50;
 constexpr double kChainUnjam = 0.003;
 constexpr double kStall = 0.1;  // m halves when the valid scale grew by less than kStall m
-// A valid scale within kScaleRounding of 1 is 1: the target is reached. The certified scale is
-// a ratio of distances, and rounding left it at 1 - 1e-15 where the target was met (a planar
-// fibre run reported "jammed" at the target's volume fraction to 15 digits). Placed at scale 1,
-// such a pair overlaps by at most that share of its size, a thousand times below the exact
-// tests' tolerance (kContactRelTolerance), so the audit still decides.
-constexpr double kScaleRounding = 1e-12;
 
 class MdPacker {
  public:
@@ -233,7 +227,7 @@ PackingResult MdPacker::run() {
     }
     // A scale of 0 is no configuration (inclusions of size 0): nothing is kept until one is
     // valid at a positive scale.
-    if (s_in >= 1.0 - kScaleRounding) s_in = std::max(s_in, 1.0);
+    s_in = md::round_to_target(s_in);
     if (s_in > best_scale_ && s_in > 0.0) snapshot(s_in);
     if (best_scale_ >= 1.0) break;
     integrator_->step(sums_, &bodies, &list_);

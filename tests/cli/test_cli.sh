@@ -348,6 +348,33 @@ done
 expect_rc 0 "$RVEGEN" generate -q "$WORK/closed.json" -o "$WORK/kill"
 ls -A "$WORK" | grep -q '\.rvegen-' && fail "killed runs' staging directories were not cleaned"
 
+# Another user's set in a parent both may write: the new set is swapped in, the old one cannot be
+# deleted (its files are not ours); the run says so and names where the old set stays. Needs a
+# second user: run as root, the second run drops to nobody (setpriv).
+if [ "$(id -u)" = 0 ] && command -v setpriv >/dev/null; then
+  shared="$WORK/shared"
+  mkdir -m 0777 "$shared"
+  chmod o+x "$WORK"
+  expect_rc 0 "$RVEGEN" generate -q "$WORK/closed.json" -o "$shared/set"
+  cp "$shared/set/inclusions.json" "$WORK/shared_old.json"
+  chmod o+r "$WORK/kill_new.json"
+  if setpriv --reuid=65534 --regid=65534 --clear-groups "$RVEGEN" generate -q \
+      "$WORK/kill_new.json" -o "$shared/set" 2>"$WORK/shared.err"; then
+    grep -q "could not be removed.*stays at" "$WORK/shared.err" ||
+      fail "another user's set: no word of the old set left behind: $(cat "$WORK/shared.err")"
+    left=$(find "$shared" -maxdepth 1 -name '.set.rvegen-*' | head -1)
+    [ -n "$left" ] && cmp -s "$left/inclusions.json" "$WORK/shared_old.json" ||
+      fail "another user's set: the old set is not where the message says"
+    grep -qF "$left" "$WORK/shared.err" || fail "another user's set: message names another place"
+    [ "$(stat -c %u "$shared/set")" = 65534 ] || fail "another user's set: the new set is not in place"
+  else
+    fail "another user's set: the second user's run failed: $(cat "$WORK/shared.err")"
+  fi
+  rm -rf "$shared"
+else
+  echo "note: not root; the two-user case of a shared parent is not exercised"
+fi
+
 # Many families: the report no longer fits an HDF5 attribute; it is a dataset.
 fams=$($py -c "import json; print(json.dumps([{'shape':'sphere','radius':0.03,'count':3,'name':'family number %d with a long name' % k} for k in range(40)]))")
 echo "{\"box\":{\"size\":[1,1,1]},\"families\":$fams,\"voxels\":{\"resolution\":16}}" >"$WORK/many.json"

@@ -30,6 +30,7 @@
 #include "rvegen/raster/levelset.hpp"
 #include "rvegen/raster/mesh.hpp"
 #include "rvegen/raster/voxelize.hpp"
+#include "study.hpp"
 
 namespace {
 
@@ -95,7 +96,8 @@ const char* kDefaultSceneUsage =
 std::string usage() {
   return std::string("rvegen " RVEGEN_VERSION
                      ": random Representative Volume Elements of composite materials.\n\n") +
-         kGenerateUsage + "\n" + kCheckUsage + "\n" + kHomogenizeUsage + "\n" + kDefaultSceneUsage +
+         kGenerateUsage + "\n" + kCheckUsage + "\n" + kHomogenizeUsage + "\n" +
+         rvegen::cli::study_usage() + "\n" + kDefaultSceneUsage +
          "\nrvegen --version prints the version; rvegen COMMAND --help the help of one command.\n";
 }
 
@@ -578,6 +580,7 @@ int main(int argc, char** argv) {
   args.erase(args.begin());
   if (cmd == "generate") return cmd_generate(args);
   if (cmd == "check") return cmd_check(args);
+  if (cmd == "study") return rvegen::cli::cmd_study(args);
   if (cmd == "homogenize") return cmd_homogenize(args);
   if (cmd == "default-scene") {
     if (wants_help(args)) {
@@ -592,5 +595,5 @@ int main(int argc, char** argv) {
     return kExitOk;
   }
   return usage_error("unknown command \"" + cmd +
-                     "\" (generate, check, homogenize, default-scene)");
+                     "\" (generate, check, homogenize, study, default-scene)");
 }

@@ -616,6 +616,66 @@ bad ti_half "{$BOX,$FIB_FAM,\"materials\":{\"fibres\":{\"axial_young\":230,\"tra
 bad ti_both "{$BOX,$FIB_FAM,\"materials\":{\"fibres\":{\"conductivity\":3,\"axial_conductivity\":1,\"transverse_conductivity\":1}}}" "not both"
 bad ti_unstable "{$BOX,$FIB_FAM,\"materials\":{\"fibres\":{\"axial_young\":1,\"transverse_young\":1,\"axial_shear\":1,\"axial_poisson\":0.9,\"transverse_poisson\":0.3}}}" "no stable material"
 
+# rvegen study: realizations at two sizes, then resumed with more: the same statistics as a
+# study run at once with the same seeds (one job against all cores); each realization is
+# written once with its seed; counts scale with the volume; bad input names the option.
+cat >"$WORK/study.json" <<'JSON'
+{"box":{"size":[0.4,0.4,0.4]},"seed":2,"families":[
+ {"name":"spheres","shape":"sphere","radius":0.04,"volume_fraction":0.2},
+ {"name":"rods","shape":"cylinder","radius":0.015,"aspect_ratio":4,"count":6}],
+ "voxels":{"resolution":20},
+ "materials":{"matrix":{"conductivity":1},"spheres":{"conductivity":5},"rods":{"conductivity":20}},
+ "homogenization":{"physics":["conductivity"]}}
+JSON
+expect_rc 0 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_a" --sizes 1,1.5 --realizations 2 -q
+n_a=$(ls "$WORK/study_a/realizations" | wc -l)
+[ "$n_a" -eq 4 ] || fail "study: $n_a realization files for 2 sizes x 2"
+touch -d '2001-01-01' "$WORK/study_a/realizations/size_1_0.json"
+expect_rc 0 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_a" --sizes 1,1.5 --realizations 3 -q
+[ "$(stat -c %Y "$WORK/study_a/realizations/size_1_0.json")" = "$(date -d '2001-01-01' +%s)" ] ||
+  fail "study: a kept realization was computed again"
+expect_rc 0 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_b" --sizes 1,1.5 --realizations 3 -q --jobs 1
+$py - "$WORK/study_a" "$WORK/study_b" <<'PY' || fail "study: resumed and direct studies differ"
+import json, sys
+a, b = (json.load(open(d + "/study.json")) for d in sys.argv[1:3])
+assert a["properties"] == b["properties"], "properties differ"
+p = a["properties"]
+for k in ("volume_fraction.spheres", "voxel_fraction.spheres", "conductivity.mean",
+          "nearest_neighbour.mean", "orientation.rods.a11"):
+    assert k in p, k
+    rows = p[k]["per_size"]
+    assert [r["n"] for r in rows] == [3, 3], (k, rows)
+    for r in rows:
+        assert r["ci95"][0] <= r["mean"] <= r["ci95"][1], (k, r)
+# A conductivity between the matrix's and the best phase's, varying between realizations.
+for r in p["conductivity.mean"]["per_size"]:
+    assert 1.0 < r["mean"] < 20.0 and r["sd"] > 0, r
+r0 = json.load(open(sys.argv[1] + "/realizations/size_1.5_2.json"))
+assert r0["status"] == "ok" and r0["seed"] > 0 and r0["size"] == 1.5, r0
+# The rods are given by count: 6 at size 1, 6 x 1.5^3 = 20 at size 1.5 (spheres by fraction).
+assert abs(r0["volume"] - 0.6 ** 3) < 1e-12, r0["volume"]
+PY
+$py - "$WORK/study_a" <<'PY' || fail "study: the rods' count did not scale with the volume"
+import json, sys
+for size, want in (("1", 6), ("1.5", 20)):
+    rec = json.load(open(sys.argv[1] + "/realizations/size_%s_0.json" % size))
+    assert rec["properties"]["volume_fraction.rods"] > 0
+    vf = rec["properties"]["volume_fraction.rods"] * rec["volume"]
+    import math
+    one = math.pi * 0.015 ** 2 * 0.12
+    assert abs(vf / one - want) < 1e-6, (size, vf / one)
+PY
+head -1 "$WORK/study_a/study.csv" | grep -q "^property,size,volume,n,mean,sd,ci95_low,ci95_high" ||
+  fail "study: study.csv has no header"
+echo '{"box":{"size":[0.4,0.4,0.4]},"seed":3,"families":[{"shape":"sphere","radius":0.04,"volume_fraction":0.2}]}' >"$WORK/study_other.json"
+expect_rc 2 "$RVEGEN" study "$WORK/study_other.json" -o "$WORK/study_a" --realizations 1 -q
+grep -q "holds a study of another scene" "$WORK/last.err" || fail "study: other scene not named"
+expect_rc 2 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_c" --sizes 1,-2 -q
+grep -q -- "--sizes" "$WORK/last.err" || fail "study: bad --sizes not named"
+expect_rc 2 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_c" --realizations 0 -q
+[ -e "$WORK/study_c" ] && fail "study: bad input left a directory behind"
+expect_rc 2 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_c" --bogus -q
+
 if [ "$fails" -ne 0 ]; then
   echo "$fails failure(s)"
   exit 1

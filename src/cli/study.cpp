@@ -1,0 +1,530 @@
+#include "study.hpp"
+
+#include <sys/resource.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <thread>
+
+#include "rvegen/homogenize/effective.hpp"
+#include "rvegen/io/report.hpp"
+#include "rvegen/io/scene_json.hpp"
+#include "rvegen/io/writers.hpp"
+#include "rvegen/model/errors.hpp"
+#include "rvegen/model/phases.hpp"
+#include "rvegen/model/representativity.hpp"
+#include "rvegen/model/stats.hpp"
+#include "rvegen/packing/packing.hpp"
+#include "rvegen/raster/voxelize.hpp"
+
+namespace rvegen::cli {
+
+namespace fs = std::filesystem;
+using json = nlohmann::ordered_json;
+
+namespace {
+
+constexpr int kExitOk = 0, kExitOutput = 1, kExitInvalid = 2, kExitNotReached = 3;
+constexpr size_t kMaxSceneBytes = size_t(16) << 20;
+
+const char* kStudyUsage =
+    "usage: rvegen study SCENE.json [-o DIR] [--sizes LIST] [--realizations N]\n"
+    "                    [--target-error E] [--jobs N] [--quiet]\n"
+    "  How big must the RVE be? Generates N realizations (default 10) of the scene at each\n"
+    "  size of LIST (box edge multiples of the scene's box, default 1,1.5,2; families given by\n"
+    "  count scale their count with the volume, the voxel size stays), computes on each the\n"
+    "  volume fractions (exact and voxel), the orientation tensor of fibre families, the mean\n"
+    "  nearest-neighbour distance and, when the scene has \"homogenization\", the effective\n"
+    "  conductivity and stiffness, then per size and property the mean, standard deviation and\n"
+    "  95 % confidence interval of the mean, the variance law D^2(V) = K V^-alpha fitted over\n"
+    "  the sizes, and the volume at which N realizations give the mean to the relative error E\n"
+    "  (default 0.01). Writes DIR/study.json and DIR/study.csv (default DIR ./study).\n"
+    "  Each realization is written once, in DIR/realizations/, with its seed: a rerun with\n"
+    "  more realizations or sizes computes only the missing ones. --jobs: realizations run at\n"
+    "  once (default: every core).\n"
+    "  Exit 0; 2 on invalid input (or DIR holding a study of another scene); 1 when DIR\n"
+    "  cannot be written; 3 when some realization did not reach its target (they are left out\n"
+    "  of the statistics, and counted).\n";
+
+int usage_error(const std::string& msg) {
+  std::cerr << "rvegen: " << msg << "\n" << kStudyUsage;
+  return kExitInvalid;
+}
+
+// A realization's seed from the scene's, the size and the realization's number: the same
+// realization always gets the same seed, however many are asked for.
+uint64_t realization_seed(uint64_t seed, double size, int k) {
+  uint64_t x = seed ^ (static_cast<uint64_t>(std::llround(size * 1e6)) * 0x9E3779B97F4A7C15ull) ^
+               (static_cast<uint64_t>(k) << 32);
+  x += 0x9E3779B97F4A7C15ull;  // splitmix64
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return (x ^ (x >> 31)) & ((uint64_t(1) << 53) - 1);  // exact in a JSON number
+}
+
+std::string size_name(double m) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.6g", m);
+  return buf;
+}
+
+// The scene at edge multiple m: box and counts scaled, voxel size kept.
+Scene scaled_scene(const Scene& base, double m, uint64_t seed) {
+  Scene s = base;
+  s.seed = seed;
+  s.box.size = base.box.size * m;
+  const double v = m * m * m;
+  for (size_t f = 0; f < s.families.size(); ++f) {
+    auto& fam = s.families[f];
+    if (fam.count > 0) {
+      const double c = std::round(fam.count * v);
+      if (c < 1.0 || c > 1e8) {
+        throw InputError("families[" + std::to_string(f) + "].count: " + std::to_string(fam.count) +
+                         " at size " + size_name(m) + " gives " + size_name(c) +
+                         " inclusions (must be in [1, 1e8])");
+      }
+      fam.count = static_cast<int>(c);
+    }
+  }
+  for (int a = 0; a < 3; ++a) {
+    s.resolution[a] = std::max(1, static_cast<int>(std::lround(base.resolution[a] * m)));
+  }
+  validate_scene(s);
+  return s;
+}
+
+std::string family_label(const InclusionSet& set, int f) {
+  if (f < static_cast<int>(set.family_names.size()) && !set.family_names[f].empty())
+    return set.family_names[f];
+  return "family " + std::to_string(f);
+}
+
+// The properties of one realization, by name.
+json realization_properties(const Scene& scene, const PackingResult& r) {
+  json p = json::object();
+  const InclusionSet& set = r.set;
+  const int nf = static_cast<int>(scene.families.size());
+  const std::vector<double> fam = family_volume_fractions(set, nf);
+  double total = 0.0;
+  for (double v : fam) total += v;
+  p["volume_fraction"] = total;
+  const std::vector<Phase> phases = phase_table(set);
+  const std::vector<double> exact = phase_volume_fractions(set, phases);
+  for (const Phase& ph : phases) {
+    if (ph.kind == PhaseKind::kMatrix) continue;
+    p["volume_fraction." + ph.name] = exact[ph.label];
+  }
+  VoxelOptions vopt;
+  vopt.partial_volume = scene.partial_volume;
+  vopt.subsamples = scene.subsamples;
+  const VoxelImage image = voxelize(set, scene.resolution, vopt);
+  const std::vector<double> voxel = label_fractions(image);
+  for (const Phase& ph : phases) {
+    if (ph.kind == PhaseKind::kMatrix || ph.label >= static_cast<int>(voxel.size())) continue;
+    p["voxel_fraction." + ph.name] = voxel[ph.label];
+  }
+  // Orientation tensors of the fibre and ellipsoid families (diagonal).
+  for (int f = 0; f < nf; ++f) {
+    Mat3 a = Mat3::Zero();
+    int n = 0;
+    for (const Inclusion& inc : set.inclusions) {
+      if (inc.family != f || inc.shape.kind == ShapeKind::Sphere) continue;
+      const Vec3 u = principal_axis(inc.shape);
+      a += u * u.transpose();
+      ++n;
+    }
+    if (n == 0) continue;
+    a /= n;
+    const std::string name = "orientation." + family_label(set, f);
+    p[name + ".a11"] = a(0, 0);
+    p[name + ".a22"] = a(1, 1);
+    p[name + ".a33"] = a(2, 2);
+  }
+  const Summary nn = nearest_neighbour_distances(set);
+  if (nn.n > 0) p["nearest_neighbour.mean"] = nn.mean;
+  if (scene.homogenization.any()) {
+    const EffectiveProperties e = effective_properties(scene, set, image);
+    if (e.has_conductivity) {
+      const Mat3& k = e.conductivity.tensor;
+      p["conductivity.k11"] = k(0, 0);
+      p["conductivity.k22"] = k(1, 1);
+      p["conductivity.k33"] = k(2, 2);
+      p["conductivity.mean"] = k.trace() / 3.0;
+    }
+    if (e.has_stiffness) {
+      p["stiffness.bulk"] = e.bulk;
+      p["stiffness.shear"] = e.shear;
+      p["stiffness.c11"] = e.stiffness.stiffness(0, 0);
+    }
+  }
+  return p;
+}
+
+// Writes text to path through a temporary file in the same directory and a rename: a killed
+// run leaves the old file or the new one, never half of one.
+void write_whole(const fs::path& path, const std::string& text) {
+  const fs::path tmp = path.string() + ".part";
+  {
+    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+    f << text;
+    f.flush();
+    if (!f) throw OutputError("cannot write " + tmp.string());
+  }
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  if (ec) throw OutputError("cannot write " + path.string() + ": " + ec.message());
+}
+
+std::string read_text(const fs::path& path) {
+  std::ifstream f(path, std::ios::binary);
+  std::stringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+std::vector<double> parse_sizes(const std::string& text) {
+  std::vector<double> out;
+  size_t at = 0;
+  while (at <= text.size()) {
+    const size_t comma = std::min(text.find(',', at), text.size());
+    const std::string item = text.substr(at, comma - at);
+    char* end = nullptr;
+    const double v = std::strtod(item.c_str(), &end);
+    if (item.empty() || *end != '\0' || !std::isfinite(v) || v <= 0.0 || v > 100.0) {
+      throw InputError("--sizes: \"" + item + "\" is not an edge multiple in (0, 100]");
+    }
+    out.push_back(v);
+    at = comma + 1;
+  }
+  std::sort(out.begin(), out.end());
+  for (size_t i = 1; i < out.size(); ++i) {
+    if (size_name(out[i]) == size_name(out[i - 1]))
+      throw InputError("--sizes: " + size_name(out[i]) + " is given twice");
+  }
+  return out;
+}
+
+double peak_memory_mb() {
+  struct rusage ru {};
+  if (getrusage(RUSAGE_SELF, &ru) != 0) return 0.0;
+  return ru.ru_maxrss / 1024.0;
+}
+
+}  // namespace
+
+const char* study_usage() {
+  return kStudyUsage;
+}
+
+int cmd_study(const std::vector<std::string>& args) {
+  const auto t0 = std::chrono::steady_clock::now();
+  std::string scene_path, out_dir = "study", sizes_text = "1,1.5,2";
+  int realizations = 10, jobs = 0;
+  double target_error = 0.01;
+  bool quiet = false;
+  auto number = [&](size_t& i, const char* what, double lo, double hi, double* v) {
+    if (i + 1 >= args.size()) return false;
+    char* end = nullptr;
+    *v = std::strtod(args[++i].c_str(), &end);
+    if (*end != '\0' || !(*v >= lo && *v <= hi)) {
+      throw InputError(std::string(what) + ": \"" + args[i] + "\" is not a number in [" +
+                       size_name(lo) + ", " + size_name(hi) + "]");
+    }
+    return true;
+  };
+  try {
+    for (size_t i = 0; i < args.size(); ++i) {
+      const std::string& a = args[i];
+      double v = 0.0;
+      if (a == "-h" || a == "--help") {
+        std::cout << kStudyUsage;
+        return kExitOk;
+      } else if (a == "-o" || a == "--output") {
+        if (i + 1 >= args.size()) return usage_error("-o needs a directory");
+        out_dir = args[++i];
+      } else if (a == "--sizes") {
+        if (i + 1 >= args.size()) return usage_error("--sizes needs a list such as 1,1.5,2");
+        sizes_text = args[++i];
+      } else if (a == "--realizations") {
+        if (!number(i, "--realizations", 1, 100000, &v) || v != std::floor(v))
+          return usage_error("--realizations needs a whole number in [1, 100000]");
+        realizations = static_cast<int>(v);
+      } else if (a == "--target-error") {
+        if (!number(i, "--target-error", 1e-9, 1.0, &v))
+          return usage_error("--target-error needs a relative error such as 0.01");
+        target_error = v;
+      } else if (a == "--jobs") {
+        if (!number(i, "--jobs", 1, 4096, &v) || v != std::floor(v))
+          return usage_error("--jobs needs a whole number in [1, 4096]");
+        jobs = static_cast<int>(v);
+      } else if (a == "--quiet" || a == "-q") {
+        quiet = true;
+      } else if (!a.empty() && a[0] == '-') {
+        return usage_error("unknown option " + a + " of study");
+      } else if (scene_path.empty()) {
+        scene_path = a;
+      } else {
+        return usage_error("more than one scene file given");
+      }
+    }
+  } catch (const InputError& e) {
+    return usage_error(e.what());
+  }
+  if (scene_path.empty()) return usage_error("study needs a scene file");
+  Scene base;
+  std::vector<double> sizes;
+  std::vector<std::vector<Scene>> scenes;  // [size][realization]
+  try {
+    sizes = parse_sizes(sizes_text);
+    base = parse_scene(read_file(scene_path, kMaxSceneBytes));
+    if (base.homogenization.fields)
+      throw InputError("homogenization.fields: a study keeps no local fields; leave it out");
+    for (double m : sizes) {
+      scenes.emplace_back();
+      for (int k = 0; k < realizations; ++k)
+        scenes.back().push_back(scaled_scene(base, m, realization_seed(base.seed, m, k)));
+    }
+  } catch (const std::exception& e) {
+    std::cerr << "rvegen: invalid study of " << scene_path << ": " << e.what() << "\n";
+    return kExitInvalid;
+  }
+  // The study's directory: new, or one holding a study of the same scene.
+  const fs::path dir(out_dir), rdir = dir / "realizations";
+  const std::string signature = scene_to_json(base);
+  std::error_code ec;
+  if (fs::exists(dir / "study_scene.json", ec)) {
+    if (read_text(dir / "study_scene.json") != signature) {
+      std::cerr << "rvegen: " << out_dir << " holds a study of another scene (remove it, or "
+                << "give another -o)\n";
+      return kExitInvalid;
+    }
+  } else if (fs::exists(dir, ec) && !fs::is_empty(dir, ec)) {
+    std::cerr << "rvegen: " << out_dir << " is not empty and holds no study: give a new or "
+              << "empty directory\n";
+    return kExitOutput;
+  }
+  try {
+    fs::create_directories(rdir);
+    write_whole(dir / "study_scene.json", signature);
+  } catch (const std::exception& e) {
+    std::cerr << "rvegen: cannot write the study in " << out_dir << ": " << e.what() << "\n";
+    return kExitOutput;
+  }
+  // The realizations not yet written.
+  struct Task {
+    size_t size;
+    int k;
+    fs::path path;
+  };
+  std::vector<Task> todo;
+  for (size_t i = 0; i < sizes.size(); ++i) {
+    for (int k = 0; k < realizations; ++k) {
+      const fs::path p = rdir / ("size_" + size_name(sizes[i]) + "_" + std::to_string(k) + ".json");
+      if (!fs::exists(p, ec)) todo.push_back({i, k, p});
+    }
+  }
+  std::mutex say;
+  auto progress = [&](const std::string& line) {
+    if (quiet) return;
+    std::lock_guard<std::mutex> lock(say);
+    std::cerr << line << "\n";
+  };
+  {
+    char buf[200];
+    std::snprintf(buf, sizeof buf, "study: %zu sizes x %d realizations, %zu to compute (%zu kept)",
+                  sizes.size(), realizations, todo.size(),
+                  sizes.size() * realizations - todo.size());
+    progress(buf);
+  }
+  std::atomic<size_t> done{0};
+  std::string failure;
+  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
+                            static_cast<size_t>(jobs > 0 ? jobs : cores));
+  tbb::parallel_for(size_t(0), todo.size(), size_t(1), [&](size_t t) {
+    {
+      std::lock_guard<std::mutex> lock(say);
+      if (!failure.empty()) return;
+    }
+    const Task& task = todo[t];
+    const Scene& s = scenes[task.size][task.k];
+    const auto t1 = std::chrono::steady_clock::now();
+    json rec;
+    rec["size"] = sizes[task.size];
+    rec["realization"] = task.k;
+    rec["seed"] = s.seed;
+    rec["box"] = {s.box.size[0], s.box.size[1], s.box.size[2]};
+    rec["volume"] = s.box.volume();
+    try {
+      const PackingResult r = generate(s);
+      rec["status"] = status_name(r.status);
+      rec["count"] = r.set.inclusions.size();
+      rec["properties"] = realization_properties(s, r);
+    } catch (const NothingPlaced&) {
+      rec["status"] = "nothing_placed";
+    } catch (const std::exception& e) {
+      std::lock_guard<std::mutex> lock(say);
+      if (failure.empty()) failure = e.what();
+      return;
+    }
+    rec["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+    try {
+      write_whole(task.path, rec.dump(1) + "\n");
+    } catch (const std::exception& e) {
+      std::lock_guard<std::mutex> lock(say);
+      if (failure.empty()) failure = e.what();
+      return;
+    }
+    char buf[200];
+    std::snprintf(buf, sizeof buf, "study: %zu/%zu done (size %s, realization %d, %s, %.1f s)",
+                  ++done, todo.size(), size_name(sizes[task.size]).c_str(), task.k,
+                  rec["status"].get<std::string>().c_str(), rec["seconds"].get<double>());
+    progress(buf);
+  });
+  if (!failure.empty()) {
+    std::cerr << "rvegen: study stopped: " << failure << "\n";
+    return kExitOutput;
+  }
+  // Statistics over the realizations asked for (files beyond them are kept, not used).
+  std::map<std::string, std::vector<std::vector<double>>> values;  // property -> size -> values
+  std::vector<int> not_reached(sizes.size(), 0);
+  std::vector<double> volumes(sizes.size());
+  std::vector<std::string> order;  // properties in the order first met
+  for (size_t i = 0; i < sizes.size(); ++i) {
+    volumes[i] = scenes[i][0].box.volume();
+    for (int k = 0; k < realizations; ++k) {
+      const fs::path p = rdir / ("size_" + size_name(sizes[i]) + "_" + std::to_string(k) + ".json");
+      json rec;
+      try {
+        rec = json::parse(read_text(p));
+      } catch (const std::exception& e) {
+        std::cerr << "rvegen: " << p.string() << " is not a realization record: " << e.what()
+                  << "\n";
+        return kExitInvalid;
+      }
+      if (rec.value("status", "") != "ok") {
+        ++not_reached[i];
+        continue;
+      }
+      for (auto it = rec["properties"].begin(); it != rec["properties"].end(); ++it) {
+        auto& per = values[it.key()];
+        if (per.empty()) {
+          per.resize(sizes.size());
+          order.push_back(it.key());
+        }
+        per[i].push_back(it.value().get<double>());
+      }
+    }
+  }
+  json out;
+  out["scene"] = fs::absolute(scene_path).string();
+  out["sizes"] = sizes;
+  out["volumes"] = volumes;
+  out["realizations"] = realizations;
+  out["target_error"] = target_error;
+  out["not_reached"] = not_reached;
+  out["law"] = "D^2(V) = K V^-alpha; relative error of the mean of n: 2 D(V) / (|mean| sqrt n)";
+  json props = json::object();
+  std::ostringstream csv;
+  csv.precision(10);
+  csv << "property,size,volume,n,mean,sd,ci95_low,ci95_high,relative_error,realizations_needed\n";
+  for (const std::string& name : order) {
+    const auto& per = values[name];
+    std::vector<SampleSummary> sum(sizes.size());
+    double scale = 0.0;
+    for (size_t i = 0; i < sizes.size(); ++i) {
+      sum[i] = summarize(per[i]);
+      scale = std::max(scale, std::abs(sum[i].mean));
+    }
+    const VarianceLaw law = fit_variance_law(volumes, sum, scale);
+    json p;
+    json rows = json::array();
+    for (size_t i = 0; i < sizes.size(); ++i) {
+      const SampleSummary& s = sum[i];
+      const double rel =
+          s.n > 0 && s.mean != 0.0 ? 2.0 * s.sd / (std::abs(s.mean) * std::sqrt(double(s.n))) : 0.0;
+      const long long need = realizations_needed(s.sd * s.sd, s.mean, target_error);
+      rows.push_back({{"size", sizes[i]},
+                      {"volume", volumes[i]},
+                      {"n", s.n},
+                      {"mean", s.mean},
+                      {"sd", s.sd},
+                      {"ci95", {s.ci_low, s.ci_high}},
+                      {"relative_error", rel},
+                      {"realizations_needed", need}});
+      csv << name << "," << sizes[i] << "," << volumes[i] << "," << s.n << "," << s.mean << ","
+          << s.sd << "," << s.ci_low << "," << s.ci_high << "," << rel << "," << need << "\n";
+    }
+    p["per_size"] = rows;
+    json l;
+    l["exact"] = law.exact;
+    l["fitted"] = law.fitted;
+    l["points"] = law.points;
+    if (!law.exact && law.K > 0.0) {
+      l["K"] = law.K;
+      l["alpha"] = law.alpha;
+    }
+    // Phase fractions have a point variance phi (1 - phi): their integral range.
+    const bool fraction =
+        name.rfind("volume_fraction", 0) == 0 || name.rfind("voxel_fraction", 0) == 0;
+    const double phi = sum.back().mean;
+    if (fraction && !law.exact && law.K > 0.0 && phi > 0.0 && phi < 1.0) {
+      l["integral_range"] = law.integral_range(phi * (1.0 - phi));
+    }
+    p["variance_law"] = l;
+    json rec;
+    const double mean = sum.back().mean;
+    const double v = recommended_volume(law, mean, target_error, realizations);
+    if (law.exact) {
+      rec["volume"] = volumes.front();
+      rec["size"] = sizes.front();
+      rec["note"] = "the property does not vary between realizations: every size gives it";
+    } else if (std::isfinite(v) && law.K > 0.0) {
+      rec["volume"] = v;
+      rec["size"] = std::cbrt(v / base.box.volume());
+      // Outside the sizes studied, the law is extrapolated.
+      rec["extrapolated"] = v < volumes.front() || v > volumes.back();
+    } else {
+      rec["volume"] = nullptr;
+      rec["note"] = "no decay of the variance with the volume was measured";
+    }
+    rec["realizations"] = realizations;
+    p["recommended"] = rec;
+    props[name] = p;
+  }
+  out["properties"] = props;
+  out["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  out["peak_memory_mb"] = peak_memory_mb();
+  try {
+    write_whole(dir / "study.json", out.dump(2) + "\n");
+    write_whole(dir / "study.csv", csv.str());
+  } catch (const std::exception& e) {
+    std::cerr << "rvegen: " << e.what() << "\n";
+    return kExitOutput;
+  }
+  int missing = 0;
+  for (int n : not_reached) missing += n;
+  if (!quiet) {
+    std::cerr << "study: written " << (dir / "study.json").string() << " and study.csv\n";
+  }
+  if (missing > 0) {
+    std::cerr << "rvegen: " << missing << " realization(s) did not reach the target; they are "
+              << "left out of the statistics\n";
+    return kExitNotReached;
+  }
+  return kExitOk;
+}
+
+}  // namespace rvegen::cli

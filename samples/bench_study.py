@@ -24,15 +24,8 @@ build = args[0] if args else "build"
 exe = os.path.join(build, "bin", "rvegen")
 here = os.path.dirname(os.path.abspath(__file__))
 work = tempfile.mkdtemp(prefix="rvegen-study-")
-scene = {
-    "box": {"size": [0.6, 0.6, 0.6]},
-    "seed": 11,
-    "families": [{"name": "fibres", "shape": "cylinder", "radius": 0.02, "aspect_ratio": 10,
-                  "volume_fraction": 0.20, "orientation": {"law": "isotropic"}}],
-    "voxels": {"resolution": 60},
-    "materials": {"matrix": {"conductivity": 1.0}, "fibres": {"conductivity": 10.0}},
-    "homogenization": {"physics": ["conductivity"]},
-}
+with open(os.path.join(here, "fibres_study.json")) as f:
+    scene = json.load(f)  # the README's study scene
 path = os.path.join(work, "fibres.json")
 with open(path, "w") as f:
     json.dump(scene, f)
@@ -60,14 +53,13 @@ for name in ("conductivity.mean", "conductivity.k11", "volume_fraction.fibres",
                      % (name, r["size"], r["n"], r["mean"], r["sd"], r["ci95"][0], r["ci95"][1],
                         r["relative_error"], r["realizations_needed"]))
     law, rec = p["variance_law"], p["recommended"]
-    recs.append("| %s | %s | %s | %s |" % (
+    recs.append("| %s | %s | %s | %s | %s |" % (
         name, "exact" if law["exact"] else ("%.3g" % law["alpha"] if "alpha" in law else "-"),
         "%.3g" % law["integral_range"] if "integral_range" in law else "-",
-        ("%.3g (edge x%.2f%s)" % (rec["volume"], rec["size"],
-                                  ", extrapolated" if rec.get("extrapolated") else ""))
-        if rec.get("volume") else rec.get("note", "-")))
+        "%.3g (edge x%.2f)" % (rec["volume"], rec["size"]) if rec.get("volume") else "-",
+        rec["basis"]))
 lines += ["", "| property | fitted alpha | integral range | recommended volume for 1 %, "
-          "10 realizations |", "|---|---:|---:|---|"] + recs
+          "10 realizations | basis |", "|---|---:|---:|---|---|"] + recs
 text = "\n".join(lines) + "\n"
 print(text)
 with open(os.path.join(here, "charts", "study_table.md"), "w") as f:

@@ -72,7 +72,7 @@ def main(argv):
         ax.set_ylabel("variance between realizations")
         ax.set_title("variance law, target relative error %g" % study["target_error"], fontsize=9)
         ax.grid(alpha=0.3, which="both")
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=8, loc="best", framealpha=0.6)
     fig.tight_layout()
     fig.savefig(out, dpi=110)
     print("wrote", out)

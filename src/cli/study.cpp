@@ -476,29 +476,53 @@ int cmd_study(const std::vector<std::string>& args) {
       l["K"] = law.K;
       l["alpha"] = law.alpha;
     }
-    // Phase fractions have a point variance phi (1 - phi): their integral range.
-    const bool fraction =
-        name.rfind("volume_fraction", 0) == 0 || name.rfind("voxel_fraction", 0) == 0;
+    // Exact phase fractions have a point variance phi (1 - phi): their integral range (the
+    // voxel fractions' variance is mostly the discretization's, not the microstructure's).
     const double phi = sum.back().mean;
-    if (fraction && !law.exact && law.K > 0.0 && phi > 0.0 && phi < 1.0) {
+    if (name.rfind("volume_fraction", 0) == 0 && !law.exact && law.K > 0.0 && phi > 0.0 &&
+        phi < 1.0) {
       l["integral_range"] = law.integral_range(phi * (1.0 - phi));
     }
     p["variance_law"] = l;
+    // The size recommended: from the law where it decays (never below the smallest size
+    // studied, which then already meets the target), else the smallest size whose measured
+    // error meets the target.
+    int measured = -1;
+    for (size_t i = 0; i < sizes.size() && measured < 0; ++i) {
+      const SampleSummary& m = sum[i];
+      if (m.n >= 2 && m.mean != 0.0 &&
+          2.0 * m.sd / (std::abs(m.mean) * std::sqrt(double(m.n))) <= target_error) {
+        measured = static_cast<int>(i);
+      }
+    }
     json rec;
-    const double mean = sum.back().mean;
-    const double v = recommended_volume(law, mean, target_error, realizations);
+    rec["measured_size"] = measured >= 0 ? json(sizes[measured]) : json(nullptr);
+    const double v = recommended_volume(law, phi, target_error, realizations);
     if (law.exact) {
       rec["volume"] = volumes.front();
       rec["size"] = sizes.front();
-      rec["note"] = "the property does not vary between realizations: every size gives it";
-    } else if (std::isfinite(v) && law.K > 0.0) {
-      rec["volume"] = v;
-      rec["size"] = std::cbrt(v / base.box.volume());
-      // Outside the sizes studied, the law is extrapolated.
-      rec["extrapolated"] = v < volumes.front() || v > volumes.back();
+      rec["basis"] = "exact: the property does not vary between realizations";
+    } else if (std::isfinite(v) && law.K > 0.0 && law.alpha > 0.0) {
+      rec["law_volume"] = v;
+      if (v <= volumes.front()) {
+        rec["volume"] = volumes.front();
+        rec["size"] = sizes.front();
+        rec["basis"] = "law: the smallest size studied already meets the target";
+      } else {
+        rec["volume"] = v;
+        rec["size"] = std::cbrt(v / base.box.volume());
+        rec["basis"] = v > volumes.back() ? "law, extrapolated beyond the sizes studied" : "law";
+      }
+    } else if (measured >= 0) {
+      rec["volume"] = volumes[measured];
+      rec["size"] = sizes[measured];
+      rec["basis"] = "measured: the variance shows no decay over the sizes studied";
     } else {
       rec["volume"] = nullptr;
-      rec["note"] = "no decay of the variance with the volume was measured";
+      rec["size"] = nullptr;
+      rec["basis"] =
+          "none: no decay of the variance was measured and no size studied meets the target "
+          "(study larger sizes or more realizations)";
     }
     rec["realizations"] = realizations;
     p["recommended"] = rec;

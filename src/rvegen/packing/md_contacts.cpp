@@ -1,7 +1,11 @@
 #include "rvegen/packing/md_contacts.hpp"
 
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
+#include <thread>
 
 #include "rvegen/geometry/convex.hpp"
 #include "rvegen/model/body.hpp"
@@ -22,12 +26,14 @@ constexpr double kLineTestMinSine2 = 1e-6;
 // r (1 + grow), half length + grow r (they hold the pieces as they are).
 class PieceCache {
  public:
-  PieceCache(const std::vector<Body>& bodies, std::vector<std::vector<Shape>>* store)
-      : bodies_(bodies), store_(*store), scale_(bodies.size(), -1.0), grow_(bodies.size(), 0.0) {
-    store_.resize(bodies.size());
-  }
+  explicit PieceCache(const std::vector<Body>& bodies) : bodies_(bodies) {}
   /// Pieces of body i at the force scale of growth s (its chain's, or its own shape).
   const std::vector<Shape>& at(int i, double s, double grow) {
+    if (scale_.empty()) {  // sized when first asked: most passes meet no chain
+      store_.resize(bodies_.size());
+      scale_.assign(bodies_.size(), -1.0);
+      grow_.assign(bodies_.size(), 0.0);
+    }
     if (scale_[i] != s || grow_[i] != grow) {
       const Body& b = bodies_[i];
       std::vector<Shape>& out = store_[i];
@@ -55,7 +61,7 @@ class PieceCache {
 
  private:
   const std::vector<Body>& bodies_;
-  std::vector<std::vector<Shape>>& store_;
+  std::vector<std::vector<Shape>> store_;
   std::vector<double> scale_, grow_;
 };
 
@@ -185,6 +191,135 @@ double wall_pass(const std::vector<Body>& bodies, const Box& box, double s_out, 
   return s_in;
 }
 
+// What the pairs of one block do, in pair order: the additions to the bodies' moves and turns
+// (applied in that order after the block, so that every sum is formed as in one pass over all
+// pairs, whatever the number of threads), and the block's share of the pass's results.
+using Add = ContactBlock::Add;
+using Block = ContactBlock;
+
+// Pairs per block (the unit of work of a thread) and blocks tested before their additions are
+// applied (bounds the additions held at once). Fixed: the blocks, and so every sum, do not
+// depend on the number of threads.
+constexpr size_t kBlock = 2048, kWindow = 64;
+
+// A thread's work space: its chains' pieces, the pieces near a pair, the contacts of a pair.
+struct Scratch {
+  explicit Scratch(const std::vector<Body>& bodies) : pieces(bodies) {}
+  PieceCache pieces;
+  NearPieces near;
+  std::vector<Contact> found;
+};
+
+// The contact of the listed pair e at s_out, added to *block.
+void visit_pair(const std::vector<Body>& bodies, const std::vector<Vec3>& axis, const PairEntry& e,
+                double s_out, double skin, PieceCache* pieces, NearPieces* near,
+                std::vector<Contact>* found, Block* block) {
+  Block& out = *block;
+  const Body &ba = bodies[e.a], &bb = bodies[e.b];
+  const double fa = ba.force_scale(s_out), fb = bb.force_scale(s_out);
+  if (ba.shape.kind == ShapeKind::Sphere && bb.shape.kind == ShapeKind::Sphere) {
+    // Round pairs (balls, grains): round_contact without a tolerance (any overlap pushes;
+    // validity comes from out.s_in, not from this decision), after the bounding balls' test
+    // without a square root for the many listed pairs that are apart.
+    const double ra0 = ba.shape.radius, rb0 = bb.shape.radius;
+    const Vec3 d = bb.shape.center + e.shift - ba.shape.center;
+    const double rr0 = fa * ra0 + fb * rb0;
+    const double d2 = d.squaredNorm();
+    if (d2 >= rr0 * rr0) return;
+    const double dist = std::sqrt(d2);
+    double ra = 0.0, rb = 0.0;
+    const auto support_a = [&](const Vec3& u) { return ba.support_along(u); };
+    const auto support_b = [&](const Vec3& u) { return bb.support_along(u); };
+    const Contact c =
+        round_contact(ba.shape.center, d, dist, fa, support_a, fb, support_b, 0.0, &ra, &rb);
+    if (!c.overlap) return;
+    const Vec3& nrm = c.normal;
+    const double depth = c.depth;
+    out.max_overlap = std::max(out.max_overlap, depth / std::min(fa * ra, fb * rb));
+    out.s_in = std::min(out.s_in, (dist - ba.pad * ra - bb.pad * rb) / (ra + rb));
+    const Vec3 J = (kRelaxation * depth / (1.0 / ba.volume + 1.0 / bb.volume)) * nrm;
+    out.adds.push_back({e.a, false, Vec3(-(J / ba.volume)), Vec3::Zero()});
+    out.adds.push_back({e.b, false, Vec3(J / bb.volume), Vec3::Zero()});
+    return;
+  }
+  if (ba.radial && bb.radial && std::abs(axis[e.a].dot(axis[e.b])) >= 1.0 - kParallelCos) {
+    // Parallel fibres in closed form: they overlap exactly when their axial ranges do and
+    // their axes are nearer than the sum of the radii; the push is sideways only, so aligned
+    // fibres never butt end to end in columns.
+    const Vec3& u = axis[e.a];
+    const Vec3 d = bb.shape.center + e.shift - ba.shape.center;
+    const double along = std::abs(d.dot(u));
+    if (along >= ba.cap_half_at(s_out) + bb.cap_half_at(s_out)) return;
+    const Vec3 side = d - d.dot(u) * u;
+    const double dist = side.norm(), ra = ba.shape.radius, rb = bb.shape.radius;
+    const double reach = ba.cap_radius_at(s_out) + bb.cap_radius_at(s_out);
+    if (dist >= reach) return;
+    const double depth = reach - dist;
+    const Vec3 nrm = dist > 0.0 ? Vec3(side / dist) : any_orthogonal(u);
+    out.max_overlap = std::max(out.max_overlap, depth / (s_out * std::min(ra, rb)));
+    out.s_in = std::min(out.s_in, (dist - ba.half_gap - bb.half_gap) / (ra + rb));
+    const Vec3 J = (kRelaxation * depth / (1.0 / ba.volume + 1.0 / bb.volume)) * nrm;
+    out.adds.push_back({e.a, false, Vec3(-(J / ba.volume)), Vec3::Zero()});
+    out.adds.push_back({e.b, false, Vec3(J / bb.volume), Vec3::Zero()});
+    return;
+  }
+  {
+    // Bounding spheres, then capsules: most listed pairs of long bodies are apart.
+    const Vec3 cb = bb.shape.center + e.shift;
+    const double rr = ba.cap_radius_at(s_out) + bb.cap_radius_at(s_out);
+    const double ha = ba.cap_half_at(s_out), hb = bb.cap_half_at(s_out);
+    const double reach = rr + ha + hb;
+    if ((cb - ba.shape.center).squaredNorm() >= reach * reach) return;
+    // The distance between the axes' lines bounds the segments' from below: most listed
+    // pairs of long crossing fibres are told apart here, without the segment distance.
+    const Vec3 n = axis[e.a].cross(axis[e.b]);
+    const double n2 = n.squaredNorm(), dn = (cb - ba.shape.center).dot(n);
+    if (n2 > kLineTestMinSine2 && dn * dn >= rr * rr * n2) return;
+    const Vec3 ea = axis[e.a] * ha, eb = axis[e.b] * hb;
+    if (segment_distance2(ba.shape.center - ea, ba.shape.center + ea, cb - eb, cb + eb) >=
+        rr * rr) {
+      return;
+    }
+  }
+  if (ba.chain || bb.chain) {
+    // Chains: the exact tests piece by piece; each contact acts on the whole bodies, with the
+    // weight 1 / count (at full weight, the several contacts of a crossing would push it
+    // apart several times over).
+    const Vec3 ca = ba.shape.center, cb = bb.shape.center + e.shift;
+    out.chain_pairs.push_back(&e);
+    found->clear();
+    if (!chain_overlaps(bodies, axis, pieces, e, s_out, skin, false, near, found)) {
+      return;
+    }
+    const Shape A = ba.at_scale(s_out), B = bb.at_scale(s_out).translated(e.shift);
+    for (const Contact& c : *found) {
+      const double rel = c.depth / std::min(A.min_size(), B.min_size());
+      out.max_overlap = std::max(out.max_overlap, rel);
+      out.chain_depth = std::max(out.chain_depth, rel);
+    }
+    const BodyMobility ma = ba.mobility(A), mb = bb.mobility(B);
+    for (const Contact& c : *found) {
+      const ContactResponse r =
+          contact_response(ca, ma, cb, mb, c, kRelaxation / static_cast<double>(found->size()));
+      out.adds.push_back({e.a, true, r.move_a, r.turn_a});
+      out.adds.push_back({e.b, true, r.move_b, r.turn_b});
+    }
+    return;
+  }
+  const Shape A = ba.at_scale(s_out);
+  const Shape B = bb.at_scale(s_out).translated(e.shift);
+  const Contact c = intersect(A, B);
+  if (!c.overlap) return;
+  out.max_overlap = std::max(out.max_overlap, c.depth / std::min(A.min_size(), B.min_size()));
+  out.limits.push_back({separating_scale(ba, bb, e.shift, c.normal), &e});
+  // An inclusion against its own periodic image (e.a == e.b) only turns: the two moves
+  // cancel.
+  const ContactResponse r =
+      contact_response(A.center, ba.mobility(A), B.center, bb.mobility(B), c, kRelaxation);
+  out.adds.push_back({e.a, true, r.move_a, r.turn_a});
+  out.adds.push_back({e.b, true, r.move_b, r.turn_b});
+}
+
 }  // namespace
 
 double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& oriented,
@@ -198,130 +333,56 @@ double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& ori
     move[i].setZero();
     turn[i].setZero();
   }
-  auto add = [&](int i, const Vec3& dx, const Vec3& dw) {
-    move[i] += dx;
-    turn[i] += dw;
-  };
   // Spheres have no axis: zero (their capsules are points), set once (bodies keep their order).
   if (axis.size() != n) axis.assign(n, Vec3::Zero());
   for (int i : oriented) axis[i] = principal_axis(bodies[i].shape);
   double s_in = s_out;
   double& max_overlap = sums->max_overlap;
   max_overlap = 0.0;
-  size_t visited = 0;
-  PieceCache pieces(bodies, &sums->pieces);  // chains
+  PieceCache pieces(bodies);  // chains, for the certification below
   NearPieces near;
   std::vector<const PairEntry*> chain_pairs;  // pairs with a chain whose capsules meet
   double chain_depth = 0.0;                   // their deepest overlap, relative
-  std::vector<Contact> found;                 // the overlapping pieces of one pair
   // Pairs that overlap at s_out (exact test) and the scale their contact plane certifies.
   std::vector<std::pair<double, const PairEntry*>>& limits = sums->limits;
   limits.clear();
-  for (const PairEntry& e : pairs) {
-    if ((++visited & 4095) == 0 && tick) tick();
-    const Body &ba = bodies[e.a], &bb = bodies[e.b];
-    const double fa = ba.force_scale(s_out), fb = bb.force_scale(s_out);
-    if (ba.shape.kind == ShapeKind::Sphere && bb.shape.kind == ShapeKind::Sphere) {
-      // Round pairs (balls, grains): round_contact without a tolerance (any overlap pushes;
-      // validity comes from s_in, not from this decision), after the bounding balls' test
-      // without a square root for the many listed pairs that are apart.
-      const double ra0 = ba.shape.radius, rb0 = bb.shape.radius;
-      const Vec3 d = bb.shape.center + e.shift - ba.shape.center;
-      const double rr0 = fa * ra0 + fb * rb0;
-      const double d2 = d.squaredNorm();
-      if (d2 >= rr0 * rr0) continue;
-      const double dist = std::sqrt(d2);
-      double ra = 0.0, rb = 0.0;
-      const auto support_a = [&](const Vec3& u) { return ba.support_along(u); };
-      const auto support_b = [&](const Vec3& u) { return bb.support_along(u); };
-      const Contact c =
-          round_contact(ba.shape.center, d, dist, fa, support_a, fb, support_b, 0.0, &ra, &rb);
-      if (!c.overlap) continue;
-      const Vec3& nrm = c.normal;
-      const double depth = c.depth;
-      max_overlap = std::max(max_overlap, depth / std::min(fa * ra, fb * rb));
-      s_in = std::min(s_in, (dist - ba.pad * ra - bb.pad * rb) / (ra + rb));
-      const Vec3 J = (kRelaxation * depth / (1.0 / ba.volume + 1.0 / bb.volume)) * nrm;
-      move[e.a] -= J / ba.volume;
-      move[e.b] += J / bb.volume;
-      continue;
-    }
-    if (ba.radial && bb.radial && std::abs(axis[e.a].dot(axis[e.b])) >= 1.0 - kParallelCos) {
-      // Parallel fibres in closed form: they overlap exactly when their axial ranges do and
-      // their axes are nearer than the sum of the radii; the push is sideways only, so aligned
-      // fibres never butt end to end in columns.
-      const Vec3& u = axis[e.a];
-      const Vec3 d = bb.shape.center + e.shift - ba.shape.center;
-      const double along = std::abs(d.dot(u));
-      if (along >= ba.cap_half_at(s_out) + bb.cap_half_at(s_out)) continue;
-      const Vec3 side = d - d.dot(u) * u;
-      const double dist = side.norm(), ra = ba.shape.radius, rb = bb.shape.radius;
-      const double reach = ba.cap_radius_at(s_out) + bb.cap_radius_at(s_out);
-      if (dist >= reach) continue;
-      const double depth = reach - dist;
-      const Vec3 nrm = dist > 0.0 ? Vec3(side / dist) : any_orthogonal(u);
-      max_overlap = std::max(max_overlap, depth / (s_out * std::min(ra, rb)));
-      s_in = std::min(s_in, (dist - ba.half_gap - bb.half_gap) / (ra + rb));
-      const Vec3 J = (kRelaxation * depth / (1.0 / ba.volume + 1.0 / bb.volume)) * nrm;
-      move[e.a] -= J / ba.volume;
-      move[e.b] += J / bb.volume;
-      continue;
-    }
-    {
-      // Bounding spheres, then capsules: most listed pairs of long bodies are apart.
-      const Vec3 cb = bb.shape.center + e.shift;
-      const double rr = ba.cap_radius_at(s_out) + bb.cap_radius_at(s_out);
-      const double ha = ba.cap_half_at(s_out), hb = bb.cap_half_at(s_out);
-      const double reach = rr + ha + hb;
-      if ((cb - ba.shape.center).squaredNorm() >= reach * reach) continue;
-      // The distance between the axes' lines bounds the segments' from below: most listed
-      // pairs of long crossing fibres are told apart here, without the segment distance.
-      const Vec3 n = axis[e.a].cross(axis[e.b]);
-      const double n2 = n.squaredNorm(), dn = (cb - ba.shape.center).dot(n);
-      if (n2 > kLineTestMinSine2 && dn * dn >= rr * rr * n2) continue;
-      const Vec3 ea = axis[e.a] * ha, eb = axis[e.b] * hb;
-      if (segment_distance2(ba.shape.center - ea, ba.shape.center + ea, cb - eb, cb + eb) >=
-          rr * rr) {
-        continue;
+  // The pairs in blocks of kBlock, kWindow blocks at a time: the blocks of a window are tested
+  // on all cores, then their additions applied in block order.
+  const size_t nb = (pairs.size() + kBlock - 1) / kBlock;
+  std::vector<Block>& blocks = sums->blocks;
+  if (blocks.size() < std::min(nb, kWindow)) blocks.resize(std::min(nb, kWindow));
+  tbb::enumerable_thread_specific<Scratch> scratch([&] { return Scratch(bodies); });
+  const auto caller = std::this_thread::get_id();
+  for (size_t w0 = 0; w0 < nb; w0 += kWindow) {
+    const size_t w1 = std::min(nb, w0 + kWindow);
+    tbb::parallel_for(w0, w1, [&](size_t k) {
+      if (tick && std::this_thread::get_id() == caller) tick();
+      Block& out = blocks[k - w0];
+      out.adds.clear();
+      out.chain_pairs.clear();
+      out.limits.clear();
+      out.s_in = s_out;
+      out.max_overlap = 0.0;
+      out.chain_depth = 0.0;
+      Scratch& sc = scratch.local();
+      const size_t end = std::min(pairs.size(), (k + 1) * kBlock);
+      for (size_t i = k * kBlock; i < end; ++i) {
+        visit_pair(bodies, axis, pairs[i], s_out, skin, &sc.pieces, &sc.near, &sc.found, &out);
       }
+    });
+    for (size_t k = w0; k < w1; ++k) {
+      if (tick) tick();
+      const Block& b = blocks[k - w0];
+      for (const Add& a : b.adds) {
+        move[a.body] += a.dx;
+        if (a.turns) turn[a.body] += a.dw;
+      }
+      chain_pairs.insert(chain_pairs.end(), b.chain_pairs.begin(), b.chain_pairs.end());
+      limits.insert(limits.end(), b.limits.begin(), b.limits.end());
+      s_in = std::min(s_in, b.s_in);
+      max_overlap = std::max(max_overlap, b.max_overlap);
+      chain_depth = std::max(chain_depth, b.chain_depth);
     }
-    if (ba.chain || bb.chain) {
-      // Chains: the exact tests piece by piece; each contact acts on the whole bodies, with the
-      // weight 1 / count (at full weight, the several contacts of a crossing would push it
-      // apart several times over).
-      const Vec3 ca = ba.shape.center, cb = bb.shape.center + e.shift;
-      chain_pairs.push_back(&e);
-      found.clear();
-      if (!chain_overlaps(bodies, axis, &pieces, e, s_out, skin, false, &near, &found)) {
-        continue;
-      }
-      const Shape A = ba.at_scale(s_out), B = bb.at_scale(s_out).translated(e.shift);
-      for (const Contact& c : found) {
-        const double rel = c.depth / std::min(A.min_size(), B.min_size());
-        max_overlap = std::max(max_overlap, rel);
-        chain_depth = std::max(chain_depth, rel);
-      }
-      const BodyMobility ma = ba.mobility(A), mb = bb.mobility(B);
-      for (const Contact& c : found) {
-        const ContactResponse r =
-            contact_response(ca, ma, cb, mb, c, kRelaxation / static_cast<double>(found.size()));
-        add(e.a, r.move_a, r.turn_a);
-        add(e.b, r.move_b, r.turn_b);
-      }
-      continue;
-    }
-    const Shape A = ba.at_scale(s_out);
-    const Shape B = bb.at_scale(s_out).translated(e.shift);
-    const Contact c = intersect(A, B);
-    if (!c.overlap) continue;
-    max_overlap = std::max(max_overlap, c.depth / std::min(A.min_size(), B.min_size()));
-    limits.push_back({separating_scale(ba, bb, e.shift, c.normal), &e});
-    // An inclusion against its own periodic image (e.a == e.b) only turns: the two moves
-    // cancel.
-    const ContactResponse r =
-        contact_response(A.center, ba.mobility(A), B.center, bb.mobility(B), c, kRelaxation);
-    add(e.a, r.move_a, r.turn_a);
-    add(e.b, r.move_b, r.turn_b);
   }
   s_in = std::min(s_in, refined_scale(bodies, s_out, &limits));
   // Walls: their own pass.

@@ -13,12 +13,25 @@
 
 namespace rvegen::md {
 
+/// The contacts of one block of listed pairs, in pair order (md_contacts.cpp).
+struct ContactBlock {
+  struct Add {
+    int body;
+    bool turns;  // false: a move only
+    Vec3 dx, dw;
+  };
+  std::vector<Add> adds;
+  std::vector<const PairEntry*> chain_pairs;
+  std::vector<std::pair<double, const PairEntry*>> limits;
+  double s_in = 0.0, max_overlap = 0.0, chain_depth = 0.0;
+};
+
 /// What the contacts of one step do, summed per body.
 struct ContactSums {
-  std::vector<Vec3> move, turn;            // displacements and rotation vectors
-  double max_overlap = 0.0;                // largest overlap depth relative to the smaller body
-  std::vector<Vec3> axis;                  // principal axis of every oriented body this step
-  std::vector<std::vector<Shape>> pieces;  // storage of the chains' pieces (reused)
+  std::vector<Vec3> move, turn;      // displacements and rotation vectors
+  double max_overlap = 0.0;          // largest overlap depth relative to the smaller body
+  std::vector<Vec3> axis;            // principal axis of every oriented body this step
+  std::vector<ContactBlock> blocks;  // work space of the pass (reused)
   std::vector<std::pair<double, const PairEntry*>> limits;  // work space (reused)
 };
 
@@ -27,7 +40,9 @@ struct ContactSums {
 /// s_out) at which the current configuration is valid: pairs that do not overlap at s_out are
 /// valid below it, the others below the scale at which the plane of their contact normal
 /// separates them (for the pairs that limit it most, the scale bisected with the exact test).
-/// `tick` is called every 4096 pairs.
+/// `tick` is called on the calling thread every block of pairs (2048). The pairs are tested on
+/// all cores (TBB), in fixed blocks whose results are applied in pair order: the sums, and so the
+/// packing, do not depend on the number of threads.
 ///
 /// Chains are not convex: a pair apart at s_out may meet when both shrink, so their scale is
 /// tested, not derived. Their contacts are those of pieces grown by a relative `skin` (radius

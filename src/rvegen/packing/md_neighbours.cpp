@@ -1,8 +1,13 @@
 #include "rvegen/packing/md_neighbours.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <thread>
 
 #include "rvegen/geometry/convex.hpp"
 #include "rvegen/model/neighbours.hpp"
@@ -19,6 +24,15 @@ constexpr size_t kRefreshShare = 32;  // a full build when over 1/32 of the bodi
 
 // A candidate pair {a, b, kx, ky, kz}: ordered lexicographically.
 using Key = std::array<int, 5>;
+
+// f(i) for i in [0, n) on all cores, in chunks of about `grain`.
+template <class F>
+void each_index(size_t n, size_t grain, const F& f) {
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, grain),
+                    [&](const tbb::blocked_range<size_t>& r) {
+                      for (size_t i = r.begin(); i != r.end(); ++i) f(i);
+                    });
+}
 
 // Canonical key of a candidate pair: a <= b, b taken at its centre + k * box (k in box sizes);
 // for a == b one of k and -k.
@@ -232,13 +246,26 @@ bool VerletList::refresh(std::vector<Body>* all, const Box& box, double s_out,
     links_[i].clear();
   }
   // Find them again: the covering spheres of a refreshed body against all kept ones (a pair of
-  // two refreshed bodies from the side of the larger index).
-  stamp_.assign(n, -1);
-  stamp_k_.resize(n);
-  std::vector<Link>& seen = seen_;
-  int done = 0;
-  for (int i : ids) {
-    if (tick && (++done & 63) == 0) tick();
+  // two refreshed bodies from the side of the larger index). Each body's links are found on
+  // all cores (the search reads the grid only), then added in the order of `ids`, both ways, as
+  // one pass would.
+  if (!find_scratch_)
+    find_scratch_ = std::make_shared<tbb::enumerable_thread_specific<FindScratch>>();
+  auto& scratch = *static_cast<tbb::enumerable_thread_specific<FindScratch>*>(find_scratch_.get());
+  ++find_calls_;
+  found_.resize(ids.size());
+  const auto caller = std::this_thread::get_id();
+  each_index(ids.size(), 64, [&](size_t t) {
+    if (tick && (t & 63) == 63 && std::this_thread::get_id() == caller) tick();
+    const int i = ids[t];
+    FindScratch& sc = scratch.local();
+    if (sc.stamp.size() != n) {
+      sc.stamp.assign(n, -1);
+      sc.stamp_k.resize(n);
+    }
+    // Stamps name the call and the body: no reset between calls.
+    const long long mark = find_calls_ * static_cast<long long>(n) + i;
+    std::vector<Link>& seen = found_[t];
     seen.clear();
     for (int p = sub_first_[i]; p < sub_first_[i] + sub_count_[i]; ++p) {
       const Vec3& c = sub_c_[p];
@@ -273,28 +300,39 @@ bool VerletList::refresh(std::vector<Body>* all, const Box& box, double s_out,
                 k = {key[2], key[3], key[4]};
               }
               // Each (body, image) once: the first image met is stamped, others are looked up.
-              if (stamp_[j] == i) {
-                if (stamp_k_[j] == k) continue;
+              if (sc.stamp[j] == mark) {
+                if (sc.stamp_k[j] == k) continue;
                 bool met = false;
                 for (const Link& l : seen) met |= (l.other == j && l.k == k);
                 if (met) continue;
               } else {
-                stamp_[j] = i;
-                stamp_k_[j] = k;
+                sc.stamp[j] = mark;
+                sc.stamp_k[j] = k;
               }
               seen.push_back({j, k});
-              const Vec3 shift(k[0] * box.size[0], k[1] * box.size[1], k[2] * box.size[2]);
-              const double cr = cap_r_[i] + cap_r_[j];
-              if (segment_distance2(seg_p_[i], seg_q_[i], seg_p_[j] + shift, seg_q_[j] + shift) >
-                  cr * cr) {
-                continue;
-              }
-              links_[i].push_back({j, k});
-              if (j != i) links_[j].push_back({i, {-k[0], -k[1], -k[2]}});
             }
           }
         }
       }
+    }
+    // Of the (body, image) met, those whose capsules meet.
+    size_t kept = 0;
+    for (const Link& l : seen) {
+      const int j = l.other;
+      const Vec3 shift(l.k[0] * box.size[0], l.k[1] * box.size[1], l.k[2] * box.size[2]);
+      const double cr = cap_r_[i] + cap_r_[j];
+      if (segment_distance2(seg_p_[i], seg_q_[i], seg_p_[j] + shift, seg_q_[j] + shift) > cr * cr) {
+        continue;
+      }
+      seen[kept++] = l;
+    }
+    seen.resize(kept);
+  });
+  for (size_t t = 0; t < ids.size(); ++t) {
+    const int i = ids[t];
+    for (const Link& l : found_[t]) {
+      links_[i].push_back(l);
+      if (l.other != i) links_[l.other].push_back({i, {-l.k[0], -l.k[1], -l.k[2]}});
     }
   }
   return true;
@@ -302,14 +340,26 @@ bool VerletList::refresh(std::vector<Body>* all, const Box& box, double s_out,
 
 // The flat list for the contact pass: each pair once, from the side of the smaller index.
 void VerletList::emit_pairs(const Box& box) {
-  pairs_.clear();
-  for (size_t a = 0; a < links_.size(); ++a) {
+  // Counted per body, then filled on all cores at each body's place: the list is the one a
+  // single pass over the bodies makes.
+  const size_t n = links_.size();
+  std::vector<size_t>& first = emit_first_;
+  first.assign(n + 1, 0);
+  each_index(n, 1024, [&](size_t a) {
+    size_t c = 0;
+    for (const Link& l : links_[a]) c += l.other >= static_cast<int>(a);
+    first[a + 1] = c;
+  });
+  for (size_t a = 0; a < n; ++a) first[a + 1] += first[a];
+  pairs_.resize(first[n]);
+  each_index(n, 1024, [&](size_t a) {
+    size_t at = first[a];
     for (const Link& l : links_[a]) {
       if (l.other < static_cast<int>(a)) continue;
-      pairs_.push_back({static_cast<int>(a), l.other,
-                        Vec3(l.k[0] * box.size[0], l.k[1] * box.size[1], l.k[2] * box.size[2])});
+      pairs_[at++] = {static_cast<int>(a), l.other,
+                      Vec3(l.k[0] * box.size[0], l.k[1] * box.size[1], l.k[2] * box.size[2])};
     }
-  }
+  });
 }
 
 void VerletList::update(std::vector<Body>* all, const Box& box, double s_out,
@@ -319,8 +369,11 @@ void VerletList::update(std::vector<Body>* all, const Box& box, double s_out,
   if (rebuilds_ == 0 || built_scale_.size() != n) return build(all, box, s_out, tick);
   std::vector<int>& ids = stale_ids_;
   ids.clear();
+  std::vector<char>& flag = is_stale_;
+  flag.resize(n);
+  each_index(n, 4096, [&](size_t i) { flag[i] = stale_body(bodies[i], i, s_out) ? 1 : 0; });
   for (size_t i = 0; i < n; ++i) {
-    if (stale_body(bodies[i], i, s_out)) ids.push_back(static_cast<int>(i));
+    if (flag[i]) ids.push_back(static_cast<int>(i));
   }
   if (ids.empty()) return;
   // Refreshed bodies leave their old covering spheres behind: rebuild once they outnumber the

@@ -5,6 +5,7 @@
 
 #include <array>
 #include <functional>
+#include <memory>
 #include <vector>
 
 #include "rvegen/model/neighbours.hpp"
@@ -92,9 +93,15 @@ class VerletList {
   // Work space, kept for its capacity.
   std::vector<SpherePair> sphere_pairs_;
   std::vector<std::array<int, 5>> keys_;
-  std::vector<int> stamp_;
-  std::vector<std::array<int, 3>> stamp_k_;
-  std::vector<Link> seen_;
+  // refresh: each thread's stamps (by call and body), each refreshed body's links found.
+  struct FindScratch {
+    std::vector<long long> stamp;
+    std::vector<std::array<int, 3>> stamp_k;
+  };
+  std::shared_ptr<void> find_scratch_;  // tbb::enumerable_thread_specific<FindScratch>
+  long long find_calls_ = 0;
+  std::vector<std::vector<Link>> found_;
+  std::vector<size_t> emit_first_;
   std::vector<int> stale_ids_;
   std::vector<char> is_stale_;
   size_t dead_spheres_ = 0;

@@ -332,7 +332,9 @@ int vtkRVEGenerator::RequestData(vtkInformation* request, vtkInformationVector**
       monitor.fraction = [this](double f) { this->UpdateProgress(kPackingShare * f); };
       monitor.cancelled = [this] { return this->GetAbortExecute() != 0; };
       try {
-        cache->result = rvegen::generate(scene, monitor);
+        // The packing on this->Threads cores (the same RVE for any number).
+        tbb::task_arena packing(this->Threads > 0 ? this->Threads : tbb::task_arena::automatic);
+        packing.execute([&] { cache->result = rvegen::generate(scene, monitor); });
         packed_here = 1;
       } catch (const rvegen::Cancelled&) {
         aborted = true;

@@ -161,8 +161,9 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   vtkSetClampMacro(MeshUpTo, int, 0, 1000000000);
   vtkGetMacro(MeshUpTo, int);
 
-  /// Threads for the voxels (0: all cores). Under MPI with several ranks on one machine, give
-  /// each rank its share (cores / ranks) rather than letting every rank use all cores.
+  /// Threads for the packing and the voxels (0: all cores; the same RVE with any number). Under
+  /// MPI with several ranks on one machine, give each rank its share (cores / ranks) rather than
+  /// letting every rank use all cores.
   vtkSetClampMacro(Threads, int, 0, 1024);
   vtkGetMacro(Threads, int);
 

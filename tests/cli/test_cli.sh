@@ -616,6 +616,21 @@ bad ti_half "{$BOX,$FIB_FAM,\"materials\":{\"fibres\":{\"axial_young\":230,\"tra
 bad ti_both "{$BOX,$FIB_FAM,\"materials\":{\"fibres\":{\"conductivity\":3,\"axial_conductivity\":1,\"transverse_conductivity\":1}}}" "not both"
 bad ti_unstable "{$BOX,$FIB_FAM,\"materials\":{\"fibres\":{\"axial_young\":1,\"transverse_young\":1,\"axial_shear\":1,\"axial_poisson\":0.9,\"transverse_poisson\":0.3}}}" "no stable material"
 
+# --threads: the same inclusions.json, byte for byte, on one thread and on two.
+cat >"$WORK/threads.json" <<'JSON'
+{"box":{"size":[0.5,0.5,0.5]},"seed":4,"md":{"max_steps":300},"families":[
+ {"shape":"sphere","radius":0.02,"volume_fraction":0.15},
+ {"shape":"cylinder","radius":0.015,"aspect_ratio":6,"volume_fraction":0.05},
+ {"shape":"cylinder","radius":0.02,"aspect_ratio":6,"count":5,
+  "waviness":{"amplitude":0.02,"wavelength":0.2}}],"outputs":["inclusions"]}
+JSON
+expect_rc 0 "$RVEGEN" generate -q "$WORK/threads.json" -o "$WORK/threads1" --threads 1
+expect_rc 0 "$RVEGEN" generate -q "$WORK/threads.json" -o "$WORK/threads2" --threads 2
+cmp -s "$WORK/threads1/inclusions.json" "$WORK/threads2/inclusions.json" ||
+  fail "--threads 1 and 2 give different inclusions.json"
+expect_rc 2 "$RVEGEN" generate -q "$WORK/threads.json" -o "$WORK/threads0" --threads 0
+grep -q -- "--threads" "$WORK/last.err" || fail "--threads 0 not named"
+
 # rvegen study: realizations at two sizes, then resumed with more: the same statistics as a
 # study run at once with the same seeds (one job against all cores); each realization is
 # written once with its seed; counts scale with the volume; bad input names the option.

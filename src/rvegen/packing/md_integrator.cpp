@@ -1,5 +1,8 @@
 #include "rvegen/packing/md_integrator.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <Eigen/Geometry>
 #include <cmath>
 
@@ -18,21 +21,29 @@ constexpr double kMaxTurn = 0.2;   // radians per step
 Integrator::Integrator(size_t bodies) : vel_(bodies, Vec3::Zero()), omega_(bodies, Vec3::Zero()) {}
 
 void Integrator::step(const ContactSums& sums, std::vector<Body>* bodies, VerletList* list) {
-  for (size_t i = 0; i < bodies->size(); ++i) {
-    Body& b = (*bodies)[i];
-    vel_[i] = kMomentum * vel_[i] + sums.move[i];
-    b.shape.center += vel_[i];
-    if (b.turn != Turn::kNone) {
-      omega_[i] = kMomentum * omega_[i] + sums.turn[i];
-      double ang = omega_[i].norm();
-      if (ang > kMaxTurn) {
-        omega_[i] *= kMaxTurn / ang;
-        ang = kMaxTurn;
-      }
-      if (ang > 0.0) {
-        b.turn_by(Eigen::AngleAxisd(ang, omega_[i] / ang).toRotationMatrix());
-        list->turned(static_cast<int>(i), ang);
-      }
+  // Each body on its own (all cores).
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, bodies->size(), 4096),
+                    [&](const tbb::blocked_range<size_t>& r) {
+                      for (size_t i = r.begin(); i != r.end(); ++i)
+                        move_body(sums, i, bodies, list);
+                    });
+}
+
+void Integrator::move_body(const ContactSums& sums, size_t i, std::vector<Body>* bodies,
+                           VerletList* list) {
+  Body& b = (*bodies)[i];
+  vel_[i] = kMomentum * vel_[i] + sums.move[i];
+  b.shape.center += vel_[i];
+  if (b.turn != Turn::kNone) {
+    omega_[i] = kMomentum * omega_[i] + sums.turn[i];
+    double ang = omega_[i].norm();
+    if (ang > kMaxTurn) {
+      omega_[i] *= kMaxTurn / ang;
+      ang = kMaxTurn;
+    }
+    if (ang > 0.0) {
+      b.turn_by(Eigen::AngleAxisd(ang, omega_[i] / ang).toRotationMatrix());
+      list->turned(static_cast<int>(i), ang);
     }
   }
 }

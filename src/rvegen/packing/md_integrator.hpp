@@ -19,6 +19,7 @@ class Integrator {
   void step(const ContactSums& sums, std::vector<Body>* bodies, VerletList* list);
 
  private:
+  void move_body(const ContactSums& sums, size_t i, std::vector<Body>* bodies, VerletList* list);
   std::vector<Vec3> vel_, omega_;
 };
 

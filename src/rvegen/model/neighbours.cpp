@@ -1,7 +1,10 @@
 #include "rvegen/model/neighbours.hpp"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
+#include <thread>
 
 namespace rvegen {
 
@@ -128,100 +131,160 @@ bool NeighbourGrid::nearest_image_suffices() const {
   return n_[0] >= 3 && n_[1] >= 3 && n_[2] >= 3;
 }
 
+namespace {
+
+// The two-level broad phase, set up for one set of spheres: spheres up to twice the median
+// radius are "small" and sorted into a grid sized for them; larger ones are registered in
+// every cell they reach.
+class PairSearch {
+ public:
+  PairSearch(const Box& box, const std::vector<Vec3>& c, const std::vector<double>& r)
+      : box_(box), c_(c), r_(r), grid_(box, 1.0, 1), reach_grid_(box, 1.0, 1) {
+    const size_t n = c.size();
+    std::vector<double> radii(r);
+    std::nth_element(radii.begin(), radii.begin() + radii.size() / 2, radii.end());
+    const double r_cut = 2.0 * radii[radii.size() / 2];
+    for (size_t p = 0; p < n; ++p) (r[p] <= r_cut ? small_ : large_).push_back(static_cast<int>(p));
+    if (large_.size() > 2000) {
+      // Too many large spheres for the direct large-large pass: one level for all.
+      small_.clear();
+      large_.clear();
+      for (size_t p = 0; p < n; ++p) small_.push_back(static_cast<int>(p));
+    }
+    for (int p : small_) r_small_ = std::max(r_small_, r[p]);
+    // The grid's cells, filled by a counting sort (the spheres are all known: no per-cell
+    // lists).
+    grid_ = NeighbourGrid(box, 2.0 * r_small_, 4 * small_.size());
+    start_.assign(grid_.cell_count() + 1, 0);
+    std::vector<int> cell_of(small_.size());
+    order_.resize(small_.size());
+    for (size_t t = 0; t < small_.size(); ++t) {
+      cell_of[t] = static_cast<int>(grid_.cell_index(c[small_[t]]));
+      ++start_[cell_of[t] + 1];
+    }
+    for (size_t k = 0; k + 1 < start_.size(); ++k) start_[k + 1] += start_[k];
+    std::vector<int> fill(start_.begin(), start_.end() - 1);
+    for (size_t t = 0; t < small_.size(); ++t) order_[fill[cell_of[t]]++] = small_[t];
+    nearest_ = grid_.nearest_image_suffices();
+    if (!large_.empty()) {
+      reach_grid_ = NeighbourGrid(box, 2.0 * r_small_, 4 * small_.size());
+      for (int q : large_) reach_grid_.insert_reaching(q, c[q], r[q] + r_small_);
+    }
+  }
+  size_t small_count() const { return small_.size(); }
+  size_t large_count() const { return large_.size(); }
+
+  /// The pairs of the small sphere small[t] with the small spheres of larger index.
+  template <class Emit>
+  void small_pairs(size_t t, const Emit& emit) const {
+    const int p = small_[t];
+    grid_.for_each_neighbour_cell(c_[p], [&](size_t cell) {
+      for (int u = start_[cell]; u < start_[cell + 1]; ++u) {
+        const int q = order_[u];
+        if (q < p) continue;
+        if (!nearest_) {
+          all_images(p, q, emit);
+          continue;
+        }
+        if (q == p) continue;  // a small sphere cannot reach its own image (3 cells per axis)
+        // Only the nearest image of q can be within reach: the box is at least 3 reaches wide.
+        Vec3 d = c_[q] - c_[p];
+        const std::array<int, 3> k = to_nearest_image(box_, &d);
+        const double rr = r_[p] + r_[q];
+        if (d.squaredNorm() <= rr * rr) emit({p, q, k});
+      }
+    });
+  }
+  /// The pairs of small sphere small[t] with the large ones.
+  template <class Emit>
+  void small_large_pairs(size_t t, const Emit& emit) const {
+    reach_grid_.for_each_in_cell(c_[small_[t]], [&](int q) { all_images(small_[t], q, emit); });
+  }
+  /// The pairs of large[u] with large[v], v >= u.
+  template <class Emit>
+  void large_pairs(size_t u, const Emit& emit) const {
+    for (size_t v = u; v < large_.size(); ++v) all_images(large_[u], large_[v], emit);
+  }
+
+ private:
+  template <class Emit>
+  void all_images(int p, int q, const Emit& emit) const {
+    for_each_image(box_, c_[p], r_[p], c_[q], r_[q], [&](const Vec3& s) {
+      std::array<int, 3> k = {0, 0, 0};
+      if (box_.periodic) {
+        for (int a = 0; a < 3; ++a) {
+          k[a] = static_cast<int>(std::floor(s[a] / box_.size[a] + 0.5));
+        }
+      }
+      if (p == q && k[0] == 0 && k[1] == 0 && k[2] == 0) return;
+      emit({p, q, k});
+    });
+  }
+
+  const Box& box_;
+  const std::vector<Vec3>& c_;
+  const std::vector<double>& r_;
+  std::vector<int> small_, large_, start_, order_;
+  double r_small_ = 0.0;
+  NeighbourGrid grid_, reach_grid_;
+  bool nearest_ = true;
+};
+
+}  // namespace
+
 void sphere_pairs(const Box& box, const std::vector<Vec3>& c, const std::vector<double>& r,
                   std::vector<SpherePair>* pairs, const std::function<void()>& tick) {
   pairs->clear();
-  for_each_sphere_pair(
-      box, c, r,
-      [pairs](const SpherePair& p) {
-        pairs->push_back(p);
-        return true;
-      },
-      tick);
+  if (c.empty()) return;
+  const PairSearch search(box, c, r);
+  // The small spheres on all cores, in blocks whose pairs are joined in block order: the list
+  // is the one a single pass makes.
+  constexpr size_t kBlock = 1024;
+  const size_t nb = (search.small_count() + kBlock - 1) / kBlock;
+  std::vector<std::vector<SpherePair>> found(nb);
+  const auto caller = std::this_thread::get_id();
+  tbb::parallel_for(size_t(0), nb, [&](size_t b) {
+    if (tick && std::this_thread::get_id() == caller) tick();
+    const size_t end = std::min(search.small_count(), (b + 1) * kBlock);
+    for (size_t t = b * kBlock; t < end; ++t) {
+      search.small_pairs(t, [&](const SpherePair& p) { found[b].push_back(p); });
+    }
+  });
+  size_t total = 0;
+  for (const auto& f : found) total += f.size();
+  pairs->reserve(total);
+  for (const auto& f : found) pairs->insert(pairs->end(), f.begin(), f.end());
+  auto add = [pairs](const SpherePair& p) { pairs->push_back(p); };
+  for (size_t t = 0; t < search.small_count() && search.large_count() > 0; ++t) {
+    if (tick && (t & 1023) == 0) tick();
+    search.small_large_pairs(t, add);
+  }
+  for (size_t u = 0; u < search.large_count(); ++u) {
+    if (tick) tick();
+    search.large_pairs(u, add);
+  }
 }
 
 bool for_each_sphere_pair(const Box& box, const std::vector<Vec3>& c, const std::vector<double>& r,
                           const std::function<bool(const SpherePair&)>& f,
                           const std::function<void()>& tick) {
-  const size_t n = c.size();
-  if (n == 0) return true;
+  if (c.empty()) return true;
+  const PairSearch search(box, c, r);
   bool go = true;  // false once f asked to stop
   auto emit = [&](const SpherePair& p) {
     if (go) go = f(p);
   };
-  // Spheres up to twice the median radius are "small": the grid's cells are sized for them.
-  std::vector<double> radii(r);
-  std::nth_element(radii.begin(), radii.begin() + radii.size() / 2, radii.end());
-  const double r_cut = 2.0 * radii[radii.size() / 2];
-  std::vector<int> small, large;
-  for (size_t p = 0; p < n; ++p) (r[p] <= r_cut ? small : large).push_back(static_cast<int>(p));
-  if (large.size() > 2000) {
-    // Too many large spheres for the direct large-large pass: one level for all.
-    small.clear();
-    large.clear();
-    for (size_t p = 0; p < n; ++p) small.push_back(static_cast<int>(p));
-  }
-  double r_small = 0.0;
-  for (int p : small) r_small = std::max(r_small, r[p]);
-  // The grid's cells, filled by a counting sort (the spheres are all known: no per-cell lists).
-  NeighbourGrid grid(box, 2.0 * r_small, 4 * small.size());
-  std::vector<int> start(grid.cell_count() + 1, 0), cell_of(small.size()), order(small.size());
-  for (size_t t = 0; t < small.size(); ++t) {
-    cell_of[t] = static_cast<int>(grid.cell_index(c[small[t]]));
-    ++start[cell_of[t] + 1];
-  }
-  for (size_t k = 0; k + 1 < start.size(); ++k) start[k + 1] += start[k];
-  {
-    std::vector<int> fill(start.begin(), start.end() - 1);
-    for (size_t t = 0; t < small.size(); ++t) order[fill[cell_of[t]]++] = small[t];
-  }
-  auto lattice = [&](const Vec3& shift) {
-    std::array<int, 3> k = {0, 0, 0};
-    if (box.periodic) {
-      for (int a = 0; a < 3; ++a) k[a] = static_cast<int>(std::floor(shift[a] / box.size[a] + 0.5));
-    }
-    return k;
-  };
-  auto all_images = [&](int p, int q) {
-    for_each_image(box, c[p], r[p], c[q], r[q], [&](const Vec3& s) {
-      const std::array<int, 3> k = lattice(s);
-      if (p == q && k[0] == 0 && k[1] == 0 && k[2] == 0) return;
-      emit({p, q, k});
-    });
-  };
-  const bool nearest = grid.nearest_image_suffices();
-  auto candidate = [&](int p, int q) {
-    if (q < p) return;
-    if (!nearest) {
-      all_images(p, q);
-      return;
-    }
-    if (q == p) return;  // a small sphere cannot reach its own image (3 cells per axis)
-    // Only the nearest image of q can be within reach: the box is at least 3 reaches wide.
-    Vec3 d = c[q] - c[p];
-    const std::array<int, 3> k = to_nearest_image(box, &d);
-    const double rr = r[p] + r[q];
-    if (d.squaredNorm() <= rr * rr) emit({p, q, k});
-  };
-  for (size_t t = 0; t < small.size() && go; ++t) {
+  for (size_t t = 0; t < search.small_count() && go; ++t) {
     if (tick && (t & 1023) == 0) tick();
-    const int p = small[t];
-    grid.for_each_neighbour_cell(c[p], [&](size_t cell) {
-      for (int u = start[cell]; u < start[cell + 1]; ++u) candidate(p, order[u]);
-    });
+    search.small_pairs(t, emit);
   }
-  if (large.empty() || !go) return go;
-  // Large spheres: registered in every cell within their radius plus r_small, so a small
-  // sphere that meets one finds it in its own cell.
-  NeighbourGrid reach_grid(box, 2.0 * r_small, 4 * small.size());
-  for (int q : large) reach_grid.insert_reaching(q, c[q], r[q] + r_small);
-  for (size_t t = 0; t < small.size() && go; ++t) {
+  for (size_t t = 0; t < search.small_count() && search.large_count() > 0 && go; ++t) {
     if (tick && (t & 1023) == 0) tick();
-    reach_grid.for_each_in_cell(c[small[t]], [&](int q) { all_images(small[t], q); });
+    search.small_large_pairs(t, emit);
   }
-  for (size_t u = 0; u < large.size() && go; ++u) {
+  for (size_t u = 0; u < search.large_count() && go; ++u) {
     if (tick) tick();
-    for (size_t v = u; v < large.size() && go; ++v) all_images(large[u], large[v]);
+    search.large_pairs(u, emit);
   }
   return go;
 }

@@ -3,6 +3,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
 
 #include <algorithm>
 #include <array>
@@ -132,17 +133,26 @@ void VerletList::build(std::vector<Body>* all, const Box& box, double s_out,
     keys.push_back(make_key(a, b, sp.k[0], sp.k[1], sp.k[2]));
   }
   if (tick) tick();
-  std::sort(keys.begin(), keys.end());
+  tbb::parallel_sort(keys.begin(), keys.end());  // equal keys are equal: one order
   keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
   if (tick) tick();
-  pairs_.reserve(keys.size());
-  for (const Key& k : keys) {
+  // The capsules' test on all cores, the list made in key order.
+  std::vector<char>& meets = key_meets_;
+  meets.resize(keys.size());
+  each_index(keys.size(), 4096, [&](size_t t) {
+    const Key& k = keys[t];
     const int a = k[0], b = k[1];
     const Vec3 shift(k[2] * box.size[0], k[3] * box.size[1], k[4] * box.size[2]);
     const double rr = cap_r_[a] + cap_r_[b];
-    if (segment_distance2(seg_p_[a], seg_q_[a], seg_p_[b] + shift, seg_q_[b] + shift) > rr * rr) {
-      continue;
-    }
+    meets[t] =
+        segment_distance2(seg_p_[a], seg_q_[a], seg_p_[b] + shift, seg_q_[b] + shift) <= rr * rr;
+  });
+  pairs_.reserve(keys.size());
+  for (size_t t = 0; t < keys.size(); ++t) {
+    if (!meets[t]) continue;
+    const Key& k = keys[t];
+    const int a = k[0], b = k[1];
+    const Vec3 shift(k[2] * box.size[0], k[3] * box.size[1], k[4] * box.size[2]);
     pairs_.push_back({a, b, shift});
     links_[a].push_back({b, {k[2], k[3], k[4]}});
     if (a != b) links_[b].push_back({a, {-k[2], -k[3], -k[4]}});

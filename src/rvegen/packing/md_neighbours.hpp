@@ -102,6 +102,7 @@ class VerletList {
   long long find_calls_ = 0;
   std::vector<std::vector<Link>> found_;
   std::vector<size_t> emit_first_;
+  std::vector<char> key_meets_;
   std::vector<int> stale_ids_;
   std::vector<char> is_stale_;
   size_t dead_spheres_ = 0;

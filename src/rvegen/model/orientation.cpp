@@ -1,7 +1,11 @@
 #include "rvegen/model/orientation.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <stdexcept>
 
@@ -173,12 +177,21 @@ bool match_orientation_tensor(std::vector<Vec3>* dirs, const Mat3& target, doubl
       inv_half += es.eigenvectors().col(k) * es.eigenvectors().col(k).transpose() / std::sqrt(l);
     }
     const Mat3 t = half * inv_half;
-    for (Vec3& v : q) {
-      const Vec3 w = t * v;
-      const double n = w.norm();
-      if (!(n > kNoDirection)) return false;
-      v = w / n;
-    }
+    // Each direction on its own (all cores for large families).
+    std::atomic<bool> lost{false};
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, q.size(), 1024),
+                      [&](const tbb::blocked_range<size_t>& r) {
+                        for (size_t i = r.begin(); i != r.end(); ++i) {
+                          const Vec3 w = t * q[i];
+                          const double n = w.norm();
+                          if (!(n > kNoDirection)) {
+                            lost = true;
+                            return;
+                          }
+                          q[i] = w / n;
+                        }
+                      });
+    if (lost) return false;
   }
   return false;
 }

@@ -1,9 +1,11 @@
 #include "rvegen/packing/md_contacts.hpp"
 
+#include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <thread>
 
@@ -394,15 +396,28 @@ double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& ori
     // whose capsules do not meet stay apart below (capsules are convex about the centres); the
     // packer stops at scale 1.
     size_t first = 0;  // the pair that failed last is tested first
+    // The answer (does any pair overlap) does not depend on the order the pairs are tested in:
+    // all cores test them, and stop at the first overlap any finds.
     auto clear_at = [&](double s) {
-      for (size_t k = 0; k < chain_pairs.size(); ++k) {
-        const size_t i = (first + k) % chain_pairs.size();
-        if (chain_overlaps(bodies, axis, &pieces, *chain_pairs[i], s, 0.0, true, &near, nullptr)) {
-          first = i;
-          return false;
-        }
+      if (chain_overlaps(bodies, axis, &pieces, *chain_pairs[first], s, 0.0, true, &near,
+                         nullptr)) {
+        return false;
       }
-      return true;
+      std::atomic<bool> hit{false};
+      std::atomic<size_t> hit_at{first};
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, chain_pairs.size(), 16),
+                        [&](const tbb::blocked_range<size_t>& r) {
+                          Scratch& sc = scratch.local();
+                          for (size_t i = r.begin(); i != r.end() && !hit; ++i) {
+                            if (chain_overlaps(bodies, axis, &sc.pieces, *chain_pairs[i], s, 0.0,
+                                               true, &sc.near, nullptr)) {
+                              hit = true;
+                              hit_at = i;
+                            }
+                          }
+                        });
+      first = hit_at;
+      return !hit;
     };
     // The force scale itself, when the contacts of the grown pieces have parted the pieces as
     // they are.

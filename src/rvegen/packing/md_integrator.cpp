@@ -52,14 +52,20 @@ void hold_tensors(const PackingSpec& spec, const std::map<int, std::vector<int>>
                   std::vector<Body>* bodies, VerletList* list) {
   for (const auto& [family, members] : held) {
     std::vector<Vec3> dirs(members.size());
-    for (size_t k = 0; k < members.size(); ++k) dirs[k] = law_axis((*bodies)[members[k]].shape);
+    const tbb::blocked_range<size_t> all(0, members.size(), 1024);
+    tbb::parallel_for(all, [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t k = r.begin(); k != r.end(); ++k) dirs[k] = law_axis((*bodies)[members[k]].shape);
+    });
     if (!match_orientation_tensor(&dirs, spec.families[family].orientation.tensor(),
                                   kHeldTensorTolerance)) {
       continue;
     }
-    for (size_t k = 0; k < members.size(); ++k) {
-      list->turned(members[k], set_law_axis(&(*bodies)[members[k]].shape, dirs[k]));
-    }
+    // Each body turns on its own (members are distinct bodies).
+    tbb::parallel_for(all, [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t k = r.begin(); k != r.end(); ++k) {
+        list->turned(members[k], set_law_axis(&(*bodies)[members[k]].shape, dirs[k]));
+      }
+    });
   }
 }
 

@@ -50,7 +50,10 @@ void Integrator::move_body(const ContactSums& sums, size_t i, std::vector<Body>*
 
 void hold_tensors(const PackingSpec& spec, const std::map<int, std::vector<int>>& held,
                   std::vector<Body>* bodies, VerletList* list) {
-  for (const auto& [family, members] : held) {
+  for (const auto& held_family : held) {
+    // Named copies of the binding: lambdas may not capture structured bindings in C++17.
+    const int family = held_family.first;
+    const std::vector<int>& members = held_family.second;
     std::vector<Vec3> dirs(members.size());
     const tbb::blocked_range<size_t> all(0, members.size(), 1024);
     tbb::parallel_for(all, [&](const tbb::blocked_range<size_t>& r) {

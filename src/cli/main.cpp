@@ -1,5 +1,4 @@
 // rvegen: command-line generator and auditor of Representative Volume Elements.
-#include <sys/resource.h>
 #include <tbb/global_control.h>
 
 #include <chrono>
@@ -16,6 +15,7 @@
 #include <vector>
 
 #include "effective.hpp"
+#include "process.hpp"
 #include "rvegen/io/amitex.hpp"
 #include "rvegen/io/fe_mesh.hpp"
 #include "rvegen/io/hdf5_writer.hpp"
@@ -43,7 +43,8 @@ constexpr int kExitInvalid = 2;
 constexpr int kExitNotReached = 3;
 constexpr int kExitAudit = 4;
 
-constexpr size_t kMaxSceneBytes = size_t(16) << 20;
+using rvegen::cli::kMaxSceneBytes;
+using rvegen::cli::peak_memory_mb;
 constexpr size_t kMaxInclusionFileBytes = size_t(2) << 30;
 
 #ifndef RVEGEN_VERSION
@@ -167,12 +168,6 @@ double parse_size(const std::string& text) {
 
 double seconds_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-}
-
-double peak_memory_mb() {
-  struct rusage ru {};
-  if (getrusage(RUSAGE_SELF, &ru) != 0) return 0.0;
-  return ru.ru_maxrss / 1024.0;  // kilobytes on Linux
 }
 
 // Test hook (fault injection), never for users: RVEGEN_TEST_FAULT=overlap moves the second

@@ -1,6 +1,5 @@
 #include "study.hpp"
 
-#include <sys/resource.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
@@ -18,6 +17,7 @@
 #include <sstream>
 #include <thread>
 
+#include "process.hpp"
 #include "rvegen/homogenize/effective.hpp"
 #include "rvegen/io/report.hpp"
 #include "rvegen/io/scene_json.hpp"
@@ -37,7 +37,6 @@ using json = nlohmann::ordered_json;
 namespace {
 
 constexpr int kExitOk = 0, kExitOutput = 1, kExitInvalid = 2, kExitNotReached = 3;
-constexpr size_t kMaxSceneBytes = size_t(16) << 20;
 
 const char* kStudyUsage =
     "usage: rvegen study SCENE.json [-o DIR] [--sizes LIST] [--realizations N]\n"
@@ -135,18 +134,14 @@ json realization_properties(const Scene& scene, const PackingResult& r) {
     if (ph.kind == PhaseKind::kMatrix || ph.label >= static_cast<int>(voxel.size())) continue;
     p["voxel_fraction." + ph.name] = voxel[ph.label];
   }
-  // Orientation tensors of the fibre and ellipsoid families (diagonal).
+  // Orientation tensors of the fibre and ellipsoid families (diagonal), as the report has them.
   for (int f = 0; f < nf; ++f) {
-    Mat3 a = Mat3::Zero();
-    int n = 0;
+    bool oriented = false;
     for (const Inclusion& inc : set.inclusions) {
-      if (inc.family != f || inc.shape.kind == ShapeKind::Sphere) continue;
-      const Vec3 u = principal_axis(inc.shape);
-      a += u * u.transpose();
-      ++n;
+      oriented = oriented || (inc.family == f && inc.shape.kind != ShapeKind::Sphere);
     }
-    if (n == 0) continue;
-    a /= n;
+    if (!oriented) continue;
+    const Mat3 a = orientation_tensor(set, f);
     const std::string name = "orientation." + family_label(set, f);
     p[name + ".a11"] = a(0, 0);
     p[name + ".a22"] = a(1, 1);
@@ -187,13 +182,6 @@ void write_whole(const fs::path& path, const std::string& text) {
   if (ec) throw OutputError("cannot write " + path.string() + ": " + ec.message());
 }
 
-std::string read_text(const fs::path& path) {
-  std::ifstream f(path, std::ios::binary);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
-
 std::vector<double> parse_sizes(const std::string& text) {
   std::vector<double> out;
   size_t at = 0;
@@ -214,12 +202,6 @@ std::vector<double> parse_sizes(const std::string& text) {
       throw InputError("--sizes: " + size_name(out[i]) + " is given twice");
   }
   return out;
-}
-
-double peak_memory_mb() {
-  struct rusage ru {};
-  if (getrusage(RUSAGE_SELF, &ru) != 0) return 0.0;
-  return ru.ru_maxrss / 1024.0;
 }
 
 }  // namespace
@@ -305,7 +287,14 @@ int cmd_study(const std::vector<std::string>& args) {
   const std::string signature = scene_to_json(base);
   std::error_code ec;
   if (fs::exists(dir / "study_scene.json", ec)) {
-    if (read_text(dir / "study_scene.json") != signature) {
+    std::string held;
+    try {
+      held = read_file((dir / "study_scene.json").string(), kMaxSceneBytes);
+    } catch (const std::exception& e) {
+      std::cerr << "rvegen: " << e.what() << "\n";
+      return kExitInvalid;
+    }
+    if (held != signature) {
       std::cerr << "rvegen: " << out_dir << " holds a study of another scene (remove it, or "
                 << "give another -o)\n";
       return kExitInvalid;
@@ -408,7 +397,7 @@ int cmd_study(const std::vector<std::string>& args) {
       const fs::path p = rdir / ("size_" + size_name(sizes[i]) + "_" + std::to_string(k) + ".json");
       json rec;
       try {
-        rec = json::parse(read_text(p));
+        rec = json::parse(read_file(p.string(), kMaxSceneBytes));
       } catch (const std::exception& e) {
         std::cerr << "rvegen: " << p.string() << " is not a realization record: " << e.what()
                   << "\n";

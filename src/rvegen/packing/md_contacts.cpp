@@ -221,8 +221,8 @@ void visit_pair(const std::vector<Body>& bodies, const std::vector<Vec3>& axis, 
   const double fa = ba.force_scale(s_out), fb = bb.force_scale(s_out);
   if (ba.shape.kind == ShapeKind::Sphere && bb.shape.kind == ShapeKind::Sphere) {
     // Round pairs (balls, grains): round_contact without a tolerance (any overlap pushes;
-    // validity comes from out.s_in, not from this decision), after the bounding balls' test
-    // without a square root for the many listed pairs that are apart.
+    // validity comes from the certified scale, not from this decision), after the bounding balls'
+    // test without a square root for the many listed pairs that are apart.
     const double ra0 = ba.shape.radius, rb0 = bb.shape.radius;
     const Vec3 d = bb.shape.center + e.shift - ba.shape.center;
     const double rr0 = fa * ra0 + fb * rb0;

@@ -18,6 +18,7 @@
 #include <thread>
 
 #include "process.hpp"
+#include "ranks.hpp"
 #include "rvegen/homogenize/effective.hpp"
 #include "rvegen/io/report.hpp"
 #include "rvegen/io/scene_json.hpp"
@@ -52,14 +53,19 @@ const char* kStudyUsage =
     "  (default 0.01). Writes DIR/study.json and DIR/study.csv (default DIR ./study).\n"
     "  Each realization is written once, in DIR/realizations/, with its seed: a rerun with\n"
     "  more realizations or sizes computes only the missing ones. --jobs: realizations run at\n"
-    "  once (default: every core).\n"
+    "  once (default: every core). Under an MPI launcher (mpirun -np N rvegen study ...) the\n"
+    "  ranks share the realizations out, each machine's cores shared by its ranks; only the\n"
+    "  realization records travel to rank 0, which writes the statistics (the same as one\n"
+    "  process gives).\n"
     "  Exit 0; 2 on invalid input (or DIR holding a study of another scene); 1 when DIR\n"
     "  cannot be written; 3 when some realization did not reach its target (they are left out\n"
     "  of the statistics, and counted).\n";
 
-int usage_error(const std::string& msg) {
-  std::cerr << "rvegen: " << msg << "\n" << kStudyUsage;
-  return kExitInvalid;
+// Where messages go: standard error on rank 0 (or the only process); nowhere on the other
+// ranks, which meet the same input and would repeat them.
+std::ostream& say_once(const Ranks& ranks) {
+  static std::ostream nowhere(nullptr);
+  return ranks.root() ? std::cerr : nowhere;
 }
 
 // A realization's seed from the scene's, the size and the realization's number: the same
@@ -212,6 +218,12 @@ const char* study_usage() {
 
 int cmd_study(const std::vector<std::string>& args) {
   const auto t0 = std::chrono::steady_clock::now();
+  const Ranks ranks;  // several processes when started by an MPI launcher
+  std::ostream& err = say_once(ranks);
+  auto usage_error = [&err](const std::string& msg) {
+    err << "rvegen: " << msg << "\n" << kStudyUsage;
+    return kExitInvalid;
+  };
   std::string scene_path, out_dir = "study", sizes_text = "1,1.5,2";
   int realizations = 10, jobs = 0;
   double target_error = 0.01;
@@ -231,7 +243,7 @@ int cmd_study(const std::vector<std::string>& args) {
       const std::string& a = args[i];
       double v = 0.0;
       if (a == "-h" || a == "--help") {
-        std::cout << kStudyUsage;
+        if (ranks.root()) std::cout << kStudyUsage;
         return kExitOk;
       } else if (a == "-o" || a == "--output") {
         if (i + 1 >= args.size()) return usage_error("-o needs a directory");
@@ -279,69 +291,96 @@ int cmd_study(const std::vector<std::string>& args) {
         scenes.back().push_back(scaled_scene(base, m, realization_seed(base.seed, m, k)));
     }
   } catch (const std::exception& e) {
-    std::cerr << "rvegen: invalid study of " << scene_path << ": " << e.what() << "\n";
+    err << "rvegen: invalid study of " << scene_path << ": " << e.what() << "\n";
     return kExitInvalid;
   }
-  // The study's directory: new, or one holding a study of the same scene.
+  // The study's directory: new, or one holding a study of the same scene. Rank 0 decides and
+  // prepares it; the other ranks follow its answer.
   const fs::path dir(out_dir), rdir = dir / "realizations";
   const std::string signature = scene_to_json(base);
   std::error_code ec;
-  if (fs::exists(dir / "study_scene.json", ec)) {
-    std::string held;
-    try {
-      held = read_file((dir / "study_scene.json").string(), kMaxSceneBytes);
-    } catch (const std::exception& e) {
-      std::cerr << "rvegen: " << e.what() << "\n";
-      return kExitInvalid;
+  int ready = kExitOk;
+  if (ranks.root()) {
+    if (fs::exists(dir / "study_scene.json", ec)) {
+      std::string held;
+      try {
+        held = read_file((dir / "study_scene.json").string(), kMaxSceneBytes);
+      } catch (const std::exception& e) {
+        err << "rvegen: " << e.what() << "\n";
+        ready = kExitInvalid;
+      }
+      if (ready == kExitOk && held != signature) {
+        err << "rvegen: " << out_dir << " holds a study of another scene (remove it, or "
+            << "give another -o)\n";
+        ready = kExitInvalid;
+      }
+    } else if (fs::exists(dir, ec) && !fs::is_empty(dir, ec)) {
+      err << "rvegen: " << out_dir << " is not empty and holds no study: give a new or "
+          << "empty directory\n";
+      ready = kExitOutput;
     }
-    if (held != signature) {
-      std::cerr << "rvegen: " << out_dir << " holds a study of another scene (remove it, or "
-                << "give another -o)\n";
-      return kExitInvalid;
+    if (ready == kExitOk) {
+      try {
+        fs::create_directories(rdir);
+        write_whole(dir / "study_scene.json", signature);
+      } catch (const std::exception& e) {
+        err << "rvegen: cannot write the study in " << out_dir << ": " << e.what() << "\n";
+        ready = kExitOutput;
+      }
     }
-  } else if (fs::exists(dir, ec) && !fs::is_empty(dir, ec)) {
-    std::cerr << "rvegen: " << out_dir << " is not empty and holds no study: give a new or "
-              << "empty directory\n";
-    return kExitOutput;
   }
-  try {
-    fs::create_directories(rdir);
-    write_whole(dir / "study_scene.json", signature);
-  } catch (const std::exception& e) {
-    std::cerr << "rvegen: cannot write the study in " << out_dir << ": " << e.what() << "\n";
-    return kExitOutput;
-  }
-  // The realizations not yet written.
+  ready = ranks.broadcast(ready);
+  if (ready != kExitOk) return ready;
+  // The realizations not yet written (as rank 0 sees the directory), shared out among the
+  // ranks in turn.
   struct Task {
     size_t size;
     int k;
     fs::path path;
   };
-  std::vector<Task> todo;
-  for (size_t i = 0; i < sizes.size(); ++i) {
-    for (int k = 0; k < realizations; ++k) {
-      const fs::path p = rdir / ("size_" + size_name(sizes[i]) + "_" + std::to_string(k) + ".json");
-      if (!fs::exists(p, ec)) todo.push_back({i, k, p});
+  auto record_name = [&sizes](size_t i, int k) {
+    return "size_" + size_name(sizes[i]) + "_" + std::to_string(k) + ".json";
+  };
+  std::vector<int> missing_ids;  // size index * realizations + k
+  if (ranks.root()) {
+    for (size_t i = 0; i < sizes.size(); ++i) {
+      for (int k = 0; k < realizations; ++k) {
+        if (!fs::exists(rdir / record_name(i, k), ec))
+          missing_ids.push_back(static_cast<int>(i) * realizations + k);
+      }
     }
   }
+  missing_ids = ranks.broadcast(missing_ids);
+  std::vector<Task> todo;
+  for (size_t t = static_cast<size_t>(ranks.rank()); t < missing_ids.size();
+       t += static_cast<size_t>(ranks.size())) {
+    const size_t i = static_cast<size_t>(missing_ids[t] / realizations);
+    const int k = missing_ids[t] % realizations;
+    todo.push_back({i, k, rdir / record_name(i, k)});
+  }
+  if (!ranks.root()) fs::create_directories(rdir, ec);  // a disk of its own: rank 0 gets a copy
+  const std::string who = ranks.size() > 1 ? "rank " + std::to_string(ranks.rank()) + ": " : "";
   std::mutex say;
   auto progress = [&](const std::string& line) {
     if (quiet) return;
     std::lock_guard<std::mutex> lock(say);
-    std::cerr << line << "\n";
+    std::cerr << "study: " << who << line << "\n";
   };
   {
     char buf[200];
-    std::snprintf(buf, sizeof buf, "study: %zu sizes x %d realizations, %zu to compute (%zu kept)",
-                  sizes.size(), realizations, todo.size(),
-                  sizes.size() * realizations - todo.size());
-    progress(buf);
+    std::snprintf(buf, sizeof buf, "%zu sizes x %d realizations, %zu to compute (%zu kept)",
+                  sizes.size(), realizations, missing_ids.size(),
+                  sizes.size() * realizations - missing_ids.size());
+    if (ranks.root()) progress(buf);
   }
   std::atomic<size_t> done{0};
   std::string failure;
+  std::vector<std::string> written(todo.size());  // the records this rank computed
+  // Each rank takes its share of the machine's cores (the processes a launcher put on it).
   const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  const int share = std::max(1, cores / std::max(1, ranks.local_size()));
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
-                            static_cast<size_t>(jobs > 0 ? jobs : cores));
+                            static_cast<size_t>(jobs > 0 ? jobs : share));
   tbb::parallel_for(size_t(0), todo.size(), size_t(1), [&](size_t t) {
     {
       std::lock_guard<std::mutex> lock(say);
@@ -369,175 +408,215 @@ int cmd_study(const std::vector<std::string>& args) {
       return;
     }
     rec["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+    if (ranks.size() > 1) rec["rank"] = ranks.rank();
+    written[t] = rec.dump(1) + "\n";
     try {
-      write_whole(task.path, rec.dump(1) + "\n");
+      write_whole(task.path, written[t]);
     } catch (const std::exception& e) {
       std::lock_guard<std::mutex> lock(say);
       if (failure.empty()) failure = e.what();
       return;
     }
     char buf[200];
-    std::snprintf(buf, sizeof buf, "study: %zu/%zu done (size %s, realization %d, %s, %.1f s)",
-                  ++done, todo.size(), size_name(sizes[task.size]).c_str(), task.k,
+    std::snprintf(buf, sizeof buf, "%zu/%zu done (size %s, realization %d, %s, %.1f s)", ++done,
+                  todo.size(), size_name(sizes[task.size]).c_str(), task.k,
                   rec["status"].get<std::string>().c_str(), rec["seconds"].get<double>());
     progress(buf);
   });
-  if (!failure.empty()) {
-    std::cerr << "rvegen: study stopped: " << failure << "\n";
-    return kExitOutput;
-  }
-  // Statistics over the realizations asked for (files beyond them are kept, not used).
-  std::map<std::string, std::vector<std::vector<double>>> values;  // property -> size -> values
-  std::vector<int> not_reached(sizes.size(), 0);
-  std::vector<double> volumes(sizes.size());
-  std::vector<std::string> order;  // properties in the order first met
-  for (size_t i = 0; i < sizes.size(); ++i) {
-    volumes[i] = scenes[i][0].box.volume();
-    for (int k = 0; k < realizations; ++k) {
-      const fs::path p = rdir / ("size_" + size_name(sizes[i]) + "_" + std::to_string(k) + ".json");
-      json rec;
-      try {
-        rec = json::parse(read_file(p.string(), kMaxSceneBytes));
-      } catch (const std::exception& e) {
-        std::cerr << "rvegen: " << p.string() << " is not a realization record: " << e.what()
-                  << "\n";
-        return kExitInvalid;
-      }
-      if (rec.value("status", "") != "ok") {
-        ++not_reached[i];
-        continue;
-      }
-      for (auto it = rec["properties"].begin(); it != rec["properties"].end(); ++it) {
-        auto& per = values[it.key()];
-        if (per.empty()) {
-          per.resize(sizes.size());
-          order.push_back(it.key());
+  // Only the records travel to rank 0 (each a few hundred bytes: no image, no inclusion list).
+  // Rank 0 keeps a copy of any it does not see on its own disk, and stops on any rank's failure.
+  {
+    json mine = json::object();
+    mine["failure"] = failure;
+    json recs = json::object();
+    for (size_t t = 0; t < todo.size(); ++t) {
+      if (!written[t].empty()) recs[todo[t].path.filename().string()] = written[t];
+    }
+    mine["records"] = recs;
+    int stopped = kExitOk;
+    if (ranks.root()) {
+      std::string first;
+      for (const std::string& text : ranks.gather(mine.dump())) {
+        const json theirs = json::parse(text);
+        const std::string f = theirs["failure"].get<std::string>();
+        if (first.empty()) first = f;
+        for (auto it = theirs["records"].begin(); it != theirs["records"].end(); ++it) {
+          if (fs::exists(rdir / it.key(), ec)) continue;
+          try {
+            write_whole(rdir / it.key(), it.value().get<std::string>());
+          } catch (const std::exception& e) {
+            if (first.empty()) first = e.what();
+          }
         }
-        per[i].push_back(it.value().get<double>());
       }
+      if (!first.empty()) {
+        err << "rvegen: study stopped: " << first << "\n";
+        stopped = kExitOutput;
+      }
+    } else {
+      ranks.gather(mine.dump());
     }
+    stopped = ranks.broadcast(stopped);
+    if (stopped != kExitOk) return stopped;
   }
-  json out;
-  out["scene"] = fs::absolute(scene_path).string();
-  out["sizes"] = sizes;
-  out["volumes"] = volumes;
-  out["realizations"] = realizations;
-  out["target_error"] = target_error;
-  out["not_reached"] = not_reached;
-  out["law"] = "D^2(V) = K V^-alpha; relative error of the mean of n: 2 D(V) / (|mean| sqrt n)";
-  json props = json::object();
-  std::ostringstream csv;
-  csv.precision(10);
-  csv << "property,size,volume,n,mean,sd,ci95_low,ci95_high,relative_error,realizations_needed\n";
-  for (const std::string& name : order) {
-    const auto& per = values[name];
-    std::vector<SampleSummary> sum(sizes.size());
-    double scale = 0.0;
+  // The statistics are rank 0's; every rank ends with its exit code.
+  auto finish = [&]() -> int {
+    // Statistics over the realizations asked for (files beyond them are kept, not used).
+    std::map<std::string, std::vector<std::vector<double>>> values;  // property -> size -> values
+    std::vector<int> not_reached(sizes.size(), 0);
+    std::vector<double> volumes(sizes.size());
+    std::vector<std::string> order;  // properties in the order first met
     for (size_t i = 0; i < sizes.size(); ++i) {
-      sum[i] = summarize(per[i]);
-      scale = std::max(scale, std::abs(sum[i].mean));
-    }
-    const VarianceLaw law = fit_variance_law(volumes, sum, scale);
-    json p;
-    json rows = json::array();
-    for (size_t i = 0; i < sizes.size(); ++i) {
-      const SampleSummary& s = sum[i];
-      const double rel =
-          s.n > 0 && s.mean != 0.0 ? 2.0 * s.sd / (std::abs(s.mean) * std::sqrt(double(s.n))) : 0.0;
-      const long long need = realizations_needed(s.sd * s.sd, s.mean, target_error);
-      rows.push_back({{"size", sizes[i]},
-                      {"volume", volumes[i]},
-                      {"n", s.n},
-                      {"mean", s.mean},
-                      {"sd", s.sd},
-                      {"ci95", {s.ci_low, s.ci_high}},
-                      {"relative_error", rel},
-                      {"realizations_needed", need}});
-      csv << name << "," << sizes[i] << "," << volumes[i] << "," << s.n << "," << s.mean << ","
-          << s.sd << "," << s.ci_low << "," << s.ci_high << "," << rel << "," << need << "\n";
-    }
-    p["per_size"] = rows;
-    json l;
-    l["exact"] = law.exact;
-    l["fitted"] = law.fitted;
-    l["points"] = law.points;
-    if (!law.exact && law.K > 0.0) {
-      l["K"] = law.K;
-      l["alpha"] = law.alpha;
-    }
-    // Exact phase fractions have a point variance phi (1 - phi): their integral range (the
-    // voxel fractions' variance is mostly the discretization's, not the microstructure's).
-    const double phi = sum.back().mean;
-    if (name.rfind("volume_fraction", 0) == 0 && !law.exact && law.K > 0.0 && phi > 0.0 &&
-        phi < 1.0) {
-      l["integral_range"] = law.integral_range(phi * (1.0 - phi));
-    }
-    p["variance_law"] = l;
-    // The size recommended: from the law where it decays (never below the smallest size
-    // studied, which then already meets the target), else the smallest size whose measured
-    // error meets the target.
-    int measured = -1;
-    for (size_t i = 0; i < sizes.size() && measured < 0; ++i) {
-      const SampleSummary& m = sum[i];
-      if (m.n >= 2 && m.mean != 0.0 &&
-          2.0 * m.sd / (std::abs(m.mean) * std::sqrt(double(m.n))) <= target_error) {
-        measured = static_cast<int>(i);
+      volumes[i] = scenes[i][0].box.volume();
+      for (int k = 0; k < realizations; ++k) {
+        const fs::path p = rdir / record_name(i, k);
+        json rec;
+        try {
+          rec = json::parse(read_file(p.string(), kMaxSceneBytes));
+        } catch (const std::exception& e) {
+          std::cerr << "rvegen: " << p.string() << " is not a realization record: " << e.what()
+                    << "\n";
+          return kExitInvalid;
+        }
+        if (rec.value("status", "") != "ok") {
+          ++not_reached[i];
+          continue;
+        }
+        for (auto it = rec["properties"].begin(); it != rec["properties"].end(); ++it) {
+          auto& per = values[it.key()];
+          if (per.empty()) {
+            per.resize(sizes.size());
+            order.push_back(it.key());
+          }
+          per[i].push_back(it.value().get<double>());
+        }
       }
     }
-    json rec;
-    rec["measured_size"] = measured >= 0 ? json(sizes[measured]) : json(nullptr);
-    const double v = recommended_volume(law, phi, target_error, realizations);
-    if (law.exact) {
-      rec["volume"] = volumes.front();
-      rec["size"] = sizes.front();
-      rec["basis"] = "exact: the property does not vary between realizations";
-    } else if (std::isfinite(v) && law.K > 0.0 && law.alpha > 0.0) {
-      rec["law_volume"] = v;
-      if (v <= volumes.front()) {
+    json out;
+    out["scene"] = fs::absolute(scene_path).string();
+    out["sizes"] = sizes;
+    out["volumes"] = volumes;
+    out["realizations"] = realizations;
+    out["target_error"] = target_error;
+    out["not_reached"] = not_reached;
+    out["ranks"] = ranks.size();  // processes of this run (the statistics do not depend on it)
+    out["law"] = "D^2(V) = K V^-alpha; relative error of the mean of n: 2 D(V) / (|mean| sqrt n)";
+    json props = json::object();
+    std::ostringstream csv;
+    csv.precision(10);
+    csv << "property,size,volume,n,mean,sd,ci95_low,ci95_high,relative_error,realizations_needed\n";
+    for (const std::string& name : order) {
+      const auto& per = values[name];
+      std::vector<SampleSummary> sum(sizes.size());
+      double scale = 0.0;
+      for (size_t i = 0; i < sizes.size(); ++i) {
+        sum[i] = summarize(per[i]);
+        scale = std::max(scale, std::abs(sum[i].mean));
+      }
+      const VarianceLaw law = fit_variance_law(volumes, sum, scale);
+      json p;
+      json rows = json::array();
+      for (size_t i = 0; i < sizes.size(); ++i) {
+        const SampleSummary& s = sum[i];
+        const double rel = s.n > 0 && s.mean != 0.0
+                               ? 2.0 * s.sd / (std::abs(s.mean) * std::sqrt(double(s.n)))
+                               : 0.0;
+        const long long need = realizations_needed(s.sd * s.sd, s.mean, target_error);
+        rows.push_back({{"size", sizes[i]},
+                        {"volume", volumes[i]},
+                        {"n", s.n},
+                        {"mean", s.mean},
+                        {"sd", s.sd},
+                        {"ci95", {s.ci_low, s.ci_high}},
+                        {"relative_error", rel},
+                        {"realizations_needed", need}});
+        csv << name << "," << sizes[i] << "," << volumes[i] << "," << s.n << "," << s.mean << ","
+            << s.sd << "," << s.ci_low << "," << s.ci_high << "," << rel << "," << need << "\n";
+      }
+      p["per_size"] = rows;
+      json l;
+      l["exact"] = law.exact;
+      l["fitted"] = law.fitted;
+      l["points"] = law.points;
+      if (!law.exact && law.K > 0.0) {
+        l["K"] = law.K;
+        l["alpha"] = law.alpha;
+      }
+      // Exact phase fractions have a point variance phi (1 - phi): their integral range (the
+      // voxel fractions' variance is mostly the discretization's, not the microstructure's).
+      const double phi = sum.back().mean;
+      if (name.rfind("volume_fraction", 0) == 0 && !law.exact && law.K > 0.0 && phi > 0.0 &&
+          phi < 1.0) {
+        l["integral_range"] = law.integral_range(phi * (1.0 - phi));
+      }
+      p["variance_law"] = l;
+      // The size recommended: from the law where it decays (never below the smallest size
+      // studied, which then already meets the target), else the smallest size whose measured
+      // error meets the target.
+      int measured = -1;
+      for (size_t i = 0; i < sizes.size() && measured < 0; ++i) {
+        const SampleSummary& m = sum[i];
+        if (m.n >= 2 && m.mean != 0.0 &&
+            2.0 * m.sd / (std::abs(m.mean) * std::sqrt(double(m.n))) <= target_error) {
+          measured = static_cast<int>(i);
+        }
+      }
+      json rec;
+      rec["measured_size"] = measured >= 0 ? json(sizes[measured]) : json(nullptr);
+      const double v = recommended_volume(law, phi, target_error, realizations);
+      if (law.exact) {
         rec["volume"] = volumes.front();
         rec["size"] = sizes.front();
-        rec["basis"] = "law: the smallest size studied already meets the target";
+        rec["basis"] = "exact: the property does not vary between realizations";
+      } else if (std::isfinite(v) && law.K > 0.0 && law.alpha > 0.0) {
+        rec["law_volume"] = v;
+        if (v <= volumes.front()) {
+          rec["volume"] = volumes.front();
+          rec["size"] = sizes.front();
+          rec["basis"] = "law: the smallest size studied already meets the target";
+        } else {
+          rec["volume"] = v;
+          rec["size"] = std::cbrt(v / base.box.volume());
+          rec["basis"] = v > volumes.back() ? "law, extrapolated beyond the sizes studied" : "law";
+        }
+      } else if (measured >= 0) {
+        rec["volume"] = volumes[measured];
+        rec["size"] = sizes[measured];
+        rec["basis"] = "measured: the variance shows no decay over the sizes studied";
       } else {
-        rec["volume"] = v;
-        rec["size"] = std::cbrt(v / base.box.volume());
-        rec["basis"] = v > volumes.back() ? "law, extrapolated beyond the sizes studied" : "law";
+        rec["volume"] = nullptr;
+        rec["size"] = nullptr;
+        rec["basis"] =
+            "none: no decay of the variance was measured and no size studied meets the target "
+            "(study larger sizes or more realizations)";
       }
-    } else if (measured >= 0) {
-      rec["volume"] = volumes[measured];
-      rec["size"] = sizes[measured];
-      rec["basis"] = "measured: the variance shows no decay over the sizes studied";
-    } else {
-      rec["volume"] = nullptr;
-      rec["size"] = nullptr;
-      rec["basis"] =
-          "none: no decay of the variance was measured and no size studied meets the target "
-          "(study larger sizes or more realizations)";
+      rec["realizations"] = realizations;
+      p["recommended"] = rec;
+      props[name] = p;
     }
-    rec["realizations"] = realizations;
-    p["recommended"] = rec;
-    props[name] = p;
-  }
-  out["properties"] = props;
-  out["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  out["peak_memory_mb"] = peak_memory_mb();
-  try {
-    write_whole(dir / "study.json", out.dump(2) + "\n");
-    write_whole(dir / "study.csv", csv.str());
-  } catch (const std::exception& e) {
-    std::cerr << "rvegen: " << e.what() << "\n";
-    return kExitOutput;
-  }
-  int missing = 0;
-  for (int n : not_reached) missing += n;
-  if (!quiet) {
-    std::cerr << "study: written " << (dir / "study.json").string() << " and study.csv\n";
-  }
-  if (missing > 0) {
-    std::cerr << "rvegen: " << missing << " realization(s) did not reach the target; they are "
-              << "left out of the statistics\n";
-    return kExitNotReached;
-  }
-  return kExitOk;
+    out["properties"] = props;
+    out["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    out["peak_memory_mb"] = peak_memory_mb();
+    try {
+      write_whole(dir / "study.json", out.dump(2) + "\n");
+      write_whole(dir / "study.csv", csv.str());
+    } catch (const std::exception& e) {
+      std::cerr << "rvegen: " << e.what() << "\n";
+      return kExitOutput;
+    }
+    int missing = 0;
+    for (int n : not_reached) missing += n;
+    if (!quiet) {
+      std::cerr << "study: written " << (dir / "study.json").string() << " and study.csv\n";
+    }
+    if (missing > 0) {
+      std::cerr << "rvegen: " << missing << " realization(s) did not reach the target; they are "
+                << "left out of the statistics\n";
+      return kExitNotReached;
+    }
+    return kExitOk;
+  };
+  return ranks.broadcast(ranks.root() ? finish() : kExitOk);
 }
 
 }  // namespace rvegen::cli

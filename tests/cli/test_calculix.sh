@@ -16,9 +16,7 @@ RVEGEN=$1
 SAMPLES=$2
 WORK=$3
 rm -rf "$WORK" && mkdir -p "$WORK"
-fails=0
-fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
-py=/usr/bin/python3
+source "$(dirname "$0")/lib.sh"
 command -v ccx >/dev/null || { echo "FAIL: ccx (calculix-ccx) not installed"; exit 1; }
 
 scene() {  # scene RESOLUTION PHYSICS_JSON
@@ -195,8 +193,4 @@ for d, stiff_tol in (("ti", 0.03), ("tivoid", 0.08)):
     assert cc < stiff_tol, (d, cc)
 PY
 
-if [ "$fails" -ne 0 ]; then
-  echo "$fails failure(s)"
-  exit 1
-fi
-echo "all CalculiX checks passed"
+finish "CalculiX checks"

@@ -5,15 +5,7 @@ set -u
 RVEGEN=$1
 WORK=$2
 rm -rf "$WORK" && mkdir -p "$WORK"
-fails=0
-fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
-expect_rc() {  # expect_rc WANT CMD...
-  local want=$1; shift
-  "$@" >"$WORK/last.out" 2>"$WORK/last.err"
-  local rc=$?
-  [ "$rc" -eq "$want" ] || fail "exit $rc (want $want): $* -- $(head -c 400 "$WORK/last.err")"
-}
-py=/usr/bin/python3
+source "$(dirname "$0")/lib.sh"
 
 # Default scene: all four files, no overlap by the independent audit.
 expect_rc 0 "$RVEGEN" generate -q --outputs inclusions,voxels,h5,amitex,levelsets -o "$WORK/default"
@@ -691,8 +683,4 @@ expect_rc 2 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_c" --realizations
 [ -e "$WORK/study_c" ] && fail "study: bad input left a directory behind"
 expect_rc 2 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_c" --bogus -q
 
-if [ "$fails" -ne 0 ]; then
-  echo "$fails failure(s)"
-  exit 1
-fi
-echo "all CLI tests passed"
+finish "CLI tests"

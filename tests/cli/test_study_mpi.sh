@@ -7,16 +7,8 @@ RVEGEN=$1
 MPIRUN=$2
 WORK=$3
 rm -rf "$WORK" && mkdir -p "$WORK"
-fails=0
-fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
-expect_rc() {  # expect_rc WANT CMD...
-  local want=$1; shift
-  "$@" >"$WORK/last.out" 2>"$WORK/last.err"
-  local rc=$?
-  [ "$rc" -eq "$want" ] || fail "exit $rc (want $want): $* -- $(head -c 600 "$WORK/last.err")"
-}
+source "$(dirname "$0")/lib.sh"
 two() { "$MPIRUN" --allow-run-as-root --oversubscribe -np 2 "$@"; }
-py=/usr/bin/python3
 cat >"$WORK/study.json" <<'JSON'
 {"box":{"size":[0.4,0.4,0.4]},"seed":5,"families":[
  {"name":"spheres","shape":"sphere","radius":0.04,"volume_fraction":0.2},
@@ -57,8 +49,4 @@ expect_rc 2 two "$RVEGEN" study "$WORK/study.json" -o "$WORK/bad" --sizes 1,-2 -
 [ "$(grep -c -- "--sizes" "$WORK/last.err")" -eq 1 ] || fail "bad --sizes not said once"
 [ -e "$WORK/bad" ] && fail "bad input under two ranks left a directory behind"
 
-if [ "$fails" -ne 0 ]; then
-  echo "$fails failure(s)"
-  exit 1
-fi
-echo "all study MPI tests passed"
+finish "study MPI tests"

@@ -218,10 +218,10 @@ TEST(Parsing, InclusionIdsInRangeAndUnique) {
   }
 }
 
-// Reading an inclusion list is linear in its length (issue 29, finding 7: a reader that walked
+// Reading an inclusion list is linear in its length (a reader that walked
 // the parent array at every closing brace took minutes for a million spheres). A complexity
 // check, not a timing: the process CPU time of 8n inclusions over that of n, each the best of
-// three (two for 8n), on the same machine in the same process. Linear reading gives about 8.6;
+// three (two for 8n), on the same machine in the same process. Linear reading gives about 9;
 // the quadratic reader, put back for a try, gave 52 at these sizes.
 TEST(Parsing, ReadingIsLinearInTheNumberOfInclusions) {
   auto lattice = [](int m) {

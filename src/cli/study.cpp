@@ -116,8 +116,32 @@ std::string family_label(const InclusionSet& set, int f) {
   return "family " + std::to_string(f);
 }
 
+// Windows of the window method: edges of at least this many of the largest bounding radius
+// (the integral range's law holds for windows past the correlation length, and the fit takes
+// out the first surface term only), and of at least kWindowVoxels voxels.
+constexpr double kWindowEdgeInRadii = 12.0;
+constexpr int kWindowVoxels = 4;
+
+// The k (windows per axis, k^3 windows) that cut the scene's image into equal cubic windows
+// large enough, from 2 up; none when fewer than two qualify, or the box is not a cube.
+std::vector<int> window_counts(const Scene& scene) {
+  std::vector<int> ks;
+  const auto& n = scene.resolution;
+  const double edge = scene.box.size[0];
+  if (n[0] != n[1] || n[1] != n[2] || scene.box.size[1] != edge || scene.box.size[2] != edge)
+    return ks;
+  double r = 0.0;
+  for (const Family& f : scene.families) r = std::max(r, f.max_bounding_radius());
+  for (int k = 2; k <= n[0] / kWindowVoxels; ++k) {
+    if (n[0] % k == 0 && edge / k >= kWindowEdgeInRadii * r) ks.push_back(k);
+  }
+  if (ks.size() < 2) ks.clear();
+  return ks;
+}
+
 // The properties of one realization, by name.
-json realization_properties(const Scene& scene, const PackingResult& r) {
+// The window method's variances go to `windows` (a list of [k, volume, windows, variance]).
+json realization_properties(const Scene& scene, const PackingResult& r, json* windows) {
   json p = json::object();
   const InclusionSet& set = r.set;
   const int nf = static_cast<int>(scene.families.size());
@@ -139,6 +163,22 @@ json realization_properties(const Scene& scene, const PackingResult& r) {
   for (const Phase& ph : phases) {
     if (ph.kind == PhaseKind::kMatrix || ph.label >= static_cast<int>(voxel.size())) continue;
     p["voxel_fraction." + ph.name] = voxel[ph.label];
+  }
+  // The window method's variances of the inclusions' share (partial volumes when the scene
+  // asks for them, else the labels), for windows of at least kWindowEdgeInRadii bounding radii.
+  const std::vector<int> ks = window_counts(scene);
+  if (!ks.empty()) {
+    std::vector<float> field = image.fraction;
+    if (field.empty()) {
+      field.resize(image.phase.size());
+      for (size_t i = 0; i < field.size(); ++i) field[i] = image.inclusion_id[i] >= 0 ? 1.0f : 0.0f;
+    }
+    const Vec3 h = image.spacing;
+    json w = json::array();
+    for (const WindowVariance& v : window_variances(field, image.dims, h.x() * h.y() * h.z(), ks)) {
+      w.push_back({v.k, v.volume, v.windows, v.variance});
+    }
+    (*windows)["volume_fraction"] = w;
   }
   // Orientation tensors of the fibre and ellipsoid families (diagonal), as the report has them.
   for (int f = 0; f < nf; ++f) {
@@ -208,6 +248,37 @@ std::vector<double> parse_sizes(const std::string& text) {
       throw InputError("--sizes: " + size_name(out[i]) + " is given twice");
   }
   return out;
+}
+
+// The window method's answer for the inclusions' share, from the largest size whose
+// realizations have windows: the pooled variances, the integral range fitted with its surface
+// term, and the volume at which n realizations give phi to the target relative error.
+json window_summary(const std::vector<std::vector<std::vector<WindowVariance>>>& windows,
+                    const std::vector<double>& sizes, double phi, double target_error, int n) {
+  for (size_t i = sizes.size(); i-- > 0;) {
+    if (windows[i].empty()) continue;
+    const std::vector<WindowVariance> pooled = pool_window_variances(windows[i]);
+    const WindowIntegralRange r = window_integral_range(pooled, phi);
+    json out;
+    out["size"] = sizes[i];
+    out["realizations"] = windows[i].size();
+    json rows = json::array();
+    for (const WindowVariance& v : pooled) {
+      rows.push_back(
+          {{"k", v.k}, {"volume", v.volume}, {"windows", v.windows}, {"variance", v.variance}});
+    }
+    out["per_window"] = rows;
+    out["law"] = "V D^2(V) = phi (1 - phi) (A3 - b / L), L the window edge";
+    if (r.fitted && r.integral_range > 0.0) {
+      out["integral_range"] = r.integral_range;
+      out["surface_term"] = r.surface_term;
+      // 2 sqrt(phi (1 - phi) A3 / V) / (phi sqrt n) = target error.
+      out["volume_for_target"] = 4.0 * (1.0 - phi) * r.integral_range /
+                                 (phi * target_error * target_error * static_cast<double>(n));
+    }
+    return out;
+  }
+  return json();
 }
 
 }  // namespace
@@ -399,7 +470,9 @@ int cmd_study(const std::vector<std::string>& args) {
       const PackingResult r = generate(s);
       rec["status"] = status_name(r.status);
       rec["count"] = r.set.inclusions.size();
-      rec["properties"] = realization_properties(s, r);
+      json windows = json::object();
+      rec["properties"] = realization_properties(s, r, &windows);
+      if (!windows.empty()) rec["windows"] = windows;
     } catch (const NothingPlaced&) {
       rec["status"] = "nothing_placed";
     } catch (const std::exception& e) {
@@ -466,6 +539,8 @@ int cmd_study(const std::vector<std::string>& args) {
     std::vector<int> not_reached(sizes.size(), 0);
     std::vector<double> volumes(sizes.size());
     std::vector<std::string> order;  // properties in the order first met
+    // The window method's variances of the inclusions' share: size -> realization -> k.
+    std::vector<std::vector<std::vector<WindowVariance>>> windows(sizes.size());
     for (size_t i = 0; i < sizes.size(); ++i) {
       volumes[i] = scenes[i][0].box.volume();
       for (int k = 0; k < realizations; ++k) {
@@ -489,6 +564,18 @@ int cmd_study(const std::vector<std::string>& args) {
             order.push_back(it.key());
           }
           per[i].push_back(it.value().get<double>());
+        }
+        if (rec.contains("windows") && rec["windows"].contains("volume_fraction")) {
+          std::vector<WindowVariance> w;
+          for (const auto& row : rec["windows"]["volume_fraction"]) {
+            WindowVariance v;
+            v.k = row[0].get<int>();
+            v.volume = row[1].get<double>();
+            v.windows = row[2].get<size_t>();
+            v.variance = row[3].get<double>();
+            w.push_back(v);
+          }
+          windows[i].push_back(w);
         }
       }
     }
@@ -550,6 +637,10 @@ int cmd_study(const std::vector<std::string>& args) {
         l["integral_range"] = law.integral_range(phi * (1.0 - phi));
       }
       p["variance_law"] = l;
+      if (name == "volume_fraction") {
+        const json w = window_summary(windows, sizes, sum.back().mean, target_error, realizations);
+        if (!w.is_null()) p["windows"] = w;
+      }
       // The size recommended: from the law where it decays (never below the smallest size
       // studied, which then already meets the target), else the smallest size whose measured
       // error meets the target.

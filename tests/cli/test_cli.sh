@@ -682,5 +682,24 @@ grep -q -- "--sizes" "$WORK/last.err" || fail "study: bad --sizes not named"
 expect_rc 2 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_c" --realizations 0 -q
 [ -e "$WORK/study_c" ] && fail "study: bad input left a directory behind"
 expect_rc 2 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_c" --bogus -q
+# The window method through the study: dilute spheres (phi 0.02, radius 0.01), whose integral
+# range has a closed form, A3 = V_s S(0) / (1 - phi) with S(0) = (1 - phi)^4 / (1 + 2 phi)^2
+# (tests/test_representativity.cpp says why): within 10 %.
+echo '{"box":{"size":[1,1,1]},"seed":4,"method":"rsa","families":[{"name":"spheres","shape":"sphere","radius":0.01,"volume_fraction":0.02}],"voxels":{"resolution":120,"partial_volume":true}}' >"$WORK/dilute.json"
+expect_rc 0 "$RVEGEN" study "$WORK/dilute.json" -o "$WORK/study_dilute" --sizes 1 --realizations 12 -q
+$py - "$WORK/study_dilute" <<'PY' || fail "study: window integral range of dilute spheres"
+import json, math, sys
+w = json.load(open(sys.argv[1] + "/study.json"))["properties"]["volume_fraction"]["windows"]
+phi, r = 0.02, 0.01
+a3 = 4 / 3 * math.pi * r ** 3 * (1 - phi) ** 4 / (1 + 2 * phi) ** 2 / (1 - phi)
+assert abs(w["integral_range"] / a3 - 1) < 0.10, (w["integral_range"], a3)
+assert [v["k"] for v in w["per_window"]] == [2, 3, 4, 5, 6, 8], w["per_window"]
+assert w["volume_for_target"] > 0, w
+PY
+# No windows where the inclusions are too large for them (the rods of the first study).
+$py - "$WORK/study_a" <<'PY' || fail "study: windows for inclusions too large for them"
+import json, sys
+assert "windows" not in json.load(open(sys.argv[1] + "/study.json"))["properties"]["volume_fraction"]
+PY
 
 finish "CLI tests"

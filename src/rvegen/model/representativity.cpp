@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
+#include <string>
 
 namespace rvegen {
 
@@ -106,6 +108,90 @@ long long realizations_needed(double variance, double mean, double rel_error) {
   if (mean == 0.0 || !(rel_error > 0.0)) return std::numeric_limits<long long>::max();
   const double n = 4.0 * variance / std::pow(rel_error * mean, 2);
   return std::max<long long>(1, static_cast<long long>(std::ceil(n)));
+}
+
+std::vector<WindowVariance> window_variances(const std::vector<float>& field,
+                                             const std::array<int, 3>& dims, double voxel_volume,
+                                             const std::vector<int>& ks) {
+  const size_t n = static_cast<size_t>(dims[0]) * dims[1] * dims[2];
+  if (dims[0] < 1 || dims[1] < 1 || dims[2] < 1 || field.size() != n) {
+    throw std::invalid_argument("window_variances: the field does not have dims' size");
+  }
+  double total = 0.0;
+  for (float v : field) total += v;
+  const double mean = total / static_cast<double>(n);
+  std::vector<WindowVariance> out;
+  for (int k : ks) {
+    if (k < 2 || dims[0] % k || dims[1] % k || dims[2] % k) {
+      throw std::invalid_argument("window_variances: k = " + std::to_string(k) +
+                                  " must be at least 2 and divide every dimension");
+    }
+    const int w[3] = {dims[0] / k, dims[1] / k, dims[2] / k};
+    std::vector<double> sums(static_cast<size_t>(k) * k * k, 0.0);
+    for (int z = 0; z < dims[2]; ++z) {
+      for (int y = 0; y < dims[1]; ++y) {
+        const float* row = field.data() + (static_cast<size_t>(z) * dims[1] + y) * dims[0];
+        const size_t base = (static_cast<size_t>(z / w[2]) * k + y / w[1]) * k;
+        for (int x = 0; x < dims[0]; ++x) sums[base + x / w[0]] += row[x];
+      }
+    }
+    const double per = static_cast<double>(w[0]) * w[1] * w[2];
+    double ss = 0.0;
+    for (double s : sums) ss += (s / per - mean) * (s / per - mean);
+    WindowVariance v;
+    v.k = k;
+    v.volume = per * voxel_volume;
+    v.windows = sums.size();
+    v.variance = ss / static_cast<double>(sums.size() - 1);
+    out.push_back(v);
+  }
+  return out;
+}
+
+std::vector<WindowVariance> pool_window_variances(
+    const std::vector<std::vector<WindowVariance>>& realizations) {
+  std::vector<WindowVariance> out;
+  if (realizations.empty()) return out;
+  out = realizations.front();
+  for (WindowVariance& w : out) {
+    w.variance = 0.0;
+    w.windows = 0;
+  }
+  for (const auto& r : realizations) {
+    if (r.size() != out.size()) throw std::invalid_argument("pool_window_variances: ks differ");
+    for (size_t i = 0; i < r.size(); ++i) {
+      if (r[i].k != out[i].k) throw std::invalid_argument("pool_window_variances: ks differ");
+      out[i].variance += r[i].variance / static_cast<double>(realizations.size());
+      out[i].windows += r[i].windows;
+    }
+  }
+  return out;
+}
+
+WindowIntegralRange window_integral_range(const std::vector<WindowVariance>& windows, double phi) {
+  WindowIntegralRange r;
+  if (!(phi > 0.0 && phi < 1.0)) return r;
+  // Weighted least squares of y = V D^2 / (phi (1 - phi)) against x = 1 / L.
+  double sw = 0.0, sx = 0.0, sy = 0.0, sxx = 0.0, sxy = 0.0;
+  for (const WindowVariance& w : windows) {
+    if (!(w.volume > 0.0) || w.windows < 2) continue;
+    const double x = 1.0 / std::cbrt(w.volume);
+    const double y = w.volume * w.variance / (phi * (1.0 - phi));
+    const double wt = static_cast<double>(w.windows);
+    sw += wt;
+    sx += wt * x;
+    sy += wt * y;
+    sxx += wt * x * x;
+    sxy += wt * x * y;
+    ++r.sizes;
+  }
+  const double det = sw * sxx - sx * sx;
+  if (r.sizes < 2 || !(det > 0.0)) return r;
+  const double slope = (sw * sxy - sx * sy) / det;
+  r.integral_range = (sy - slope * sx) / sw;
+  r.surface_term = -slope;
+  r.fitted = true;
+  return r;
 }
 
 }  // namespace rvegen

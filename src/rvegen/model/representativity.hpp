@@ -6,6 +6,7 @@
 // under a target follows. Pure arithmetic, no I/O.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <vector>
 
@@ -49,5 +50,45 @@ double recommended_volume(const VarianceLaw& law, double mean, double rel_error,
 /// The realizations needed at one volume, of variance D2, for the same relative error (at least
 /// 1).
 long long realizations_needed(double variance, double mean, double rel_error);
+
+/// The window method of Kanit et al. (2003): one periodic image of a phase's share per voxel
+/// (`field`, dims[0] x dims[1] x dims[2], x fastest) cut into k x k x k equal windows. For each
+/// k the window volume (voxel_volume * voxels per window), the number of windows and the
+/// variance of the window means about the image mean, with divisor windows - 1. That divisor is
+/// the one that estimates the variance of a window in an unbounded medium: the windows of one
+/// periodic image add up to its fixed total, which lowers their spread by (1 - 1/windows).
+struct WindowVariance {
+  int k = 0;
+  double volume = 0.0;
+  size_t windows = 0;
+  double variance = 0.0;
+};
+/// Throws std::invalid_argument when a k is below 2 or does not divide every dimension, or when
+/// the field's size is not the product of dims.
+std::vector<WindowVariance> window_variances(const std::vector<float>& field,
+                                             const std::array<int, 3>& dims, double voxel_volume,
+                                             const std::vector<int>& ks);
+
+/// Several realizations' window variances (the same ks each) as one: per k the mean variance
+/// and the windows of all.
+std::vector<WindowVariance> pool_window_variances(
+    const std::vector<std::vector<WindowVariance>>& realizations);
+
+/// The integral range A3 of a phase of volume fraction phi from window variances (several
+/// realizations pooled beforehand). For a cubic window of edge L in
+/// a medium whose covariance C(h) vanishes beyond a range below L, the variance of the window's
+/// share is exactly (1/L^6) Int prod_i (L - |h_i|) C(h) dh, so that
+///   V D^2(V) = phi (1 - phi) A3 - b / L + O(1 / L^2),
+/// the surface term b taking away from the windows' corners and faces what an unbounded
+/// medium's law phi (1 - phi) A3 / V gives. The fit is weighted least squares of V D^2 against
+/// 1 / L (weights: the number of windows, to which the precision of a variance is
+/// proportional); A3 is its intercept over phi (1 - phi). `fitted` needs two window sizes.
+struct WindowIntegralRange {
+  bool fitted = false;
+  double integral_range = 0.0;
+  double surface_term = 0.0;  // b / (phi (1 - phi)), a length times A3's unit
+  int sizes = 0;
+};
+WindowIntegralRange window_integral_range(const std::vector<WindowVariance>& windows, double phi);
 
 }  // namespace rvegen

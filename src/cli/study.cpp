@@ -193,8 +193,18 @@ json realization_properties(const Scene& scene, const PackingResult& r, json* wi
     p[name + ".a22"] = a(1, 1);
     p[name + ".a33"] = a(2, 2);
   }
-  const Summary nn = nearest_neighbour_distances(set);
-  if (nn.n > 0) p["nearest_neighbour.mean"] = nn.mean;
+  // The report's statistics: the nearest-neighbour distance, and for sphere families g(r)
+  // summarised by its first peak (the height and where it is: the contact shell of a dense
+  // packing).
+  const ReportStatistics st = report_statistics(scene, r);
+  if (st.nearest.n > 0) p["nearest_neighbour.mean"] = st.nearest.mean;
+  for (int f = 0; f < nf; ++f) {
+    const RadialDistribution& g = st.radial[f];
+    if (g.g.empty()) continue;
+    const size_t peak = static_cast<size_t>(std::max_element(g.g.begin(), g.g.end()) - g.g.begin());
+    p["radial_distribution." + family_label(set, f) + ".peak"] = g.g[peak];
+    p["radial_distribution." + family_label(set, f) + ".peak_r"] = g.r[peak];
+  }
   if (scene.homogenization.any()) {
     const EffectiveProperties e = effective_properties(scene, set, image);
     if (e.has_conductivity) {

@@ -648,12 +648,18 @@ a, b = (json.load(open(d + "/study.json")) for d in sys.argv[1:3])
 assert a["properties"] == b["properties"], "properties differ"
 p = a["properties"]
 for k in ("volume_fraction.spheres", "voxel_fraction.spheres", "conductivity.mean",
-          "nearest_neighbour.mean", "orientation.rods.a11"):
+          "nearest_neighbour.mean", "orientation.rods.a11", "radial_distribution.spheres.peak",
+          "radial_distribution.spheres.peak_r"):
     assert k in p, k
     rows = p[k]["per_size"]
     assert [r["n"] for r in rows] == [3, 3], (k, rows)
     for r in rows:
         assert r["ci95"][0] <= r["mean"] <= r["ci95"][1], (k, r)
+# Hard spheres: g(r) peaks above 1, at a distance of at least a diameter.
+for r in p["radial_distribution.spheres.peak"]["per_size"]:
+    assert r["mean"] > 1.0, r
+for r in p["radial_distribution.spheres.peak_r"]["per_size"]:
+    assert r["mean"] >= 0.08 - 0.4 / 50, r  # a diameter, less one bin of g(r)
 # A conductivity between the matrix's and the best phase's, varying between realizations.
 for r in p["conductivity.mean"]["per_size"]:
     assert 1.0 < r["mean"] < 20.0 and r["sd"] > 0, r

@@ -22,7 +22,7 @@ Integrator::Integrator(size_t bodies) : vel_(bodies, Vec3::Zero()), omega_(bodie
 
 void Integrator::step(const ContactSums& sums, std::vector<Body>* bodies, VerletList* list) {
   // Each body on its own (all cores).
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, bodies->size(), 4096),
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, bodies->size(), 512),
                     [&](const tbb::blocked_range<size_t>& r) {
                       for (size_t i = r.begin(); i != r.end(); ++i)
                         move_body(sums, i, bodies, list);

@@ -265,7 +265,7 @@ bool VerletList::refresh(std::vector<Body>* all, const Box& box, double s_out,
   ++find_calls_;
   found_.resize(ids.size());
   const auto caller = std::this_thread::get_id();
-  each_index(ids.size(), 64, [&](size_t t) {
+  each_index(ids.size(), 1, [&](size_t t) {
     if (tick && (t & 63) == 63 && std::this_thread::get_id() == caller) tick();
     const int i = ids[t];
     FindScratch& sc = scratch.local();
@@ -381,7 +381,7 @@ void VerletList::update(std::vector<Body>* all, const Box& box, double s_out,
   ids.clear();
   std::vector<char>& flag = is_stale_;
   flag.resize(n);
-  each_index(n, 4096, [&](size_t i) { flag[i] = stale_body(bodies[i], i, s_out) ? 1 : 0; });
+  each_index(n, 512, [&](size_t i) { flag[i] = stale_body(bodies[i], i, s_out) ? 1 : 0; });
   for (size_t i = 0; i < n; ++i) {
     if (flag[i]) ids.push_back(static_cast<int>(i));
   }

@@ -238,27 +238,28 @@ void sphere_pairs(const Box& box, const std::vector<Vec3>& c, const std::vector<
   if (c.empty()) return;
   const PairSearch search(box, c, r);
   // The small spheres on all cores, in blocks whose pairs are joined in block order: the list
-  // is the one a single pass makes.
-  constexpr size_t kBlock = 1024;
+  // is the one a single pass makes, whatever the block size. Blocks of 256 give scenes of a few
+  // thousand covering spheres (chains, grains) more blocks than cores.
+  constexpr size_t kBlock = 256;
   const size_t nb = (search.small_count() + kBlock - 1) / kBlock;
-  std::vector<std::vector<SpherePair>> found(nb);
+  std::vector<std::vector<SpherePair>> found(nb), reaching(nb);
+  const bool large = search.large_count() > 0;
   const auto caller = std::this_thread::get_id();
   tbb::parallel_for(size_t(0), nb, [&](size_t b) {
     if (tick && std::this_thread::get_id() == caller) tick();
     const size_t end = std::min(search.small_count(), (b + 1) * kBlock);
     for (size_t t = b * kBlock; t < end; ++t) {
       search.small_pairs(t, [&](const SpherePair& p) { found[b].push_back(p); });
+      if (large)
+        search.small_large_pairs(t, [&](const SpherePair& p) { reaching[b].push_back(p); });
     }
   });
   size_t total = 0;
-  for (const auto& f : found) total += f.size();
+  for (size_t b = 0; b < nb; ++b) total += found[b].size() + reaching[b].size();
   pairs->reserve(total);
   for (const auto& f : found) pairs->insert(pairs->end(), f.begin(), f.end());
+  for (const auto& f : reaching) pairs->insert(pairs->end(), f.begin(), f.end());
   auto add = [pairs](const SpherePair& p) { pairs->push_back(p); };
-  for (size_t t = 0; t < search.small_count() && search.large_count() > 0; ++t) {
-    if (tick && (t & 1023) == 0) tick();
-    search.small_large_pairs(t, add);
-  }
   for (size_t u = 0; u < search.large_count(); ++u) {
     if (tick) tick();
     search.large_pairs(u, add);

@@ -105,6 +105,7 @@ TEST(Windows, VarianceOfKnownWindowMeans) {
   EXPECT_EQ(w[0].windows, 8u);
   EXPECT_DOUBLE_EQ(w[0].volume, 4.0);
   EXPECT_NEAR(w[0].variance, 2.0 / 7.0, 1e-15);
+  EXPECT_DOUBLE_EQ(w[0].mean, 0.5);
   EXPECT_EQ(w[1].windows, 64u);
   EXPECT_NEAR(w[1].variance, 16.0 / 63.0, 1e-15);
   EXPECT_THROW(window_variances(f, {4, 4, 4}, 1.0, {3}), std::invalid_argument);

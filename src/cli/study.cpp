@@ -164,19 +164,21 @@ json realization_properties(const Scene& scene, const PackingResult& r, json* wi
     if (ph.kind == PhaseKind::kMatrix || ph.label >= static_cast<int>(voxel.size())) continue;
     p["voxel_fraction." + ph.name] = voxel[ph.label];
   }
-  // The window method's variances of the inclusions' share (partial volumes when the scene
-  // asks for them, else the labels), for windows of at least kWindowEdgeInRadii bounding radii.
+  // The window method's variances of the inclusions' share (the cores' partial volumes when
+  // the scene asks for them, else the core labels), for windows of at least kWindowEdgeInRadii
+  // bounding radii.
   const std::vector<int> ks = window_counts(scene);
   if (!ks.empty()) {
     std::vector<float> field = image.fraction;
     if (field.empty()) {
       field.resize(image.phase.size());
-      for (size_t i = 0; i < field.size(); ++i) field[i] = image.inclusion_id[i] >= 0 ? 1.0f : 0.0f;
+      for (size_t i = 0; i < field.size(); ++i)
+        field[i] = image.phases[image.phase[i]].kind == PhaseKind::kCore ? 1.0f : 0.0f;
     }
     const Vec3 h = image.spacing;
     json w = json::array();
     for (const WindowVariance& v : window_variances(field, image.dims, h.x() * h.y() * h.z(), ks)) {
-      w.push_back({v.k, v.volume, v.windows, v.variance});
+      w.push_back({v.k, v.volume, v.windows, v.variance, v.mean});
     }
     (*windows)["volume_fraction"] = w;
   }
@@ -272,6 +274,7 @@ json window_summary(const std::vector<std::vector<std::vector<WindowVariance>>>&
     json out;
     out["size"] = sizes[i];
     out["realizations"] = windows[i].size();
+    out["mean"] = pooled.empty() ? 0.0 : pooled.front().mean;  // of the voxel shares
     json rows = json::array();
     for (const WindowVariance& v : pooled) {
       rows.push_back(
@@ -583,6 +586,7 @@ int cmd_study(const std::vector<std::string>& args) {
             v.volume = row[1].get<double>();
             v.windows = row[2].get<size_t>();
             v.variance = row[3].get<double>();
+            v.mean = row.size() > 4 ? row[4].get<double>() : 0.0;
             w.push_back(v);
           }
           windows[i].push_back(w);

@@ -702,6 +702,16 @@ assert abs(w["integral_range"] / a3 - 1) < 0.10, (w["integral_range"], a3)
 assert [v["k"] for v in w["per_window"]] == [2, 3, 4, 5, 6, 8], w["per_window"]
 assert w["volume_for_target"] > 0, w
 PY
+# Labels only (no partial volume) and coated spheres: the windows measure the cores' share, not
+# the cores' and coatings'.
+echo '{"box":{"size":[1,1,1]},"seed":4,"method":"rsa","families":[{"name":"spheres","shape":"sphere","radius":0.01,"volume_fraction":0.05,"coating":{"thickness":0.005}}],"voxels":{"resolution":120}}' >"$WORK/coated_windows.json"
+expect_rc 0 "$RVEGEN" study "$WORK/coated_windows.json" -o "$WORK/study_coated" --sizes 1 --realizations 2 -q
+$py - "$WORK/study_coated" <<'PY' || fail "study: windows of coated spheres"
+import json, sys
+p = json.load(open(sys.argv[1] + "/study.json"))["properties"]
+w, phi = p["volume_fraction"]["windows"], p["volume_fraction"]["per_size"][0]["mean"]
+assert abs(w["mean"] - phi) < 0.01, (w["mean"], phi)  # the cores' 0.05, not the coated 0.17
+PY
 # No windows where the inclusions are too large for them (the rods of the first study).
 $py - "$WORK/study_a" <<'PY' || fail "study: windows for inclusions too large for them"
 import json, sys

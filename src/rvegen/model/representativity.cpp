@@ -143,6 +143,7 @@ std::vector<WindowVariance> window_variances(const std::vector<float>& field,
     v.volume = per * voxel_volume;
     v.windows = sums.size();
     v.variance = ss / static_cast<double>(sums.size() - 1);
+    v.mean = mean;
     out.push_back(v);
   }
   return out;
@@ -155,6 +156,7 @@ std::vector<WindowVariance> pool_window_variances(
   out = realizations.front();
   for (WindowVariance& w : out) {
     w.variance = 0.0;
+    w.mean = 0.0;
     w.windows = 0;
   }
   for (const auto& r : realizations) {
@@ -162,6 +164,7 @@ std::vector<WindowVariance> pool_window_variances(
     for (size_t i = 0; i < r.size(); ++i) {
       if (r[i].k != out[i].k) throw std::invalid_argument("pool_window_variances: ks differ");
       out[i].variance += r[i].variance / static_cast<double>(realizations.size());
+      out[i].mean += r[i].mean / static_cast<double>(realizations.size());
       out[i].windows += r[i].windows;
     }
   }

@@ -62,6 +62,7 @@ struct WindowVariance {
   double volume = 0.0;
   size_t windows = 0;
   double variance = 0.0;
+  double mean = 0.0;  // the image's mean share (the windows' mean)
 };
 /// Throws std::invalid_argument when a k is below 2 or does not divide every dimension, or when
 /// the field's size is not the product of dims.

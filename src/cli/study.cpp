@@ -140,7 +140,8 @@ std::vector<int> window_counts(const Scene& scene) {
 }
 
 // The properties of one realization, by name.
-// The window method's variances go to `windows` (a list of [k, volume, windows, variance]).
+// The window method's variances go to `windows` (a list of [k, volume, windows, variance,
+// mean]).
 json realization_properties(const Scene& scene, const PackingResult& r, json* windows) {
   json p = json::object();
   const InclusionSet& set = r.set;
@@ -586,7 +587,7 @@ int cmd_study(const std::vector<std::string>& args) {
             v.volume = row[1].get<double>();
             v.windows = row[2].get<size_t>();
             v.variance = row[3].get<double>();
-            v.mean = row.size() > 4 ? row[4].get<double>() : 0.0;
+            v.mean = row[4].get<double>();
             w.push_back(v);
           }
           windows[i].push_back(w);

@@ -76,9 +76,9 @@ std::vector<WindowVariance> pool_window_variances(
     const std::vector<std::vector<WindowVariance>>& realizations);
 
 /// The integral range A3 of a phase of volume fraction phi from window variances (several
-/// realizations pooled beforehand). For a cubic window of edge L in
-/// a medium whose covariance C(h) vanishes beyond a range below L, the variance of the window's
-/// share is exactly (1/L^6) Int prod_i (L - |h_i|) C(h) dh, so that
+/// realizations pooled beforehand). For a cubic window of edge L in a medium whose covariance
+/// C(h) vanishes beyond a range below L, the variance of the window's share is exactly
+/// (1/L^6) Int prod_i (L - |h_i|) C(h) dh, so that
 ///   V D^2(V) = phi (1 - phi) A3 - b / L + O(1 / L^2),
 /// the surface term b taking away from the windows' corners and faces what an unbounded
 /// medium's law phi (1 - phi) A3 / V gives. The fit is weighted least squares of V D^2 against

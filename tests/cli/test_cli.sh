@@ -342,16 +342,24 @@ ls -A "$WORK" | grep -q '\.rvegen-' && fail "killed runs' staging directories we
 
 # Another user's set in a parent both may write: the new set is swapped in, the old one cannot be
 # deleted (its files are not ours); the run says so and names where the old set stays. Needs a
-# second user: run as root, the second run drops to nobody (setpriv).
+# second user: run as root, the second run drops to nobody (setpriv). The checkout may sit in a
+# directory only root can enter (a clone in a mktemp directory), so the second user gets its own
+# copy of the program and the build's libraries, its scene and the shared parent in a directory
+# anyone may enter.
 if [ "$(id -u)" = 0 ] && command -v setpriv >/dev/null; then
-  shared="$WORK/shared"
+  other=$(mktemp -d /tmp/rvegen-other-user.XXXXXX)
+  chmod 0755 "$other"
+  mkdir "$other/lib"
+  cp "$RVEGEN" "$other/rvegen"
+  cp -P "$(dirname "$RVEGEN")"/../lib/*.so* "$other/lib/"
+  cp "$WORK/kill_new.json" "$other/scene.json"
+  chmod -R o+rX "$other"
+  shared="$other/shared"
   mkdir -m 0777 "$shared"
-  chmod o+x "$WORK"
   expect_rc 0 "$RVEGEN" generate -q "$WORK/closed.json" -o "$shared/set"
   cp "$shared/set/inclusions.json" "$WORK/shared_old.json"
-  chmod o+r "$WORK/kill_new.json"
-  if setpriv --reuid=65534 --regid=65534 --clear-groups "$RVEGEN" generate -q \
-      "$WORK/kill_new.json" -o "$shared/set" 2>"$WORK/shared.err"; then
+  if setpriv --reuid=65534 --regid=65534 --clear-groups env LD_LIBRARY_PATH="$other/lib" \
+      "$other/rvegen" generate -q "$other/scene.json" -o "$shared/set" 2>"$WORK/shared.err"; then
     grep -q "could not be removed.*stays at" "$WORK/shared.err" ||
       fail "another user's set: no word of the old set left behind: $(cat "$WORK/shared.err")"
     left=$(find "$shared" -maxdepth 1 -name '.set.rvegen-*' | head -1)
@@ -362,7 +370,7 @@ if [ "$(id -u)" = 0 ] && command -v setpriv >/dev/null; then
   else
     fail "another user's set: the second user's run failed: $(cat "$WORK/shared.err")"
   fi
-  rm -rf "$shared"
+  rm -rf "$other"
 else
   echo "note: not root; the two-user case of a shared parent is not exercised"
 fi

@@ -510,8 +510,10 @@ int cmd_study(const std::vector<std::string>& args) {
                   rec["status"].get<std::string>().c_str(), rec["seconds"].get<double>());
     progress(buf);
   });
-  // Only the records travel to rank 0 (each a few hundred bytes: no image, no inclusion list).
-  // Rank 0 keeps a copy of any it does not see on its own disk, and stops on any rank's failure.
+  // Only the records and each rank's peak memory travel to rank 0 (a record is a few hundred
+  // bytes: no image, no inclusion list). Rank 0 keeps a copy of any record it does not see on
+  // its own disk, and stops on any rank's failure.
+  std::vector<double> rank_peaks_mb;  // on rank 0: every rank's peak memory, in rank order
   {
     json mine = json::object();
     mine["failure"] = failure;
@@ -520,11 +522,13 @@ int cmd_study(const std::vector<std::string>& args) {
       if (!written[t].empty()) recs[todo[t].path.filename().string()] = written[t];
     }
     mine["records"] = recs;
+    mine["peak_memory_mb"] = peak_memory_mb();
     int stopped = kExitOk;
     if (ranks.root()) {
       std::string first;
       for (const std::string& text : ranks.gather(mine.dump())) {
         const json theirs = json::parse(text);
+        rank_peaks_mb.push_back(theirs["peak_memory_mb"].get<double>());
         const std::string f = theirs["failure"].get<std::string>();
         if (first.empty()) first = f;
         for (auto it = theirs["records"].begin(); it != theirs["records"].end(); ++it) {
@@ -702,7 +706,13 @@ int cmd_study(const std::vector<std::string>& args) {
     }
     out["properties"] = props;
     out["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    // The largest process's peak; under MPI each rank's too (rank 0's now, after the statistics).
     out["peak_memory_mb"] = peak_memory_mb();
+    if (rank_peaks_mb.size() > 1) {
+      rank_peaks_mb[0] = peak_memory_mb();
+      out["peak_memory_mb"] = *std::max_element(rank_peaks_mb.begin(), rank_peaks_mb.end());
+      out["peak_memory_mb_ranks"] = rank_peaks_mb;
+    }
     try {
       write_whole(dir / "study.json", out.dump(2) + "\n");
       write_whole(dir / "study.csv", csv.str());

@@ -31,6 +31,11 @@ assert one["ranks"] == 1 and two["ranks"] == 2, (one["ranks"], two["ranks"])
 assert one["properties"] == two["properties"], "statistics of 2 ranks differ from 1 process"
 assert one["properties"] == resumed["properties"], "resumed under 2 ranks differs"
 assert "conductivity.mean" in two["properties"], list(two["properties"])
+# Memory: every rank's peak, the largest as the study's.
+peaks = two["peak_memory_mb_ranks"]
+assert len(peaks) == 2 and min(peaks) > 1, peaks
+assert two["peak_memory_mb"] == max(peaks), (two["peak_memory_mb"], peaks)
+assert "peak_memory_mb_ranks" not in one and one["peak_memory_mb"] > 1, one["peak_memory_mb"]
 ranks = sorted(json.load(open(f))["rank"] for f in glob.glob(w + "/two/realizations/*.json"))
 assert ranks == [0, 0, 0, 1, 1, 1], ranks
 # The records themselves: the same seeds, counts and properties as one process wrote.

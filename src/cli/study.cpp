@@ -295,6 +295,231 @@ json window_summary(const std::vector<std::vector<std::vector<WindowVariance>>>&
   return json();
 }
 
+// The record of realization k of the box size factor m.
+std::string record_file(double m, int k) {
+  return "size_" + size_name(m) + "_" + std::to_string(k) + ".json";
+}
+
+// What a study's statistics depend on, besides the records.
+struct StudyPlan {
+  std::string scene_path;
+  fs::path dir, rdir;           // the study's directory and its realizations
+  std::vector<double> sizes;    // box size factors
+  std::vector<double> volumes;  // box volume of each size
+  double base_volume = 0.0;     // the scene's own box volume
+  int realizations = 0;
+  double target_error = 0.0;
+  int ranks = 1;
+  bool quiet = false;
+  std::chrono::steady_clock::time_point start;
+};
+
+// The records of a study's realizations, read back for its statistics.
+struct StudyRecords {
+  std::map<std::string, std::vector<std::vector<double>>> values;  // property -> size -> values
+  std::vector<std::string> order;  // properties in the order first met
+  std::vector<int> not_reached;    // per size
+  // The window method's variances of the inclusions' share: size -> realization -> k.
+  std::vector<std::vector<std::vector<WindowVariance>>> windows;
+};
+
+// Reads the records of the realizations asked for (files beyond them are kept, not used);
+// throws InputError naming a record that cannot be read.
+StudyRecords read_records(const StudyPlan& plan) {
+  const std::vector<double>& sizes = plan.sizes;
+  StudyRecords r;
+  r.not_reached.assign(sizes.size(), 0);
+  r.windows.resize(sizes.size());
+  for (size_t i = 0; i < sizes.size(); ++i) {
+    for (int k = 0; k < plan.realizations; ++k) {
+      const fs::path p = plan.rdir / record_file(plan.sizes[i], k);
+      json rec;
+      try {
+        rec = json::parse(read_file(p.string(), kMaxSceneBytes));
+      } catch (const std::exception& e) {
+        throw InputError(p.string() + " is not a realization record: " + e.what());
+      }
+      if (rec.value("status", "") != "ok") {
+        ++r.not_reached[i];
+        continue;
+      }
+      for (auto it = rec["properties"].begin(); it != rec["properties"].end(); ++it) {
+        auto& per = r.values[it.key()];
+        if (per.empty()) {
+          per.resize(sizes.size());
+          r.order.push_back(it.key());
+        }
+        per[i].push_back(it.value().get<double>());
+      }
+      if (rec.contains("windows") && rec["windows"].contains("volume_fraction")) {
+        std::vector<WindowVariance> w;
+        for (const auto& row : rec["windows"]["volume_fraction"]) {
+          WindowVariance v;
+          v.k = row[0].get<int>();
+          v.volume = row[1].get<double>();
+          v.windows = row[2].get<size_t>();
+          v.variance = row[3].get<double>();
+          v.mean = row[4].get<double>();
+          w.push_back(v);
+        }
+        r.windows[i].push_back(w);
+      }
+    }
+  }
+  return r;
+}
+
+// Writes study.json and study.csv from the records (rank 0's work); returns the exit code.
+// rank_peaks_mb: every rank's peak memory under MPI (empty for one process).
+int write_statistics(const StudyPlan& plan, std::vector<double> rank_peaks_mb) {
+  const std::vector<double>& sizes = plan.sizes;
+  const std::vector<double>& volumes = plan.volumes;
+  const int realizations = plan.realizations;
+  const double target_error = plan.target_error;
+  StudyRecords records;
+  try {
+    records = read_records(plan);
+  } catch (const std::exception& e) {
+    std::cerr << "rvegen: " << e.what() << "\n";
+    return kExitInvalid;
+  }
+  const std::vector<int>& not_reached = records.not_reached;
+  json out;
+  out["scene"] = fs::absolute(plan.scene_path).string();
+  out["sizes"] = sizes;
+  out["volumes"] = volumes;
+  out["realizations"] = realizations;
+  out["target_error"] = target_error;
+  out["not_reached"] = not_reached;
+  out["ranks"] = plan.ranks;  // processes of this run (the statistics do not depend on it)
+  out["law"] = "D^2(V) = K V^-alpha; relative error of the mean of n: 2 D(V) / (|mean| sqrt n)";
+  json props = json::object();
+  std::ostringstream csv;
+  csv.precision(10);
+  csv << "property,size,volume,n,mean,sd,ci95_low,ci95_high,relative_error,realizations_needed\n";
+  for (const std::string& name : records.order) {
+    const auto& per = records.values.at(name);
+    std::vector<SampleSummary> sum(sizes.size());
+    double scale = 0.0;
+    for (size_t i = 0; i < sizes.size(); ++i) {
+      sum[i] = summarize(per[i]);
+      scale = std::max(scale, std::abs(sum[i].mean));
+    }
+    const VarianceLaw law = fit_variance_law(volumes, sum, scale);
+    json p;
+    json rows = json::array();
+    for (size_t i = 0; i < sizes.size(); ++i) {
+      const SampleSummary& s = sum[i];
+      const double rel =
+          s.n > 0 && s.mean != 0.0 ? 2.0 * s.sd / (std::abs(s.mean) * std::sqrt(double(s.n))) : 0.0;
+      const long long need = realizations_needed(s.sd * s.sd, s.mean, target_error);
+      rows.push_back({{"size", sizes[i]},
+                      {"volume", volumes[i]},
+                      {"n", s.n},
+                      {"mean", s.mean},
+                      {"sd", s.sd},
+                      {"ci95", {s.ci_low, s.ci_high}},
+                      {"relative_error", rel},
+                      {"realizations_needed", need}});
+      csv << name << "," << sizes[i] << "," << volumes[i] << "," << s.n << "," << s.mean << ","
+          << s.sd << "," << s.ci_low << "," << s.ci_high << "," << rel << "," << need << "\n";
+    }
+    p["per_size"] = rows;
+    json l;
+    l["exact"] = law.exact;
+    l["fitted"] = law.fitted;
+    l["points"] = law.points;
+    if (!law.exact && law.K > 0.0) {
+      l["K"] = law.K;
+      l["alpha"] = law.alpha;
+    }
+    // Exact phase fractions have a point variance phi (1 - phi): their integral range (the
+    // voxel fractions' variance is mostly the discretization's, not the microstructure's).
+    const double phi = sum.back().mean;
+    if (name.rfind("volume_fraction", 0) == 0 && !law.exact && law.K > 0.0 && phi > 0.0 &&
+        phi < 1.0) {
+      l["integral_range"] = law.integral_range(phi * (1.0 - phi));
+    }
+    p["variance_law"] = l;
+    if (name == "volume_fraction") {
+      const json w =
+          window_summary(records.windows, sizes, sum.back().mean, target_error, realizations);
+      if (!w.is_null()) p["windows"] = w;
+    }
+    // The size recommended: from the law where it decays (never below the smallest size
+    // studied, which then already meets the target), else the smallest size whose measured
+    // error meets the target.
+    int measured = -1;
+    for (size_t i = 0; i < sizes.size() && measured < 0; ++i) {
+      const SampleSummary& m = sum[i];
+      if (m.n >= 2 && m.mean != 0.0 &&
+          2.0 * m.sd / (std::abs(m.mean) * std::sqrt(double(m.n))) <= target_error) {
+        measured = static_cast<int>(i);
+      }
+    }
+    json rec;
+    rec["measured_size"] = measured >= 0 ? json(sizes[measured]) : json(nullptr);
+    const double v = recommended_volume(law, phi, target_error, realizations);
+    if (law.exact) {
+      rec["volume"] = volumes.front();
+      rec["size"] = sizes.front();
+      rec["basis"] = "exact: the property does not vary between realizations";
+    } else if (std::isfinite(v) && law.K > 0.0 && law.alpha > 0.0) {
+      rec["law_volume"] = v;
+      if (v <= volumes.front()) {
+        rec["volume"] = volumes.front();
+        rec["size"] = sizes.front();
+        rec["basis"] = "law: the smallest size studied already meets the target";
+      } else {
+        rec["volume"] = v;
+        rec["size"] = std::cbrt(v / plan.base_volume);
+        rec["basis"] = v > volumes.back() ? "law, extrapolated beyond the sizes studied" : "law";
+      }
+    } else if (measured >= 0) {
+      rec["volume"] = volumes[measured];
+      rec["size"] = sizes[measured];
+      rec["basis"] = "measured: the variance shows no decay over the sizes studied";
+    } else {
+      rec["volume"] = nullptr;
+      rec["size"] = nullptr;
+      rec["basis"] =
+          "none: no decay of the variance was measured and no size studied meets the target "
+          "(study larger sizes or more realizations)";
+    }
+    rec["realizations"] = realizations;
+    p["recommended"] = rec;
+    props[name] = p;
+  }
+  out["properties"] = props;
+  out["seconds"] =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - plan.start).count();
+  // The largest process's peak; under MPI each rank's too (rank 0's now, after the statistics).
+  out["peak_memory_mb"] = peak_memory_mb();
+  if (rank_peaks_mb.size() > 1) {
+    rank_peaks_mb[0] = peak_memory_mb();
+    out["peak_memory_mb"] = *std::max_element(rank_peaks_mb.begin(), rank_peaks_mb.end());
+    out["peak_memory_mb_ranks"] = rank_peaks_mb;
+  }
+  try {
+    write_whole(plan.dir / "study.json", out.dump(2) + "\n");
+    write_whole(plan.dir / "study.csv", csv.str());
+  } catch (const std::exception& e) {
+    std::cerr << "rvegen: " << e.what() << "\n";
+    return kExitOutput;
+  }
+  int missing = 0;
+  for (int n : not_reached) missing += n;
+  if (!plan.quiet) {
+    std::cerr << "study: written " << (plan.dir / "study.json").string() << " and study.csv\n";
+  }
+  if (missing > 0) {
+    std::cerr << "rvegen: " << missing << " realization(s) did not reach the target; they are "
+              << "left out of the statistics\n";
+    return kExitNotReached;
+  }
+  return kExitOk;
+}
+
 }  // namespace
 
 const char* study_usage() {
@@ -423,9 +648,7 @@ int cmd_study(const std::vector<std::string>& args) {
     int k;
     fs::path path;
   };
-  auto record_name = [&sizes](size_t i, int k) {
-    return "size_" + size_name(sizes[i]) + "_" + std::to_string(k) + ".json";
-  };
+  auto record_name = [&sizes](size_t i, int k) { return record_file(sizes[i], k); };
   std::vector<int> missing_ids;  // size index * realizations + k
   if (ranks.root()) {
     for (size_t i = 0; i < sizes.size(); ++i) {
@@ -551,188 +774,19 @@ int cmd_study(const std::vector<std::string>& args) {
     if (stopped != kExitOk) return stopped;
   }
   // The statistics are rank 0's; every rank ends with its exit code.
-  auto finish = [&]() -> int {
-    // Statistics over the realizations asked for (files beyond them are kept, not used).
-    std::map<std::string, std::vector<std::vector<double>>> values;  // property -> size -> values
-    std::vector<int> not_reached(sizes.size(), 0);
-    std::vector<double> volumes(sizes.size());
-    std::vector<std::string> order;  // properties in the order first met
-    // The window method's variances of the inclusions' share: size -> realization -> k.
-    std::vector<std::vector<std::vector<WindowVariance>>> windows(sizes.size());
-    for (size_t i = 0; i < sizes.size(); ++i) {
-      volumes[i] = scenes[i][0].box.volume();
-      for (int k = 0; k < realizations; ++k) {
-        const fs::path p = rdir / record_name(i, k);
-        json rec;
-        try {
-          rec = json::parse(read_file(p.string(), kMaxSceneBytes));
-        } catch (const std::exception& e) {
-          std::cerr << "rvegen: " << p.string() << " is not a realization record: " << e.what()
-                    << "\n";
-          return kExitInvalid;
-        }
-        if (rec.value("status", "") != "ok") {
-          ++not_reached[i];
-          continue;
-        }
-        for (auto it = rec["properties"].begin(); it != rec["properties"].end(); ++it) {
-          auto& per = values[it.key()];
-          if (per.empty()) {
-            per.resize(sizes.size());
-            order.push_back(it.key());
-          }
-          per[i].push_back(it.value().get<double>());
-        }
-        if (rec.contains("windows") && rec["windows"].contains("volume_fraction")) {
-          std::vector<WindowVariance> w;
-          for (const auto& row : rec["windows"]["volume_fraction"]) {
-            WindowVariance v;
-            v.k = row[0].get<int>();
-            v.volume = row[1].get<double>();
-            v.windows = row[2].get<size_t>();
-            v.variance = row[3].get<double>();
-            v.mean = row[4].get<double>();
-            w.push_back(v);
-          }
-          windows[i].push_back(w);
-        }
-      }
-    }
-    json out;
-    out["scene"] = fs::absolute(scene_path).string();
-    out["sizes"] = sizes;
-    out["volumes"] = volumes;
-    out["realizations"] = realizations;
-    out["target_error"] = target_error;
-    out["not_reached"] = not_reached;
-    out["ranks"] = ranks.size();  // processes of this run (the statistics do not depend on it)
-    out["law"] = "D^2(V) = K V^-alpha; relative error of the mean of n: 2 D(V) / (|mean| sqrt n)";
-    json props = json::object();
-    std::ostringstream csv;
-    csv.precision(10);
-    csv << "property,size,volume,n,mean,sd,ci95_low,ci95_high,relative_error,realizations_needed\n";
-    for (const std::string& name : order) {
-      const auto& per = values[name];
-      std::vector<SampleSummary> sum(sizes.size());
-      double scale = 0.0;
-      for (size_t i = 0; i < sizes.size(); ++i) {
-        sum[i] = summarize(per[i]);
-        scale = std::max(scale, std::abs(sum[i].mean));
-      }
-      const VarianceLaw law = fit_variance_law(volumes, sum, scale);
-      json p;
-      json rows = json::array();
-      for (size_t i = 0; i < sizes.size(); ++i) {
-        const SampleSummary& s = sum[i];
-        const double rel = s.n > 0 && s.mean != 0.0
-                               ? 2.0 * s.sd / (std::abs(s.mean) * std::sqrt(double(s.n)))
-                               : 0.0;
-        const long long need = realizations_needed(s.sd * s.sd, s.mean, target_error);
-        rows.push_back({{"size", sizes[i]},
-                        {"volume", volumes[i]},
-                        {"n", s.n},
-                        {"mean", s.mean},
-                        {"sd", s.sd},
-                        {"ci95", {s.ci_low, s.ci_high}},
-                        {"relative_error", rel},
-                        {"realizations_needed", need}});
-        csv << name << "," << sizes[i] << "," << volumes[i] << "," << s.n << "," << s.mean << ","
-            << s.sd << "," << s.ci_low << "," << s.ci_high << "," << rel << "," << need << "\n";
-      }
-      p["per_size"] = rows;
-      json l;
-      l["exact"] = law.exact;
-      l["fitted"] = law.fitted;
-      l["points"] = law.points;
-      if (!law.exact && law.K > 0.0) {
-        l["K"] = law.K;
-        l["alpha"] = law.alpha;
-      }
-      // Exact phase fractions have a point variance phi (1 - phi): their integral range (the
-      // voxel fractions' variance is mostly the discretization's, not the microstructure's).
-      const double phi = sum.back().mean;
-      if (name.rfind("volume_fraction", 0) == 0 && !law.exact && law.K > 0.0 && phi > 0.0 &&
-          phi < 1.0) {
-        l["integral_range"] = law.integral_range(phi * (1.0 - phi));
-      }
-      p["variance_law"] = l;
-      if (name == "volume_fraction") {
-        const json w = window_summary(windows, sizes, sum.back().mean, target_error, realizations);
-        if (!w.is_null()) p["windows"] = w;
-      }
-      // The size recommended: from the law where it decays (never below the smallest size
-      // studied, which then already meets the target), else the smallest size whose measured
-      // error meets the target.
-      int measured = -1;
-      for (size_t i = 0; i < sizes.size() && measured < 0; ++i) {
-        const SampleSummary& m = sum[i];
-        if (m.n >= 2 && m.mean != 0.0 &&
-            2.0 * m.sd / (std::abs(m.mean) * std::sqrt(double(m.n))) <= target_error) {
-          measured = static_cast<int>(i);
-        }
-      }
-      json rec;
-      rec["measured_size"] = measured >= 0 ? json(sizes[measured]) : json(nullptr);
-      const double v = recommended_volume(law, phi, target_error, realizations);
-      if (law.exact) {
-        rec["volume"] = volumes.front();
-        rec["size"] = sizes.front();
-        rec["basis"] = "exact: the property does not vary between realizations";
-      } else if (std::isfinite(v) && law.K > 0.0 && law.alpha > 0.0) {
-        rec["law_volume"] = v;
-        if (v <= volumes.front()) {
-          rec["volume"] = volumes.front();
-          rec["size"] = sizes.front();
-          rec["basis"] = "law: the smallest size studied already meets the target";
-        } else {
-          rec["volume"] = v;
-          rec["size"] = std::cbrt(v / base.box.volume());
-          rec["basis"] = v > volumes.back() ? "law, extrapolated beyond the sizes studied" : "law";
-        }
-      } else if (measured >= 0) {
-        rec["volume"] = volumes[measured];
-        rec["size"] = sizes[measured];
-        rec["basis"] = "measured: the variance shows no decay over the sizes studied";
-      } else {
-        rec["volume"] = nullptr;
-        rec["size"] = nullptr;
-        rec["basis"] =
-            "none: no decay of the variance was measured and no size studied meets the target "
-            "(study larger sizes or more realizations)";
-      }
-      rec["realizations"] = realizations;
-      p["recommended"] = rec;
-      props[name] = p;
-    }
-    out["properties"] = props;
-    out["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    // The largest process's peak; under MPI each rank's too (rank 0's now, after the statistics).
-    out["peak_memory_mb"] = peak_memory_mb();
-    if (rank_peaks_mb.size() > 1) {
-      rank_peaks_mb[0] = peak_memory_mb();
-      out["peak_memory_mb"] = *std::max_element(rank_peaks_mb.begin(), rank_peaks_mb.end());
-      out["peak_memory_mb_ranks"] = rank_peaks_mb;
-    }
-    try {
-      write_whole(dir / "study.json", out.dump(2) + "\n");
-      write_whole(dir / "study.csv", csv.str());
-    } catch (const std::exception& e) {
-      std::cerr << "rvegen: " << e.what() << "\n";
-      return kExitOutput;
-    }
-    int missing = 0;
-    for (int n : not_reached) missing += n;
-    if (!quiet) {
-      std::cerr << "study: written " << (dir / "study.json").string() << " and study.csv\n";
-    }
-    if (missing > 0) {
-      std::cerr << "rvegen: " << missing << " realization(s) did not reach the target; they are "
-                << "left out of the statistics\n";
-      return kExitNotReached;
-    }
-    return kExitOk;
-  };
-  return ranks.broadcast(ranks.root() ? finish() : kExitOk);
+  StudyPlan plan;
+  plan.scene_path = scene_path;
+  plan.dir = dir;
+  plan.rdir = rdir;
+  plan.sizes = sizes;
+  for (const auto& per_size : scenes) plan.volumes.push_back(per_size[0].box.volume());
+  plan.base_volume = base.box.volume();
+  plan.realizations = realizations;
+  plan.target_error = target_error;
+  plan.ranks = ranks.size();
+  plan.quiet = quiet;
+  plan.start = t0;
+  return ranks.broadcast(ranks.root() ? write_statistics(plan, rank_peaks_mb) : kExitOk);
 }
 
 }  // namespace rvegen::cli

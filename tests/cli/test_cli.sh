@@ -696,6 +696,15 @@ grep -q -- "--sizes" "$WORK/last.err" || fail "study: bad --sizes not named"
 expect_rc 2 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_c" --realizations 0 -q
 [ -e "$WORK/study_c" ] && fail "study: bad input left a directory behind"
 expect_rc 2 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_c" --bogus -q
+# A damaged record is named, with exit 2, and the statistics are not rewritten from it.
+cp -r "$WORK/study_a" "$WORK/study_damaged"
+echo '{"seed": 1, "status": "ok", "propert' >"$WORK/study_damaged/realizations/size_1.5_1.json"
+cp "$WORK/study_damaged/study.json" "$WORK/study_damaged.before"
+expect_rc 2 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_damaged" --sizes 1,1.5 --realizations 3 -q
+grep -q "size_1.5_1.json is not a realization record" "$WORK/last.err" ||
+  fail "study: the damaged record was not named: $(cat "$WORK/last.err")"
+cmp -s "$WORK/study_damaged/study.json" "$WORK/study_damaged.before" ||
+  fail "study: statistics rewritten from a damaged record"
 # The window method through the study: dilute spheres (phi 0.02, radius 0.01), whose integral
 # range has a closed form, A3 = V_s S(0) / (1 - phi) with S(0) = (1 - phi)^4 / (1 + 2 phi)^2
 # (tests/test_representativity.cpp says why): within 10 %.

@@ -110,6 +110,44 @@ void turned_sections(const InclusionSet& set, const VoxelImage& im, const Phase&
   }
 }
 
+// The node sets of the box's faces (XMIN .. ZMAX), edges (EDGE_Y0Z0 ..) and corners
+// (CORNER_X0Y0Z0 ..): nodes_where(at) gives the nodes at those ends (at[a]: -1 anywhere along
+// axis a, 0 at its lower end, 1 at its upper end).
+template <class Where>
+void boundary_sets(std::ostringstream& s, const Where& nodes_where) {
+  const char* axis = "XYZ";
+  for (int a = 0; a < 3; ++a) {
+    for (int end = 0; end < 2; ++end) {
+      int at[3] = {-1, -1, -1};
+      at[a] = end;
+      s << "*NSET, NSET=" << axis[a] << (end ? "MAX" : "MIN") << "\n";
+      id_lines(s, nodes_where(at));
+    }
+  }
+  for (int a = 0; a < 3; ++a) {  // edges along axis a
+    const int b = (a + 1) % 3, c = (a + 2) % 3;
+    const int lo = std::min(b, c), hi = std::max(b, c);
+    for (int eb = 0; eb < 2; ++eb) {
+      for (int ec = 0; ec < 2; ++ec) {
+        int at[3] = {-1, -1, -1};
+        at[lo] = eb;
+        at[hi] = ec;
+        s << "*NSET, NSET=EDGE_" << axis[lo] << eb << axis[hi] << ec << "\n";
+        id_lines(s, nodes_where(at));
+      }
+    }
+  }
+  for (int cz = 0; cz < 2; ++cz) {
+    for (int cy = 0; cy < 2; ++cy) {
+      for (int cx = 0; cx < 2; ++cx) {
+        const int at[3] = {cx, cy, cz};
+        s << "*NSET, NSET=CORNER_X" << cx << "Y" << cy << "Z" << cz << "\n";
+        id_lines(s, nodes_where(at));
+      }
+    }
+  }
+}
+
 }  // namespace
 
 void write_abaqus_voxel_mesh(const VoxelImage& im, std::FILE* out) {
@@ -142,7 +180,6 @@ void write_abaqus_voxel_mesh(const VoxelImage& im, std::FILE* out) {
   }
   // Node sets: faces, edges, corners (each the nodes whose coordinates lie at those ends).
   const int n[3] = {g.nx, g.ny, g.nz};
-  const char* axis = "XYZ";
   // at[a]: -1 free, 0 lower end, 1 upper end.
   auto nodes_where = [&](const int at[3]) {
     int lo[3], hi[3];
@@ -158,36 +195,7 @@ void write_abaqus_voxel_mesh(const VoxelImage& im, std::FILE* out) {
     }
     return ids;
   };
-  for (int a = 0; a < 3; ++a) {
-    for (int end = 0; end < 2; ++end) {
-      int at[3] = {-1, -1, -1};
-      at[a] = end;
-      s << "*NSET, NSET=" << axis[a] << (end ? "MAX" : "MIN") << "\n";
-      id_lines(s, nodes_where(at));
-    }
-  }
-  for (int a = 0; a < 3; ++a) {  // edges along axis a
-    const int b = (a + 1) % 3, c = (a + 2) % 3;
-    const int lo = std::min(b, c), hi = std::max(b, c);
-    for (int eb = 0; eb < 2; ++eb) {
-      for (int ec = 0; ec < 2; ++ec) {
-        int at[3] = {-1, -1, -1};
-        at[lo] = eb;
-        at[hi] = ec;
-        s << "*NSET, NSET=EDGE_" << axis[lo] << eb << axis[hi] << ec << "\n";
-        id_lines(s, nodes_where(at));
-      }
-    }
-  }
-  for (int cz = 0; cz < 2; ++cz) {
-    for (int cy = 0; cy < 2; ++cy) {
-      for (int cx = 0; cx < 2; ++cx) {
-        const int at[3] = {cx, cy, cz};
-        s << "*NSET, NSET=CORNER_X" << cx << "Y" << cy << "Z" << cz << "\n";
-        id_lines(s, nodes_where(at));
-      }
-    }
-  }
+  boundary_sets(s, nodes_where);
   s << "*ELSET, ELSET=EALL, GENERATE\n1, " << im.count() << ", 1\n";
   s << "*NSET, NSET=ORIGIN\n" << g.node(0, 0, 0) << "\n";
   s << "*NSET, NSET=REFX\n" << ref + 1 << "\n*NSET, NSET=REFY\n" << ref + 2 << "\n";
@@ -267,6 +275,68 @@ void write_gmsh_voxel_mesh(const VoxelImage& im, std::FILE* out) {
     s.str("");
   }
   s << "$EndPeriodic\n";
+  put(out, s.str());
+}
+
+void write_abaqus_tet_mesh(const TetMesh& mesh, std::FILE* out) {
+  const Box& box = mesh.box;
+  const double tol = 1e-9 * box.size.minCoeff();
+  std::ostringstream s;
+  s.precision(kAbaqusDigits);
+  s << "** rvegen tetrahedral mesh: " << mesh.tets.size() << " tetrahedra (C3D4), "
+    << mesh.nodes.size()
+    << " nodes, element sets per phase, periodic node sets, reference nodes REFX, REFY, "
+       "REFZ.\n*NODE, NSET=ALLNODES\n";
+  for (size_t i = 0; i < mesh.nodes.size(); ++i) {
+    const Vec3& x = mesh.nodes[i];
+    s << i + 1 << ", " << x[0] << ", " << x[1] << ", " << x[2] << "\n";
+    if (i % 4096 == 4095) put(out, s.str()), s.str("");
+  }
+  const long long ref = static_cast<long long>(mesh.nodes.size());
+  for (int a = 0; a < 3; ++a) {
+    s << ref + 1 + a << ", " << box.origin[0] << ", " << box.origin[1] << ", " << box.origin[2]
+      << "\n";
+  }
+  std::vector<char> present(mesh.phases.size(), 0);
+  for (int32_t l : mesh.phase) present[l] = 1;
+  for (const Phase& p : mesh.phases) {
+    if (!present[p.label]) continue;
+    s << "*ELEMENT, TYPE=C3D4, ELSET=" << set_name(p.name) << "\n";
+    for (size_t e = 0; e < mesh.tets.size(); ++e) {
+      if (mesh.phase[e] != p.label) continue;
+      const auto& t = mesh.tets[e];
+      s << e + 1 << ", " << t[0] + 1 << ", " << t[1] + 1 << ", " << t[2] + 1 << ", " << t[3] + 1
+        << "\n";
+      if (e % 4096 == 4095) put(out, s.str()), s.str("");
+    }
+  }
+  // Where each node lies: per axis -1 inside, 0 at the lower end, 1 at the upper end.
+  std::vector<std::array<int8_t, 3>> at(mesh.nodes.size());
+  long long origin = -1;
+  for (size_t i = 0; i < mesh.nodes.size(); ++i) {
+    for (int a = 0; a < 3; ++a) {
+      const double x = mesh.nodes[i][a] - box.origin[a];
+      at[i][a] = std::abs(x) <= tol ? 0 : (std::abs(x - box.size[a]) <= tol ? 1 : -1);
+    }
+    if (at[i][0] == 0 && at[i][1] == 0 && at[i][2] == 0) origin = static_cast<long long>(i) + 1;
+  }
+  if (origin < 0) throw OutputError("tetrahedral mesh: no node at the box's lower corner");
+  // Nodes whose position matches `want` on the axes it fixes (-1: any).
+  auto nodes_where = [&](const int want[3]) {
+    std::vector<long long> ids;
+    for (size_t i = 0; i < at.size(); ++i) {
+      bool ok = true;
+      for (int a = 0; a < 3; ++a) ok = ok && (want[a] < 0 ? true : at[i][a] == want[a]);
+      if (ok) ids.push_back(static_cast<long long>(i) + 1);
+    }
+    return ids;
+  };
+  boundary_sets(s, nodes_where);
+  s << "*ELSET, ELSET=EALL, GENERATE\n1, " << mesh.tets.size() << ", 1\n";
+  s << "*NSET, NSET=ORIGIN\n" << origin << "\n";
+  s << "*NSET, NSET=REFX\n" << ref + 1 << "\n*NSET, NSET=REFY\n" << ref + 2 << "\n";
+  s << "*NSET, NSET=REFZ\n" << ref + 3 << "\n*NSET, NSET=REFS\n";
+  s << ref + 1 << ", " << ref + 2 << ", " << ref + 3 << "\n";
   put(out, s.str());
 }
 

@@ -20,6 +20,7 @@
 #include <cstdio>
 #include <string>
 
+#include "rvegen/femesh/tet_mesh.hpp"
 #include "rvegen/model/scene.hpp"
 #include "rvegen/raster/voxelize.hpp"
 
@@ -38,6 +39,12 @@ void write_abaqus_voxel_mesh(const VoxelImage& image, std::FILE* out);
 /// a $Periodic section tying each upper face's nodes to their images on the lower face (the
 /// translation by the box size as affine transform).
 void write_gmsh_voxel_mesh(const VoxelImage& image, std::FILE* out);
+
+/// mesh_tet.inp: the tetrahedral mesh (C3D4, node and element numbers from 1 in the mesh's
+/// order) with the node and element sets of mesh_voxel.inp: an ELSET per phase present, EALL, the
+/// faces, edges and corners (nodes within 1e-9 of the box size of those ends), ORIGIN (the node at
+/// the box's lower corner), and the reference nodes REFX, REFY, REFZ (REFS).
+void write_abaqus_tet_mesh(const TetMesh& mesh, std::FILE* out);
 
 /// run_voxel_conductivity.inp (elasticity false) or run_voxel_elasticity.inp: *INCLUDE of
 /// mesh_voxel.inp, one material and section per phase, the periodic equations and three (unit

@@ -262,7 +262,7 @@ void read_materials_json(const std::string& text, Scene* scene) {
 
 Outputs outputs_from_names(const std::vector<std::string>& names, bool mesh,
                            const std::string& where) {
-  Outputs out{false, false, false, false, false, mesh, false, false};
+  Outputs out{false, false, false, false, false, mesh, false, false, false};
   for (size_t k = 0; k < names.size(); ++k) {
     const std::string& name = names[k];
     if (name == "inclusions") {
@@ -279,12 +279,14 @@ Outputs outputs_from_names(const std::vector<std::string>& names, bool mesh,
       out.mesh = true;
     } else if (name == "mesh_voxel") {
       out.mesh_voxel = true;
+    } else if (name == "mesh_tet") {
+      out.mesh_tet = true;
     } else if (name == "statistics") {
       out.statistics = true;
     } else {
       throw InputError(
           where + "[" + std::to_string(k) + "]: unknown output \"" + name +
-          "\" (inclusions, voxels, h5, amitex, levelsets, mesh, mesh_voxel, statistics)");
+          "\" (inclusions, voxels, h5, amitex, levelsets, mesh, mesh_voxel, mesh_tet, statistics)");
     }
   }
   return out;
@@ -614,6 +616,7 @@ std::string scene_to_json(const Scene& s) {
                                    {o.levelsets, "levelsets"},
                                    {o.mesh, "mesh"},
                                    {o.mesh_voxel, "mesh_voxel"},
+                                   {o.mesh_tet, "mesh_tet"},
                                    {o.statistics, "statistics"}}) {
       if (on) names.push_back(name);
     }

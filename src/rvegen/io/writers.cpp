@@ -180,6 +180,35 @@ std::string vti_bytes(const VoxelImage& im, bool compressed) {
   return with_file([&](std::FILE* f) { write_vti(im, f, compressed); });
 }
 
+namespace {
+
+// An unstructured grid of one cell type with the cell data `phase` and `inclusion_id`.
+void write_unstructured(std::FILE* out, const std::vector<double>& xyz,
+                        const std::vector<int64_t>& conn, const std::vector<int64_t>& offsets,
+                        const std::vector<uint8_t>& types, const std::vector<uint8_t>& phase,
+                        const std::vector<int32_t>& inclusion_id) {
+  AppendedList app(true);
+  const uint64_t at[6] = {
+      app.add(xyz.data(), xyz.size()),         app.add(conn.data(), conn.size()),
+      app.add(offsets.data(), offsets.size()), app.add(types.data(), types.size()),
+      app.add(phase.data(), phase.size()),     app.add(inclusion_id.data(), inclusion_id.size())};
+  std::ostringstream s;
+  s << header("UnstructuredGrid", true);
+  s << "  <UnstructuredGrid>\n    <Piece NumberOfPoints=\"" << xyz.size() / 3
+    << "\" NumberOfCells=\"" << types.size() << "\">\n";
+  s << "    <Points>\n" << array_tag("Float64", "Points", 3, at[0]) << "    </Points>\n";
+  s << "    <Cells>\n"
+    << array_tag("Int64", "connectivity", 1, at[1]) << array_tag("Int64", "offsets", 1, at[2])
+    << array_tag("UInt8", "types", 1, at[3]) << "    </Cells>\n";
+  s << "    <CellData Scalars=\"phase\">\n"
+    << array_tag("UInt8", "phase", 1, at[4]) << array_tag("Int32", "inclusion_id", 1, at[5])
+    << "    </CellData>\n    </Piece>\n  </UnstructuredGrid>\n";
+  put(out, s.str());
+  put_appended(out, app.arrays());
+}
+
+}  // namespace
+
 void write_voxel_mesh_vtu(const VoxelImage& im, std::FILE* out) {
   const int nx = im.size(0), ny = im.size(1), nz = im.size(2);
   const size_t cells = im.count();
@@ -218,26 +247,23 @@ void write_voxel_mesh_vtu(const VoxelImage& im, std::FILE* out) {
       }
     }
   }
-  AppendedList app(true);
-  const uint64_t at[6] = {app.add(xyz.data(), xyz.size()),
-                          app.add(conn.data(), conn.size()),
-                          app.add(offsets.data(), offsets.size()),
-                          app.add(types.data(), types.size()),
-                          app.add(im.phase.data(), im.phase.size()),
-                          app.add(im.inclusion_id.data(), im.inclusion_id.size())};
-  std::ostringstream s;
-  s << header("UnstructuredGrid", true);
-  s << "  <UnstructuredGrid>\n    <Piece NumberOfPoints=\"" << points << "\" NumberOfCells=\""
-    << cells << "\">\n";
-  s << "    <Points>\n" << array_tag("Float64", "Points", 3, at[0]) << "    </Points>\n";
-  s << "    <Cells>\n"
-    << array_tag("Int64", "connectivity", 1, at[1]) << array_tag("Int64", "offsets", 1, at[2])
-    << array_tag("UInt8", "types", 1, at[3]) << "    </Cells>\n";
-  s << "    <CellData Scalars=\"phase\">\n"
-    << array_tag("UInt8", "phase", 1, at[4]) << array_tag("Int32", "inclusion_id", 1, at[5])
-    << "    </CellData>\n    </Piece>\n  </UnstructuredGrid>\n";
-  put(out, s.str());
-  put_appended(out, app.arrays());
+  write_unstructured(out, xyz, conn, offsets, types, im.phase, im.inclusion_id);
+}
+
+void write_tet_mesh_vtu(const TetMesh& mesh, std::FILE* out) {
+  const size_t cells = mesh.tets.size(), points = mesh.nodes.size();
+  std::vector<double> xyz(3 * points);
+  for (size_t i = 0; i < points; ++i) {
+    for (int a = 0; a < 3; ++a) xyz[3 * i + a] = mesh.nodes[i][a];
+  }
+  std::vector<int64_t> conn(4 * cells), offsets(cells);
+  for (size_t e = 0; e < cells; ++e) {
+    for (int c = 0; c < 4; ++c) conn[4 * e + c] = mesh.tets[e][c];
+    offsets[e] = 4 * (static_cast<int64_t>(e) + 1);
+  }
+  std::vector<uint8_t> types(cells, 10);  // VTK_TETRA
+  const std::vector<uint8_t> phase(mesh.phase.begin(), mesh.phase.end());
+  write_unstructured(out, xyz, conn, offsets, types, phase, mesh.inclusion_id);
 }
 
 std::vector<uint16_t> amitex_material_ids(const VoxelImage& im) {
@@ -467,7 +493,9 @@ const std::vector<std::string>& OutputSet::file_names() {
                                                  "run_voxel_conductivity.inp",
                                                  "run_voxel_elasticity.inp",
                                                  "mesh_voxel.msh",
-                                                 "mesh_voxel.vtu"};
+                                                 "mesh_voxel.vtu",
+                                                 "mesh_tet.inp",
+                                                 "mesh_tet.vtu"};
   return names;
 }
 

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "rvegen/femesh/tet_mesh.hpp"
 #include "rvegen/io/inclusions_json.hpp"
 #include "rvegen/model/inclusion_set.hpp"
 #include "rvegen/raster/glyphs.hpp"
@@ -32,6 +33,9 @@ std::string material_vtk_bytes(const VoxelImage& image);
 /// numbering less one): Float64 points, VTK_HEXAHEDRON cells, cell data phase (UInt8) and
 /// inclusion_id (Int32); zlib-compressed.
 void write_voxel_mesh_vtu(const VoxelImage& image, std::FILE* out);
+/// mesh_tet.vtu: the tetrahedral mesh as an unstructured grid, cell data `phase` and
+/// `inclusion_id` (-1 in the matrix).
+void write_tet_mesh_vtu(const TetMesh& mesh, std::FILE* out);
 /// Legacy VTK STRUCTURED_POINTS with one binary big-endian cell scalar `name` over the image,
 /// as AMITEX_FFTP reads it (a 10-line header): unsigned short values, or int when `wide`;
 /// value(v) for voxel v (x fastest). Streamed in blocks.

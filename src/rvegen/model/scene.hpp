@@ -113,13 +113,16 @@ struct Outputs {
   /// "mesh_voxel": mesh_voxel.inp (8-node hexahedra, one per voxel, periodic node sets) and
   /// the CalculiX/Abaqus decks run_voxel_*.inp with periodic equations
   bool mesh_voxel = false;
+  /// "mesh_tet": mesh_tet.inp and mesh_tet.vtu, a conforming periodic tetrahedral mesh (plain
+  /// spheres and cylinders)
+  bool mesh_tet = false;
   /// "statistics": g(r) of the sphere families and the nearest-neighbour distances in
   /// report.json (the costly part of the report: 8-12 % of a sphere run)
   bool statistics = true;
   bool operator==(const Outputs& o) const {
     return inclusions == o.inclusions && voxels == o.voxels && h5 == o.h5 && amitex == o.amitex &&
            levelsets == o.levelsets && mesh == o.mesh && mesh_voxel == o.mesh_voxel &&
-           statistics == o.statistics;
+           mesh_tet == o.mesh_tet && statistics == o.statistics;
   }
   /// A voxel image is computed when one of its files is asked for.
   bool image() const { return voxels || h5 || amitex || mesh_voxel; }

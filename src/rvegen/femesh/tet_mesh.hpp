@@ -1,0 +1,83 @@
+// Conforming periodic tetrahedral meshes of an RVE, built on Gmsh (its OpenCASCADE kernel and
+// its HXT volume mesher): the inclusions and their periodic images are fragmented against the
+// box, so every interface and every box face is a surface of the mesh; the faces at the upper
+// end of each axis are meshed as translated copies of those at the lower end (Gmsh's periodic
+// surfaces), so opposite faces carry identical triangulations. The element size follows the
+// local gap between surfaces (two inclusions, or an inclusion and a box face it does not cross)
+// and the curvature of the inclusions (a bound on the chord error), between a least and a
+// largest size.
+//
+// Spheres and cylinders (flat ends) without modifiers. Ellipsoids (OpenCASCADE makes spline
+// surfaces of them, whose cuts by opposite faces do not match), coated, wavy, bent, deformed and
+// debonded inclusions are refused (InputError), and so are closed boxes.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "rvegen/model/inclusion_set.hpp"
+#include "rvegen/model/phases.hpp"
+
+namespace rvegen {
+
+/// The mesher failed (its message), or the mesh it gave is not what the RVE needs.
+class MeshError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct TetMeshOptions {
+  /// Largest element size; 0: a tenth of the smallest box side.
+  double max_size = 0.0;
+  /// Least element size (where gaps are thinner than it, elements do not follow); 0: a
+  /// fiftieth of the smallest inclusion size (radius, or half length if shorter).
+  double min_size = 0.0;
+  /// Chord error allowed against each inclusion's surface, relative to its least radius of
+  /// curvature: the element size near a surface of radius rho is at most rho sqrt(8 chord).
+  double chord = 0.003;
+  /// Elements across the gap between two surfaces.
+  double gap_elements = 2.0;
+  /// Threads of the volume mesher (0: all cores).
+  int threads = 0;
+};
+
+struct TetMesh {
+  Box box;
+  std::vector<Phase> phases;  // phase_table of the set
+  std::vector<Vec3> nodes;
+  /// Node indices (0-based) of each tetrahedron, positively oriented.
+  std::vector<std::array<int32_t, 4>> tets;
+  std::vector<int32_t> phase;         // per tetrahedron: phase label
+  std::vector<int32_t> inclusion_id;  // per tetrahedron: -1 in the matrix
+  /// (dependent, master) node pairs: every node with a coordinate at the upper end of an axis,
+  /// and the node at its coordinates brought to the lower ends (which lies on no upper face).
+  std::vector<std::array<int32_t, 2>> periodic;
+};
+
+/// Refuses (InputError naming the family) a set tet_mesh cannot mesh.
+void check_tet_meshable(const InclusionSet& set);
+
+/// Meshes the set. Throws InputError for what check_tet_meshable refuses and MeshError when
+/// the mesher fails (with its message) or when the faces do not match. `progress` gets a line
+/// per stage.
+TetMesh tet_mesh(const InclusionSet& set, const TetMeshOptions& options = {},
+                 const std::function<void(const std::string&)>& progress = {});
+
+/// What the mesh is worth: element volumes and their sum per phase label, the least dihedral
+/// angle of every element.
+struct TetQuality {
+  double min_volume = 0.0;                 // least element volume (positive: no inverted element)
+  std::vector<double> phase_volume;        // per phase label
+  double min_dihedral = 0.0;               // degrees
+  std::array<double, 3> quantiles = {};    // 1 %, 5 %, 50 % of the elements' least angles
+  std::vector<long long> dihedral_counts;  // elements whose least angle lies in each bin
+  static constexpr std::array<double, 7> kBins = {0, 5, 10, 15, 20, 30, 45};  // bin lower ends
+  long long below_5_degrees = 0;
+};
+TetQuality tet_quality(const TetMesh& mesh);
+
+}  // namespace rvegen

@@ -65,15 +65,6 @@ std::vector<Image> images_near(const InclusionSet& set, double margin) {
   return out;
 }
 
-// Least radius of curvature of a shape's surface.
-double least_curvature_radius(const Shape& s) {
-  if (s.kind == ShapeKind::Ellipsoid) {
-    const double a = s.semi_axes.maxCoeff(), c = s.semi_axes.minCoeff();
-    return c * c / a;
-  }
-  return s.radius;
-}
-
 // The element size wanted at a point: the gap between the two nearest surfaces (two
 // inclusions, or an inclusion and a box face it does not cross) over gap_elements, the chord
 // bound near a surface, between min_size and max_size. A cell list of the images.
@@ -87,12 +78,17 @@ class SizeField {
     n_ = std::clamp(static_cast<int>(side / max_), 1, 64);
     for (int a = 0; a < 3; ++a) cell_[a] = set.box.size[a] / n_;
     grid_.resize(static_cast<size_t>(n_) * n_ * n_);
+    lo_.resize(images_.size());
+    hi_.resize(images_.size());
     for (size_t id = 0; id < images_.size(); ++id) {
-      Vec3 lo, hi;
+      Vec3& lo = lo_[id];
+      Vec3& hi = hi_[id];
       set.inclusions[images_[id].inc].shape.aabb(&lo, &hi);
+      lo += images_[id].shift;
+      hi += images_[id].shift;
       int c0[3], c1[3];
       for (int a = 0; a < 3; ++a) {
-        const double o = set.box.origin[a] - images_[id].shift[a];
+        const double o = set.box.origin[a];
         c0[a] = std::clamp(static_cast<int>(std::floor((lo[a] - max_ - o) / cell_[a])), 0, n_ - 1);
         c1[a] = std::clamp(static_cast<int>(std::floor((hi[a] + max_ - o) / cell_[a])), 0, n_ - 1);
       }
@@ -119,15 +115,12 @@ class SizeField {
       if (d < d1) {
         d2 = d1;
         d1 = d;
-        rho1 = least_curvature_radius(s);
+        rho1 = s.radius;  // spheres and cylinders: their least radius of curvature
       } else if (d < d2) {
         d2 = d;
       }
       // A thin layer of matrix between this image and a box face it does not cross.
-      Vec3 lo, hi;
-      s.aabb(&lo, &hi);
-      lo += im.shift;
-      hi += im.shift;
+      const Vec3 &lo = lo_[id], &hi = hi_[id];
       for (int a = 0; a < 3; ++a) {
         const double f0 = set_.box.origin[a], f1 = f0 + set_.box.size[a];
         const double below = lo[a] - f0, above = f1 - hi[a];
@@ -151,6 +144,7 @@ class SizeField {
   double max_, min_;
   std::vector<BodyQuery> query_;
   std::vector<Image> images_;
+  std::vector<Vec3> lo_, hi_;  // each image's bounding box, shifted
   int n_ = 1;
   double cell_[3] = {1, 1, 1};
   std::vector<std::vector<int>> grid_;

@@ -3,10 +3,13 @@
 
 usage: /usr/bin/python3 samples/ccx_effective.py DIR NAME
 
-DIR holds NAME.dat from `ccx -i NAME` (NAME: run_voxel_conductivity or run_voxel_elasticity).
-The decks print the heat flux or the stress at every integration point of every element
-(*EL PRINT of EALL), one block per load step; the elements are equal voxels with equal weights,
-so the plain mean of a block is the mean over the box. Conductivity: column k is minus the mean
+DIR holds NAME.dat from `ccx -i NAME` (NAME: run_voxel_conductivity, run_voxel_elasticity,
+run_tet_conductivity or run_tet_elasticity). The decks print the heat flux or the stress at every
+integration point of every element (*EL PRINT of EALL), one block per load step. The voxel
+elements are equal, with equal weights, so the plain mean of a block is the mean over the box;
+the tetrahedral decks also print every element's volume (a "volume" block after each flux or
+stress block), and each integration point then weighs its element's volume over the element's
+number of points (exact for the one-point C3D4 and for the eight equal points of a voxel). Conductivity: column k is minus the mean
 flux of step k (a unit mean gradient along k; CalculiX's flux is -k grad T). Elasticity: column
 k is the mean stress of step k (the unit Mandel strain k) in Mandel form (rows 11, 22, 33, 23,
 13, 12, shear times sqrt 2), as rvegen's report states it. Elements with an orientation (the
@@ -63,40 +66,68 @@ def to_box(kind, values, r):
 
 
 def blocks(path, frames):
-    """The rows of each printed block, in the box's frame: [(kind, [[values], ...])] in file
-    order."""
+    """The printed blocks, in the box's frame: [(kind, [(element, [values]), ...])] in file
+    order; kind "heat", "stresses" or "volume"."""
     out, rows, kind = [], None, None
     with open(path) as f:
         for line in f:
             words = line.split()
             if not words:
                 continue
-            if words[0] in ("heat", "stresses"):
+            if words[0] in ("heat", "stresses", "volume"):
                 kind = words[0]
                 rows = []
                 out.append((kind, rows))
                 continue
-            if rows is not None:
-                # Element, integration point, the values; then, for elements with an
-                # orientation, its name.
-                values, frame = [], None
-                for w in words[2:]:
-                    try:
-                        values.append(float(w))
-                    except ValueError:
-                        frame = w.upper()
-                        break
-                if frame is not None:
-                    if frame not in frames:
-                        sys.exit("orientation %s is not in the deck" % frame)
-                    values = to_box(kind, values, frames[frame])
-                rows.append(values)
+            if rows is None:
+                continue
+            if kind == "volume":
+                rows.append((int(words[0]), [float(words[1])]))
+                continue
+            # Element, integration point, the values; then, for elements with an orientation,
+            # its name.
+            values, frame = [], None
+            for w in words[2:]:
+                try:
+                    values.append(float(w))
+                except ValueError:
+                    frame = w.upper()
+                    break
+            if frame is not None:
+                if frame not in frames:
+                    sys.exit("orientation %s is not in the deck" % frame)
+                values = to_box(kind, values, frames[frame])
+            rows.append((int(words[0]), values))
     return out
 
 
-def mean(rows):
-    n = len(rows)
-    return [sum(r[c] for r in rows) / n for c in range(len(rows[0]))]
+def mean(rows, volumes):
+    """The mean of the rows' values: plain, or weighted by {element: volume} shared among the
+    element's integration points."""
+    if volumes is None:
+        n = len(rows)
+        return [sum(v[c] for _, v in rows) / n for c in range(len(rows[0][1]))]
+    points = {}
+    for e, _ in rows:
+        points[e] = points.get(e, 0) + 1
+    if set(points) != set(volumes):
+        sys.exit("the volume block does not list the elements of the flux or stress block")
+    total = sum(volumes.values())
+    width = len(rows[0][1])
+    return [sum(volumes[e] / points[e] * v[c] for e, v in rows) / total for c in range(width)]
+
+
+def steps(found):
+    """[(kind, rows, {element: volume} or None)] per load step."""
+    out = []
+    for kind, rows in found:
+        if kind == "volume":
+            if not out or out[-1][2] is not None:
+                sys.exit("a volume block without its flux or stress block")
+            out[-1] = (out[-1][0], out[-1][1], {e: v[0] for e, v in rows})
+        else:
+            out.append((kind, rows, None))
+    return out
 
 
 def main():
@@ -104,11 +135,11 @@ def main():
         sys.exit(__doc__)
     directory, name = sys.argv[1:3]
     frames = orientations(os.path.join(directory, name + ".inp"))
-    found = blocks(os.path.join(directory, name + ".dat"), frames)
+    found = steps(blocks(os.path.join(directory, name + ".dat"), frames))
     if not found:
         sys.exit("no flux or stress blocks in %s.dat" % name)
     kind = found[0][0]
-    columns = [mean(rows) for _, rows in found]
+    columns = [mean(rows, volumes) for _, rows, volumes in found]
     if kind == "heat":
         if len(columns) != 3:
             sys.exit("expected 3 load steps, found %d" % len(columns))

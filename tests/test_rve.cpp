@@ -155,6 +155,30 @@ TEST(Scene, DefaultSceneRoundTrips) {
   EXPECT_EQ(scene_to_json(back), scene_to_json(s));
 }
 
+TEST(Scene, TetMeshSizesRoundTripAndBadOnesAreNamed) {
+  const std::string head =
+      R"({"box":{"size":[1,1,1]},"families":[{"shape":"sphere","radius":0.1,"count":3}],)";
+  const Scene s = parse_scene(
+      head +
+      R"("mesh_tet":{"max_size":0.05,"min_size":0.002,"chord_error":0.01,"gap_elements":3}})");
+  EXPECT_EQ(s.tet_mesh.max_size, 0.05);
+  EXPECT_EQ(s.tet_mesh.min_size, 0.002);
+  EXPECT_EQ(s.tet_mesh.chord_error, 0.01);
+  EXPECT_EQ(s.tet_mesh.gap_elements, 3.0);
+  EXPECT_TRUE(parse_scene(scene_to_json(s)).tet_mesh == s.tet_mesh);
+  EXPECT_TRUE(parse_scene(head + R"("outputs":["mesh_tet"]})").tet_mesh == TetMeshSpec{});
+  for (const auto& [bad, named] : std::vector<std::pair<std::string, std::string>>{
+           {R"({"max_size":-1})", "mesh_tet.max_size"},
+           {R"({"max_size":2})", "mesh_tet.max_size"},
+           {R"({"max_size":0.01,"min_size":0.02})", "mesh_tet.min_size"},
+           {R"({"chord_error":0.5})", "mesh_tet.chord_error"},
+           {R"({"gap_elements":0.1})", "mesh_tet.gap_elements"},
+           {R"({"chord":0.01})", "mesh_tet.chord: unknown key"}}) {
+    EXPECT_NE(scene_error(head + R"("mesh_tet":)" + bad + "}").find(named), std::string::npos)
+        << bad << ": " << scene_error(head + R"("mesh_tet":)" + bad + "}");
+  }
+}
+
 TEST(Scene, BadInputNamesTheProblem) {
   const std::string box = R"("box":{"size":[1,1,1]},)";
   EXPECT_NE(scene_error(R"({"box":{"size":[1,1,1]},"familes":[]})").find("familes: unknown key"),

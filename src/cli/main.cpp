@@ -81,9 +81,11 @@ const char* kGenerateUsage =
     "                and equations or Gmsh's $Periodic) and, with\n"
     "                materials, run_voxel_conductivity.inp and run_voxel_elasticity.inp\n"
     "                (CalculiX and Abaqus decks with periodic equations)\n"
-    "    mesh_tet    mesh_tet.inp, .vtu: a conforming tetrahedral mesh (Gmsh), periodic:\n"
-    "                opposite box faces carry the same triangles; node sets of the faces,\n"
-    "                edges and corners (plain spheres and cylinders)\n"
+    "    mesh_tet    mesh_tet.inp, .msh, .vtu: a conforming tetrahedral mesh (Gmsh),\n"
+    "                periodic: opposite box faces carry the same triangles; node sets of the\n"
+    "                faces, edges and corners; with materials, run_tet_conductivity.inp and\n"
+    "                run_tet_elasticity.inp (plain spheres and cylinders; sizes: the scene's\n"
+    "                \"mesh_tet\" object)\n"
     "    statistics  g(r) of sphere families and nearest-neighbour distances in report.json\n"
     "  By default inclusions, voxels, levelsets and statistics; the scene's \"outputs\" list or\n"
     "  --outputs LIST (names separated by commas) chooses others. DIR is replaced as a whole:\n"
@@ -212,11 +214,12 @@ nlohmann::ordered_json tet_mesh_report(const rvegen::InclusionSet& set,
   }
   exact[0] = set.box.volume() - cores;
   nlohmann::ordered_json r;
-  r["files"] = {"mesh_tet.inp", "mesh_tet.vtu"};
+  r["files"] = {"mesh_tet.inp", "mesh_tet.msh", "mesh_tet.vtu"};
   r["mesher"] = "Gmsh (OpenCASCADE, HXT)";
   r["tetrahedra"] = mesh.tets.size();
   r["nodes"] = mesh.nodes.size();
   r["periodic_pairs"] = mesh.periodic.size();
+  r["merged_nodes"] = mesh.merged_nodes;
   r["min_element_volume"] = q.min_volume;
   nlohmann::ordered_json phases = nlohmann::ordered_json::array();
   for (const rvegen::Phase& p : mesh.phases) {
@@ -432,15 +435,25 @@ int cmd_generate(const std::vector<std::string>& args) {
       rvegen::TetMesh tets;
       timed("tetrahedral mesh", [&] {
         rvegen::TetMeshOptions topt;
+        static_cast<rvegen::TetMeshSpec&>(topt) = scene.tet_mesh;
         topt.threads = threads;
         tets = rvegen::tet_mesh(result.set, topt, progress);
       });
       timed("write mesh_tet.inp", [&] {
         out.write_with("mesh_tet.inp",
                        [&](std::FILE* f) { rvegen::write_abaqus_tet_mesh(tets, f); });
+        out.write_with("mesh_tet.msh", [&](std::FILE* f) { rvegen::write_gmsh_tet_mesh(tets, f); });
         out.write_with("mesh_tet.vtu", [&](std::FILE* f) { rvegen::write_tet_mesh_vtu(tets, f); });
       });
       tet_report = tet_mesh_report(result.set, tets);
+      for (const bool elastic : {false, true}) {
+        const std::string deck = rvegen::abaqus_tet_deck(scene, result.set, tets, elastic);
+        const char* name = elastic ? "run_tet_elasticity.inp" : "run_tet_conductivity.inp";
+        if (!deck.empty()) {
+          out.write(name, deck);
+          tet_report["files"].push_back(name);
+        }
+      }
     }
     nlohmann::ordered_json effective;
     rvegen::EffectiveProperties solved;

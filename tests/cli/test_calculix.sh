@@ -36,61 +36,8 @@ sed 's/,"young":3,"poisson":0.35//; s/,"young":70,"poisson":0.2//' "$WORK/k.json
   || fail "decks written without elastic constants: $(ls "$WORK/k_only")"
 
 # Periodicity of the mesh and the equations.
-$py - "$WORK/k/mesh_voxel.inp" "$WORK/k/run_voxel_conductivity.inp" <<'PY' || fail "periodic mesh and equations"
-import sys
-mesh, deck = sys.argv[1:3]
-nodes, sets, cur = {}, {}, None
-for line in open(mesh):
-    line = line.strip()
-    if line.startswith("**"):
-        continue
-    if line.startswith("*"):
-        cur = None
-        if line.startswith("*NODE,"):
-            cur = "node"
-        elif line.startswith("*NSET, NSET="):
-            cur = line.split("=")[1].split(",")[0]
-            sets[cur] = []
-        continue
-    if cur == "node":
-        w = line.split(",")
-        nodes[int(w[0])] = tuple(float(x) for x in w[1:4])
-    elif cur is not None:
-        sets[cur] += [int(x) for x in line.split(",") if x.strip()]
-L = 1.0
-def image_of(n, axes):
-    x = list(nodes[n])
-    for a in axes:
-        x[a] -= L
-    return tuple(x)
-pos = {tuple(round(c, 9) for c in x): n for n, x in nodes.items()}
-def find(x):
-    return pos.get(tuple(round(c, 9) for c in x))
-for name, axes in [("XMAX", [0]), ("YMAX", [1]), ("ZMAX", [2]), ("EDGE_X1Y1", [0, 1]),
-                   ("EDGE_Y1Z1", [1, 2]), ("EDGE_X1Z1", [0, 2]), ("CORNER_X1Y1Z1", [0, 1, 2])]:
-    assert sets[name], name
-    for n in sets[name]:
-        m = find(image_of(n, axes))
-        assert m is not None, (name, n, nodes[n])
-        assert max(abs(a - b) for a, b in zip(image_of(n, axes), nodes[m])) < 1e-9 * L
-assert len(sets["CORNER_X0Y0Z0"]) == 1 and len(sets["EDGE_X0Y0"]) == 17, (sets["CORNER_X0Y0Z0"], len(sets["EDGE_X0Y0"]))
-# Equations: the first term of each is eliminated once; masters and reference nodes never are.
-lines = open(deck).read().split("*EQUATION\n", 1)[1].split("*STEP", 1)[0].splitlines()
-first, others, i = [], set(), 0
-while i < len(lines):
-    n = int(lines[i]); i += 1
-    terms = []
-    while len(terms) < n:
-        w = [x.strip() for x in lines[i].split(",")]; i += 1
-        terms += [(int(w[k]), int(w[k + 1]), float(w[k + 2])) for k in range(0, len(w), 3)]
-    first.append((terms[0][0], terms[0][1]))
-    others.update((t[0], t[1]) for t in terms[1:])
-assert len(first) == len(set(first)), "a node eliminated twice"
-assert not (set(first) & others), "an eliminated node is used as a master"
-upper = set(sets["XMAX"]) | set(sets["YMAX"]) | set(sets["ZMAX"])
-assert {n for n, _ in first} == upper, "eliminated nodes are not exactly those on upper faces"
-print("mesh periodic: %d nodes, %d equations" % (len(nodes), len(first)))
-PY
+$py "$(dirname "$0")/check_periodic_deck.py" "$WORK/k/mesh_voxel.inp" \
+  "$WORK/k/run_voxel_conductivity.inp" 1.0 17 || fail "periodic mesh and equations"
 
 # The same mesh for Gmsh (format 4.1 with $Periodic) and ParaView (.vtu), read by meshio and Gmsh:
 # every voxel a hexahedron with its phase, the periodic pairs one box length apart.
@@ -129,8 +76,9 @@ run() {  # run DIR NAME ELEMENT -> DIR_ELEMENT/NAME.dat
   rm -rf "$d" && cp -r "$1" "$d"
   sed -i "s/TYPE=C3D8,/TYPE=$3,/" "$d/mesh_voxel.inp"
   (cd "$d" && ccx -i "$2" >ccx.log 2>&1) || fail "ccx $2 ($3): $(tail -5 "$d/ccx.log")"
-  # CalculiX prints its errors as *ERROR (the iterative solver's progress lines say "error=").
-  grep -qi "\*ERROR\|over-constrained\|overconstrained" "$d/ccx.log" && fail "ccx $2 ($3) reports: $(grep -i "\*ERROR\|constrained" "$d/ccx.log" | head -3)"
+  # CalculiX prints its errors and warnings as *ERROR and *WARNING (the iterative solver's
+  # progress lines say "error=").
+  grep -qi "\*ERROR\|\*WARNING\|over-constrained\|overconstrained" "$d/ccx.log" && fail "ccx $2 ($3) reports: $(grep -i "\*ERROR\|\*WARNING\|constrained" "$d/ccx.log" | head -3)"
   $py "$SAMPLES/ccx_effective.py" "$d" "$2" >"$d/effective.json" || fail "ccx_effective.py $d $2"
 }
 run "$WORK/k" run_voxel_conductivity C3D8R

@@ -21,6 +21,7 @@
 
 #include "rvegen/model/inclusion_set.hpp"
 #include "rvegen/model/phases.hpp"
+#include "rvegen/model/scene.hpp"
 
 namespace rvegen {
 
@@ -30,17 +31,7 @@ class MeshError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-struct TetMeshOptions {
-  /// Largest element size; 0: a tenth of the smallest box side.
-  double max_size = 0.0;
-  /// Least element size (where gaps are thinner than it, elements do not follow); 0: a
-  /// fiftieth of the smallest inclusion size (radius, or half length if shorter).
-  double min_size = 0.0;
-  /// Chord error allowed against each inclusion's surface, relative to its least radius of
-  /// curvature: the element size near a surface of radius rho is at most rho sqrt(8 chord).
-  double chord = 0.003;
-  /// Elements across the gap between two surfaces.
-  double gap_elements = 2.0;
+struct TetMeshOptions : TetMeshSpec {
   /// Threads of the volume mesher (0: all cores).
   int threads = 0;
 };
@@ -56,6 +47,8 @@ struct TetMesh {
   /// (dependent, master) node pairs: every node with a coordinate at the upper end of an axis,
   /// and the node at its coordinates brought to the lower ends (which lies on no upper face).
   std::vector<std::array<int32_t, 2>> periodic;
+  /// Nodes the volume mesher left at the position of another, merged (merge_coincident_nodes).
+  long long merged_nodes = 0;
 };
 
 /// Refuses (InputError naming the family) a set tet_mesh cannot mesh.
@@ -66,6 +59,17 @@ void check_tet_meshable(const InclusionSet& set);
 /// per stage.
 TetMesh tet_mesh(const InclusionSet& set, const TetMeshOptions& options = {},
                  const std::function<void(const std::string&)>& progress = {});
+
+/// Merges nodes at one position (each element then uses the lowest-numbered one), drops nodes
+/// no element uses and renumbers the rest in order. Throws MeshError if an element is left with
+/// two nodes at one position. tet_mesh calls it: the volume mesher rarely leaves a second node
+/// where one is, which cracks the mesh.
+/// Returns the number of nodes merged into others.
+long long merge_coincident_nodes(TetMesh* mesh);
+
+/// Throws MeshError unless the mesh conforms: every face of an element is a face of another
+/// element or lies in a box face. tet_mesh calls it on every mesh.
+void check_conforming(const TetMesh& mesh);
 
 /// What the mesh is worth: element volumes and their sum per phase label, the least dihedral
 /// angle of every element.

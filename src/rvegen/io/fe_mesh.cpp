@@ -5,6 +5,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <map>
 #include <sstream>
 #include <vector>
@@ -44,15 +45,22 @@ void put(std::FILE* out, const std::string& text) {
   }
 }
 
-// The phases that label at least one voxel, in label order.
-std::vector<const Phase*> phases_present(const VoxelImage& im) {
-  std::vector<char> present(im.phases.size(), 0);
-  for (uint8_t l : im.phase) present[l] = 1;
+// The phases that label at least one voxel or element, in label order.
+template <class Labels>
+std::vector<const Phase*> phases_labelled(const std::vector<Phase>& phases, const Labels& labels) {
+  std::vector<char> present(phases.size(), 0);
+  for (const auto l : labels) present[l] = 1;
   std::vector<const Phase*> used;
-  for (const Phase& p : im.phases) {
+  for (const Phase& p : phases) {
     if (present[p.label]) used.push_back(&p);
   }
   return used;
+}
+std::vector<const Phase*> phases_present(const VoxelImage& im) {
+  return phases_labelled(im.phases, im.phase);
+}
+std::vector<const Phase*> phases_present(const TetMesh& mesh) {
+  return phases_labelled(mesh.phases, mesh.phase);
 }
 
 // One row per hexahedron of phase `label`: element id (voxel + 1), then its eight nodes (the
@@ -83,21 +91,28 @@ constexpr int kAbaqusDigits = 14;
 // A void's modulus against the stiffest phase's in the decks.
 constexpr double kVoidShare = 1e-6;
 
-// The core voxels of phase p, inclusion by inclusion: an element set I<id>, the orientation
-// O<id> whose local direction 1 is the inclusion's axis, and a section of material M_<name> in
-// that orientation.
-void turned_sections(const InclusionSet& set, const VoxelImage& im, const Phase& p,
-                     const std::string& name, std::ostringstream& s) {
-  std::map<int, std::vector<long long>> elements;
-  for (size_t v = 0; v < im.phase.size(); ++v) {
-    if (im.phase[v] == p.label)
-      elements[im.inclusion_id[v]].push_back(static_cast<long long>(v + 1));
+// The elements of core phase p (element ids), inclusion by inclusion.
+using ElementsByInclusion = std::map<int, std::vector<long long>>;
+
+// The elements (index + 1) labelled `label`, grouped by their inclusion id.
+template <class Labels, class Ids>
+ElementsByInclusion elements_by_inclusion(const Labels& labels, const Ids& ids, int label) {
+  ElementsByInclusion elements;
+  for (size_t e = 0; e < labels.size(); ++e) {
+    if (labels[e] == label) elements[ids[e]].push_back(static_cast<long long>(e + 1));
   }
+  return elements;
+}
+
+// Each inclusion's elements: an element set I<id>, the orientation O<id> whose local direction
+// 1 is the inclusion's axis, and a section of material M_<name> in that orientation.
+void turned_sections(const InclusionSet& set, const ElementsByInclusion& elements,
+                     const std::string& name, std::ostringstream& s) {
   std::map<int, const Inclusion*> by_id;
   for (const Inclusion& inc : set.inclusions) by_id[inc.id] = &inc;
   for (const auto& [id, ids] : elements) {
     const auto it = by_id.find(id);
-    if (it == by_id.end()) throw OutputError("voxel mesh: a core voxel of no listed inclusion");
+    if (it == by_id.end()) throw OutputError("mesh: a core element of no listed inclusion");
     const Vec3 a = principal_axis(it->second->shape);
     const Vec3 b = any_orthogonal(a);
     s << "*ELSET, ELSET=I" << id << "\n";
@@ -146,6 +161,72 @@ void boundary_sets(std::ostringstream& s, const Where& nodes_where) {
       }
     }
   }
+}
+
+// Gmsh format 4.1 (ASCII), up to the node coordinates: a physical group and a volume entity
+// per phase present (tag label + 1, named after the phase), six surface entities for the box's
+// faces (XMIN, XMAX, YMIN, YMAX, ZMIN, ZMAX: tags 1-6, which $Periodic names), and the head of
+// the $Nodes section: all `nodes` nodes (tags 1..nodes) in one block of the first volume.
+void gmsh_head(std::ostringstream& s, const std::vector<const Phase*>& used, const Vec3& o,
+               const Vec3& hi, long long nodes, std::FILE* out) {
+  s << "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$PhysicalNames\n" << used.size() << "\n";
+  for (const Phase* p : used) s << "3 " << p->label + 1 << " \"" << set_name(p->name) << "\"\n";
+  s << "$EndPhysicalNames\n$Entities\n0 0 6 " << used.size() << "\n";
+  for (int a = 0; a < 3; ++a) {
+    for (int end = 0; end < 2; ++end) {
+      Vec3 lo = o, up = hi;
+      lo[a] = up[a] = end ? hi[a] : o[a];
+      s << 1 + 2 * a + end << " " << lo[0] << " " << lo[1] << " " << lo[2] << " " << up[0] << " "
+        << up[1] << " " << up[2] << " 0 0\n";
+    }
+  }
+  for (const Phase* p : used) {
+    s << p->label + 1 << " " << o[0] << " " << o[1] << " " << o[2] << " " << hi[0] << " " << hi[1]
+      << " " << hi[2] << " 1 " << p->label + 1 << " 0\n";
+  }
+  s << "$EndEntities\n$Nodes\n1 " << nodes << " 1 " << nodes << "\n3 " << used.front()->label + 1
+    << " 0 " << nodes << "\n";
+  for (long long n = 1; n <= nodes; ++n) {
+    s << n << "\n";
+    if (n % 4096 == 0) put(out, s.str()), s.str("");
+  }
+}
+
+// The head of axis a's block of $Periodic: surface 2 + 2a (upper) is the image of 1 + 2a
+// (lower) by the translation of `length` along a; `pairs` (upper, lower) node pairs follow.
+void gmsh_periodic_head(std::ostringstream& s, int a, double length, long long pairs) {
+  s << "2 " << 2 + 2 * a << " " << 1 + 2 * a << "\n16";
+  for (int r = 0; r < 4; ++r) {
+    for (int c = 0; c < 4; ++c) s << " " << (r == c ? 1.0 : (c == 3 && r == a ? length : 0.0));
+  }
+  s << "\n" << pairs << "\n";
+}
+
+// One row per tetrahedron of phase `label`: element id (its index + 1), then its four nodes,
+// separated by `sep`; flushed to `out` every 4096 elements.
+void tet_rows(const TetMesh& mesh, int label, const char* sep, std::ostringstream& s,
+              std::FILE* out) {
+  for (size_t e = 0; e < mesh.tets.size(); ++e) {
+    if (mesh.phase[e] != label) continue;
+    const auto& t = mesh.tets[e];
+    s << e + 1 << sep << t[0] + 1 << sep << t[1] + 1 << sep << t[2] + 1 << sep << t[3] + 1 << "\n";
+    if (e % 4096 == 4095) put(out, s.str()), s.str("");
+  }
+}
+
+// Where each node of the tetrahedral mesh lies: per axis -1 inside, 0 at the lower end, 1 at
+// the upper end (within 1e-9 of the box's smallest side).
+std::vector<std::array<int8_t, 3>> node_ends(const TetMesh& mesh) {
+  const Box& box = mesh.box;
+  const double tol = 1e-9 * box.size.minCoeff();
+  std::vector<std::array<int8_t, 3>> at(mesh.nodes.size());
+  for (size_t i = 0; i < mesh.nodes.size(); ++i) {
+    for (int a = 0; a < 3; ++a) {
+      const double x = mesh.nodes[i][a] - box.origin[a];
+      at[i][a] = std::abs(x) <= tol ? 0 : (std::abs(x - box.size[a]) <= tol ? 1 : -1);
+    }
+  }
+  return at;
 }
 
 }  // namespace
@@ -212,27 +293,7 @@ void write_gmsh_voxel_mesh(const VoxelImage& im, std::FILE* out) {
   const Vec3 hi = o + Vec3(g.nx, g.ny, g.nz).cwiseProduct(im.spacing);
   std::ostringstream s;
   s.precision(17);
-  s << "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$PhysicalNames\n" << used.size() << "\n";
-  for (const Phase* p : used) s << "3 " << p->label + 1 << " \"" << set_name(p->name) << "\"\n";
-  s << "$EndPhysicalNames\n$Entities\n0 0 6 " << used.size() << "\n";
-  for (int a = 0; a < 3; ++a) {
-    for (int end = 0; end < 2; ++end) {
-      Vec3 lo = o, up = hi;
-      lo[a] = up[a] = end ? hi[a] : o[a];
-      s << 1 + 2 * a + end << " " << lo[0] << " " << lo[1] << " " << lo[2] << " " << up[0] << " "
-        << up[1] << " " << up[2] << " 0 0\n";
-    }
-  }
-  for (const Phase* p : used) {
-    s << p->label + 1 << " " << o[0] << " " << o[1] << " " << o[2] << " " << hi[0] << " " << hi[1]
-      << " " << hi[2] << " 1 " << p->label + 1 << " 0\n";
-  }
-  s << "$EndEntities\n$Nodes\n1 " << g.nodes() << " 1 " << g.nodes() << "\n3 "
-    << used.front()->label + 1 << " 0 " << g.nodes() << "\n";
-  for (long long n = 1; n <= g.nodes(); ++n) {
-    s << n << "\n";
-    if (n % 4096 == 0) put(out, s.str()), s.str("");
-  }
+  gmsh_head(s, used, o, hi, g.nodes(), out);
   for (int k = 0; k <= g.nz; ++k) {
     for (int j = 0; j <= g.ny; ++j) {
       for (int i = 0; i <= g.nx; ++i) {
@@ -253,15 +314,8 @@ void write_gmsh_voxel_mesh(const VoxelImage& im, std::FILE* out) {
   s << "$EndElements\n$Periodic\n3\n";
   const int n[3] = {g.nx, g.ny, g.nz};
   for (int a = 0; a < 3; ++a) {
-    // Surface 2 + 2a (upper) is the image of 1 + 2a (lower) by the translation along a.
-    s << "2 " << 2 + 2 * a << " " << 1 + 2 * a << "\n16";
-    for (int r = 0; r < 4; ++r) {
-      for (int c = 0; c < 4; ++c) {
-        s << " " << (r == c ? 1.0 : (c == 3 && r == a ? hi[a] - o[a] : 0.0));
-      }
-    }
     const int b = (a + 1) % 3, c = (a + 2) % 3;
-    s << "\n" << static_cast<long long>(n[b] + 1) * (n[c] + 1) << "\n";
+    gmsh_periodic_head(s, a, hi[a] - o[a], static_cast<long long>(n[b] + 1) * (n[c] + 1));
     for (int u = 0; u <= n[b]; ++u) {
       for (int w = 0; w <= n[c]; ++w) {
         int up[3], lo[3];
@@ -280,7 +334,6 @@ void write_gmsh_voxel_mesh(const VoxelImage& im, std::FILE* out) {
 
 void write_abaqus_tet_mesh(const TetMesh& mesh, std::FILE* out) {
   const Box& box = mesh.box;
-  const double tol = 1e-9 * box.size.minCoeff();
   std::ostringstream s;
   s.precision(kAbaqusDigits);
   s << "** rvegen tetrahedral mesh: " << mesh.tets.size() << " tetrahedra (C3D4), "
@@ -297,27 +350,13 @@ void write_abaqus_tet_mesh(const TetMesh& mesh, std::FILE* out) {
     s << ref + 1 + a << ", " << box.origin[0] << ", " << box.origin[1] << ", " << box.origin[2]
       << "\n";
   }
-  std::vector<char> present(mesh.phases.size(), 0);
-  for (int32_t l : mesh.phase) present[l] = 1;
-  for (const Phase& p : mesh.phases) {
-    if (!present[p.label]) continue;
-    s << "*ELEMENT, TYPE=C3D4, ELSET=" << set_name(p.name) << "\n";
-    for (size_t e = 0; e < mesh.tets.size(); ++e) {
-      if (mesh.phase[e] != p.label) continue;
-      const auto& t = mesh.tets[e];
-      s << e + 1 << ", " << t[0] + 1 << ", " << t[1] + 1 << ", " << t[2] + 1 << ", " << t[3] + 1
-        << "\n";
-      if (e % 4096 == 4095) put(out, s.str()), s.str("");
-    }
+  for (const Phase* p : phases_present(mesh)) {
+    s << "*ELEMENT, TYPE=C3D4, ELSET=" << set_name(p->name) << "\n";
+    tet_rows(mesh, p->label, ", ", s, out);
   }
-  // Where each node lies: per axis -1 inside, 0 at the lower end, 1 at the upper end.
-  std::vector<std::array<int8_t, 3>> at(mesh.nodes.size());
+  const std::vector<std::array<int8_t, 3>> at = node_ends(mesh);
   long long origin = -1;
-  for (size_t i = 0; i < mesh.nodes.size(); ++i) {
-    for (int a = 0; a < 3; ++a) {
-      const double x = mesh.nodes[i][a] - box.origin[a];
-      at[i][a] = std::abs(x) <= tol ? 0 : (std::abs(x - box.size[a]) <= tol ? 1 : -1);
-    }
+  for (size_t i = 0; i < at.size(); ++i) {
     if (at[i][0] == 0 && at[i][1] == 0 && at[i][2] == 0) origin = static_cast<long long>(i) + 1;
   }
   if (origin < 0) throw OutputError("tetrahedral mesh: no node at the box's lower corner");
@@ -340,31 +379,48 @@ void write_abaqus_tet_mesh(const TetMesh& mesh, std::FILE* out) {
   put(out, s.str());
 }
 
-std::string abaqus_voxel_deck(const Scene& scene, const InclusionSet& set, const VoxelImage& im,
-                              bool elasticity) {
-  const Grid g{im.size(0), im.size(1), im.size(2)};
+namespace {
+
+// What a periodic deck needs of a mesh.
+struct DeckMesh {
+  const char* kind;     // "voxel" or "tet": the deck's and the mesh file's names
+  long long nodes = 0;  // the reference nodes are nodes + 1 .. nodes + 3
+  Vec3 length;          // the box's sides
+  std::vector<const Phase*> present;
+  std::function<ElementsByInclusion(const Phase&)> core_elements;
+  /// Calls back (dependent, master, axes brought back: bit a) for every node on an upper face.
+  std::function<void(const std::function<void(long long, long long, int)>&)> pairs;
+  /// Elements of unequal volumes: the steps print each element's volume too (EVOL).
+  bool print_volumes = false;
+};
+
+std::string periodic_deck(const Scene& scene, const InclusionSet& set, const DeckMesh& m,
+                          bool elasticity) {
   std::ostringstream s;
   s.precision(kAbaqusDigits);
-  s << "** rvegen: periodic " << (elasticity ? "elasticity" : "conductivity")
-    << " of the voxel mesh (CalculiX: ccx -i run_voxel_"
-    << (elasticity ? "elasticity" : "conductivity") << "). Each step prints the "
-    << (elasticity ? "stress" : "heat flux")
-    << " at every integration point of EALL (equal hexahedra with equal weights: their mean is "
-       "the mean over the box).\n";
-  s << "*INCLUDE, INPUT=mesh_voxel.inp\n";
-  const std::vector<const Phase*> present = phases_present(im);
+  const std::string physics = elasticity ? "elasticity" : "conductivity";
+  s << "** rvegen: periodic " << physics << " of the "
+    << (m.print_volumes ? "tetrahedral" : "voxel") << " mesh (CalculiX: ccx -i run_" << m.kind
+    << "_" << physics << "). Each step prints the " << (elasticity ? "stress" : "heat flux")
+    << " at every integration point of EALL"
+    << (m.print_volumes ? " and the volume of every element (the mean over the box weights each "
+                          "element by its volume).\n"
+                        : " (equal hexahedra with equal weights: their mean is the mean over the "
+                          "box).\n");
+  s << "*INCLUDE, INPUT=mesh_" << m.kind << ".inp\n";
   // Voids get kVoidShare of the stiffest phase's modulus (an element needs a material; zero
   // would leave the nodes inside a void free).
   double largest = 0.0;
-  for (const Phase* phase : present) {
-    const Material* m =
+  for (const Phase* phase : m.present) {
+    const Material* mat =
         phase->kind == PhaseKind::kVoid ? nullptr : scene.material(material_key(scene, *phase));
-    if (!m) continue;
-    largest = std::max({largest, elasticity ? m->young : m->conductivity,
-                        elasticity ? std::max(m->axial_young, m->transverse_young)
-                                   : std::max(m->axial_conductivity, m->transverse_conductivity)});
+    if (!mat) continue;
+    largest =
+        std::max({largest, elasticity ? mat->young : mat->conductivity,
+                  elasticity ? std::max(mat->axial_young, mat->transverse_young)
+                             : std::max(mat->axial_conductivity, mat->transverse_conductivity)});
   }
-  for (const Phase* phase : present) {
+  for (const Phase* phase : m.present) {
     const Phase& p = *phase;
     const std::string name = set_name(p.name);
     if (p.kind == PhaseKind::kVoid) {
@@ -377,88 +433,72 @@ std::string abaqus_voxel_deck(const Scene& scene, const InclusionSet& set, const
       s << "*SOLID SECTION, ELSET=" << name << ", MATERIAL=M_" << name << "\n";
       continue;
     }
-    const Material* m = scene.material(material_key(scene, p));
-    if (!m) return "";
-    const bool turned = elasticity ? m->transverse_elasticity() : m->transverse_conduction();
+    const Material* mat = scene.material(material_key(scene, p));
+    if (!mat) return "";
+    const bool turned = elasticity ? mat->transverse_elasticity() : mat->transverse_conduction();
     s << "*MATERIAL, NAME=M_" << name << "\n";
     if (turned) {
       // About each inclusion's own axis: local direction 1 is the axis.
       if (p.kind != PhaseKind::kCore) return "";
       if (elasticity) {
-        const double g_tt = m->transverse_young / (2.0 * (1.0 + m->transverse_poisson));
+        const double g_tt = mat->transverse_young / (2.0 * (1.0 + mat->transverse_poisson));
         s << "*ELASTIC, TYPE=ENGINEERING CONSTANTS\n"
-          << m->axial_young << ", " << m->transverse_young << ", " << m->transverse_young << ", "
-          << m->axial_poisson << ", " << m->axial_poisson << ", " << m->transverse_poisson << ", "
-          << m->axial_shear << ", " << m->axial_shear << "\n"
+          << mat->axial_young << ", " << mat->transverse_young << ", " << mat->transverse_young
+          << ", " << mat->axial_poisson << ", " << mat->axial_poisson << ", "
+          << mat->transverse_poisson << ", " << mat->axial_shear << ", " << mat->axial_shear << "\n"
           << g_tt << "\n";
       } else {
         s << "*CONDUCTIVITY, TYPE=ORTHO\n"
-          << m->axial_conductivity << ", " << m->transverse_conductivity << ", "
-          << m->transverse_conductivity << "\n";
+          << mat->axial_conductivity << ", " << mat->transverse_conductivity << ", "
+          << mat->transverse_conductivity << "\n";
       }
-      turned_sections(set, im, p, name, s);
+      turned_sections(set, m.core_elements(p), name, s);
       continue;
     }
     if (elasticity) {
-      if (!(m->young > 0.0)) return "";
-      s << "*ELASTIC\n" << m->young << ", " << m->poisson << "\n";
+      if (!(mat->young > 0.0)) return "";
+      s << "*ELASTIC\n" << mat->young << ", " << mat->poisson << "\n";
     } else {
-      if (!(m->conductivity > 0.0)) return "";
-      s << "*CONDUCTIVITY\n" << m->conductivity << "\n";
+      if (!(mat->conductivity > 0.0)) return "";
+      s << "*CONDUCTIVITY\n" << mat->conductivity << "\n";
     }
     s << "*SOLID SECTION, ELSET=" << name << ", MATERIAL=M_" << name << "\n";
   }
   // Periodic equations: every node on an upper face tied to its master.
-  const long long ref = g.nodes();
-  const double len[3] = {im.spacing[0] * g.nx, im.spacing[1] * g.ny, im.spacing[2] * g.nz};
-  const int n[3] = {g.nx, g.ny, g.nz};
+  const long long ref = m.nodes;
   s << "*EQUATION\n";
-  for (int k = 0; k <= g.nz; ++k) {
-    for (int j = 0; j <= g.ny; ++j) {
-      for (int i = 0; i <= g.nx; ++i) {
-        const int c[3] = {i, j, k};
-        int m[3], shifted = 0;
-        bool wrap[3];
-        for (int a = 0; a < 3; ++a) {
-          wrap[a] = c[a] == n[a];
-          m[a] = wrap[a] ? 0 : c[a];
-          shifted += wrap[a];
-        }
-        if (!shifted) continue;
-        const long long dep = g.node(i, j, k), master = g.node(m[0], m[1], m[2]);
-        const int dofs = elasticity ? 3 : 1;
-        for (int d = 0; d < dofs; ++d) {
-          const int dof = elasticity ? d + 1 : 11;
-          // Terms: dep, master, then one per axis brought back; at most four per line.
-          std::vector<std::string> terms;
-          terms.push_back(std::to_string(dep) + ", " + std::to_string(dof) + ", 1.");
-          terms.push_back(std::to_string(master) + ", " + std::to_string(dof) + ", -1.");
-          for (int a = 0; a < 3; ++a) {
-            if (!wrap[a]) continue;
-            std::ostringstream t;
-            t.precision(kAbaqusDigits);
-            t << ref + 1 + a << ", " << dof << ", " << -len[a];
-            terms.push_back(t.str());
-          }
-          s << terms.size() << "\n";
-          for (size_t t = 0; t < terms.size(); ++t) {
-            s << terms[t] << ((t % 4 == 3 || t + 1 == terms.size()) ? "\n" : ", ");
-          }
-        }
+  m.pairs([&](long long dep, long long master, int wrap) {
+    const int dofs = elasticity ? 3 : 1;
+    for (int d = 0; d < dofs; ++d) {
+      const int dof = elasticity ? d + 1 : 11;
+      // Terms: dep, master, then one per axis brought back; at most four per line.
+      std::vector<std::string> terms;
+      terms.push_back(std::to_string(dep) + ", " + std::to_string(dof) + ", 1.");
+      terms.push_back(std::to_string(master) + ", " + std::to_string(dof) + ", -1.");
+      for (int a = 0; a < 3; ++a) {
+        if (!(wrap >> a & 1)) continue;
+        std::ostringstream t;
+        t.precision(kAbaqusDigits);
+        t << ref + 1 + a << ", " << dof << ", " << -m.length[a];
+        terms.push_back(t.str());
+      }
+      s << terms.size() << "\n";
+      for (size_t t = 0; t < terms.size(); ++t) {
+        s << terms[t] << ((t % 4 == 3 || t + 1 == terms.size()) ? "\n" : ", ");
       }
     }
-  }
+  });
   // Load steps: the reference nodes prescribed, the origin fixed.
   const double r = 1.0 / std::sqrt(2.0);
   const int loads = elasticity ? 6 : 3;
   const char* ref_name[3] = {"REFX", "REFY", "REFZ"};
   for (int load = 0; load < loads; ++load) {
-    // CalculiX's iterative Cholesky solver: the voxel problems are symmetric positive definite
+    // CalculiX's iterative Cholesky solver: the problems are symmetric positive definite
     // and large, where the default direct solver (SPOOLES) is ten times slower for the same
     // digits (README, finite-element meshes).
     s << "*STEP\n"
       << (elasticity ? "*STATIC, SOLVER=ITERATIVE CHOLESKY\n"
-                     : "*HEAT TRANSFER, STEADY STATE, SOLVER=ITERATIVE CHOLESKY\n");
+                     : "*HEAT TRANSFER, STEADY STATE, SOLVER=ITERATIVE CHOLESKY\n1., 1.\n");
     s << "*BOUNDARY, OP=NEW\n";
     if (elasticity) {
       s << "ORIGIN, 1, 3, 0.\n";
@@ -477,17 +517,126 @@ std::string abaqus_voxel_deck(const Scene& scene, const InclusionSet& set, const
           s << ref_name[a] << ", " << c + 1 << ", " << c + 1 << ", " << h[c][a] << "\n";
         }
       }
-      s << "*EL PRINT, ELSET=EALL\nS\n";
+      s << "*EL PRINT, ELSET=EALL\nS" << (m.print_volumes ? ", EVOL" : "") << "\n";
     } else {
       s << "ORIGIN, 11, 11, 0.\n";
       for (int a = 0; a < 3; ++a) {
         s << ref_name[a] << ", 11, 11, " << (a == load ? 1.0 : 0.0) << "\n";
       }
-      s << "*EL PRINT, ELSET=EALL\nHFL\n";
+      s << "*EL PRINT, ELSET=EALL\nHFL" << (m.print_volumes ? ", EVOL" : "") << "\n";
     }
     s << "*END STEP\n";
   }
   return s.str();
+}
+
+}  // namespace
+
+void write_gmsh_tet_mesh(const TetMesh& mesh, std::FILE* out) {
+  const std::vector<const Phase*> used = phases_present(mesh);
+  if (used.empty()) throw OutputError("tetrahedral mesh: no elements");
+  const Vec3 o = mesh.box.origin, hi = mesh.box.origin + mesh.box.size;
+  std::ostringstream s;
+  s.precision(17);
+  gmsh_head(s, used, o, hi, static_cast<long long>(mesh.nodes.size()), out);
+  for (size_t i = 0; i < mesh.nodes.size(); ++i) {
+    const Vec3& x = mesh.nodes[i];
+    s << x[0] << " " << x[1] << " " << x[2] << "\n";
+    if (i % 4096 == 4095) put(out, s.str()), s.str("");
+  }
+  s << "$EndNodes\n$Elements\n"
+    << used.size() << " " << mesh.tets.size() << " 1 " << mesh.tets.size() << "\n";
+  for (const Phase* p : used) {
+    const auto count = std::count(mesh.phase.begin(), mesh.phase.end(), p->label);
+    s << "3 " << p->label + 1 << " 4 " << count << "\n";
+    tet_rows(mesh, p->label, " ", s, out);
+  }
+  // The image of a node across one face: the node of the same periodic class (the nodes tied
+  // to one master, and the master) with the same ends but that axis's brought to the lower end.
+  const std::vector<std::array<int8_t, 3>> at = node_ends(mesh);
+  std::vector<int32_t> master(mesh.nodes.size());
+  for (size_t i = 0; i < master.size(); ++i) master[i] = static_cast<int32_t>(i);
+  for (const auto& [dep, m] : mesh.periodic) master[dep] = m;
+  auto upper_bits = [&](size_t i) {
+    return (at[i][0] == 1 ? 1 : 0) | (at[i][1] == 1 ? 2 : 0) | (at[i][2] == 1 ? 4 : 0);
+  };
+  std::map<std::pair<int32_t, int>, int32_t> member;
+  for (size_t i = 0; i < master.size(); ++i) {
+    member[{master[i], upper_bits(i)}] = static_cast<int32_t>(i);
+  }
+  s << "$EndElements\n$Periodic\n3\n";
+  for (int a = 0; a < 3; ++a) {
+    std::vector<std::pair<int32_t, int32_t>> pairs;
+    for (size_t i = 0; i < at.size(); ++i) {
+      if (at[i][a] != 1) continue;
+      const auto it = member.find({master[i], upper_bits(i) & ~(1 << a)});
+      if (it == member.end()) {
+        throw OutputError(
+            "tetrahedral mesh: a node on an upper face has no image on the lower one");
+      }
+      pairs.push_back({static_cast<int32_t>(i), it->second});
+    }
+    gmsh_periodic_head(s, a, mesh.box.size[a], static_cast<long long>(pairs.size()));
+    for (const auto& [up, lo] : pairs) s << up + 1 << " " << lo + 1 << "\n";
+    put(out, s.str());
+    s.str("");
+  }
+  s << "$EndPeriodic\n";
+  put(out, s.str());
+}
+
+std::string abaqus_voxel_deck(const Scene& scene, const InclusionSet& set, const VoxelImage& im,
+                              bool elasticity) {
+  const Grid g{im.size(0), im.size(1), im.size(2)};
+  DeckMesh m;
+  m.kind = "voxel";
+  m.nodes = g.nodes();
+  m.length = Vec3(im.spacing[0] * g.nx, im.spacing[1] * g.ny, im.spacing[2] * g.nz);
+  m.present = phases_present(im);
+  m.core_elements = [&](const Phase& p) {
+    return elements_by_inclusion(im.phase, im.inclusion_id, p.label);
+  };
+  m.pairs = [&](const std::function<void(long long, long long, int)>& tie) {
+    const int n[3] = {g.nx, g.ny, g.nz};
+    for (int k = 0; k <= g.nz; ++k) {
+      for (int j = 0; j <= g.ny; ++j) {
+        for (int i = 0; i <= g.nx; ++i) {
+          const int c[3] = {i, j, k};
+          int lower[3], wrap = 0;
+          for (int a = 0; a < 3; ++a) {
+            const bool up = c[a] == n[a];
+            lower[a] = up ? 0 : c[a];
+            wrap |= up << a;
+          }
+          if (wrap) tie(g.node(i, j, k), g.node(lower[0], lower[1], lower[2]), wrap);
+        }
+      }
+    }
+  };
+  return periodic_deck(scene, set, m, elasticity);
+}
+
+std::string abaqus_tet_deck(const Scene& scene, const InclusionSet& set, const TetMesh& mesh,
+                            bool elasticity) {
+  DeckMesh m;
+  m.kind = "tet";
+  m.nodes = static_cast<long long>(mesh.nodes.size());
+  m.length = mesh.box.size;
+  m.present = phases_present(mesh);
+  m.core_elements = [&](const Phase& p) {
+    return elements_by_inclusion(mesh.phase, mesh.inclusion_id, p.label);
+  };
+  m.pairs = [&](const std::function<void(long long, long long, int)>& tie) {
+    for (const auto& [dep, master] : mesh.periodic) {
+      int wrap = 0;
+      for (int a = 0; a < 3; ++a) {
+        wrap |= (mesh.nodes[dep][a] - mesh.nodes[master][a] > 0.5 * mesh.box.size[a]) << a;
+      }
+      tie(dep + 1LL, master + 1LL, wrap);
+    }
+  };
+  m.print_volumes = true;
+  return periodic_deck(scene, set, m, elasticity);
 }
 
 }  // namespace rvegen

@@ -1,6 +1,7 @@
-// Finite-element meshes of the voxel image for Abaqus and CalculiX: one 8-node hexahedron per
-// voxel, element sets per phase, node sets of the faces, edges and corners, reference nodes for
-// the macroscopic load, and decks with periodic equations that run as written.
+// Finite-element meshes of the RVE for Abaqus, CalculiX and Gmsh (one 8-node hexahedron per
+// voxel of the image, or the conforming tetrahedral mesh of femesh/): element sets per phase, node
+// sets of the faces, edges and corners, reference nodes for the macroscopic load, and decks with
+// periodic equations that run as written.
 //
 // Periodic boundary conditions: a node with a coordinate on a box face at the upper end of an
 // axis (x = L, y = L or z = L) is tied to its image with those coordinates brought to the lower
@@ -13,8 +14,9 @@
 // Edge and corner nodes thus get one equation each, tied straight to the node at the origin's
 // corner, edge or face: no node is constrained twice. The origin node is fixed (the constant
 // mode); each load case prescribes the reference nodes. The decks print the flux or stress at
-// every integration point (*EL PRINT of the set EALL): all elements are equal voxels, so the
-// plain mean of those values is the box mean (samples/ccx_effective.py).
+// every integration point (*EL PRINT of the set EALL): all voxel elements are equal, so the
+// plain mean of those values is the box mean; the tetrahedral decks also print each element's
+// volume, by which samples/ccx_effective.py weights its value.
 #pragma once
 
 #include <cstdio>
@@ -46,6 +48,11 @@ void write_gmsh_voxel_mesh(const VoxelImage& image, std::FILE* out);
 /// the box's lower corner), and the reference nodes REFX, REFY, REFZ (REFS).
 void write_abaqus_tet_mesh(const TetMesh& mesh, std::FILE* out);
 
+/// mesh_tet.msh: the tetrahedral mesh in Gmsh's format 4.1 as mesh_voxel.msh (physical groups
+/// per phase, the six face entities, the nodes and elements of mesh_tet.inp with the same ids),
+/// with a $Periodic section pairing each node on an upper face with its image on the lower one.
+void write_gmsh_tet_mesh(const TetMesh& mesh, std::FILE* out);
+
 /// run_voxel_conductivity.inp (elasticity false) or run_voxel_elasticity.inp: *INCLUDE of
 /// mesh_voxel.inp, one material and section per phase, the periodic equations and three (unit
 /// mean gradients along x, y, z) or six (unit mean strains 11, 22, 33, 23, 13, 12 in Mandel
@@ -56,5 +63,12 @@ void write_abaqus_tet_mesh(const TetMesh& mesh, std::FILE* out);
 /// when a phase present lacks the property the physics needs.
 std::string abaqus_voxel_deck(const Scene& scene, const InclusionSet& set, const VoxelImage& image,
                               bool elasticity);
+
+/// run_tet_conductivity.inp or run_tet_elasticity.inp: the same deck on mesh_tet.inp, with the
+/// periodic pairs of the mesh (each node on an upper face tied to its image at the lower ends);
+/// each step also prints every element's volume (EVOL: the elements differ in volume, and the
+/// box mean weights each by its own). Empty as abaqus_voxel_deck.
+std::string abaqus_tet_deck(const Scene& scene, const InclusionSet& set, const TetMesh& mesh,
+                            bool elasticity);
 
 }  // namespace rvegen

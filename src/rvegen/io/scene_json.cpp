@@ -298,7 +298,7 @@ Scene parse_scene(const std::string& text) {
   if (!root.is_object()) fail("(root)", "expected an object");
   only_keys(root,
             {"box", "seed", "method", "min_gap", "families", "voxels", "levelsets", "surfaces",
-             "md", "rsa", "outputs", "materials", "homogenization"},
+             "md", "rsa", "outputs", "materials", "homogenization", "mesh_tet"},
             "");
   Scene s;
   s.box = box(require(root, "box", ""), "box");
@@ -414,6 +414,17 @@ Scene parse_scene(const std::string& text) {
     if (m.contains("chord_error")) {
       s.surface_chord_error = number(m["chord_error"], "surfaces.chord_error");
     }
+  }
+  if (root.contains("mesh_tet")) {
+    const Json& m = root["mesh_tet"];
+    only_keys(m, {"max_size", "min_size", "chord_error", "gap_elements"}, "mesh_tet");
+    TetMeshSpec& t = s.tet_mesh;
+    if (m.contains("max_size")) t.max_size = positive(m["max_size"], "mesh_tet.max_size");
+    if (m.contains("min_size")) t.min_size = positive(m["min_size"], "mesh_tet.min_size");
+    if (m.contains("chord_error"))
+      t.chord_error = positive(m["chord_error"], "mesh_tet.chord_error");
+    if (m.contains("gap_elements"))
+      t.gap_elements = positive(m["gap_elements"], "mesh_tet.gap_elements");
   }
   if (root.contains("materials")) parse_materials(root["materials"], &s);
   if (root.contains("homogenization")) {
@@ -574,6 +585,12 @@ std::string scene_to_json(const Scene& s) {
   root["levelsets"] = {{"half_width", s.levelset_half_width}};
   if (s.levelset_voxel_size > 0.0) root["levelsets"]["voxel_size"] = s.levelset_voxel_size;
   root["surfaces"] = {{"clip", s.clip_surfaces}, {"chord_error", s.surface_chord_error}};
+  if (s.outputs.mesh_tet || !(s.tet_mesh == TetMeshSpec{})) {
+    const TetMeshSpec& t = s.tet_mesh;
+    root["mesh_tet"] = {{"chord_error", t.chord_error}, {"gap_elements", t.gap_elements}};
+    if (t.max_size > 0.0) root["mesh_tet"]["max_size"] = t.max_size;
+    if (t.min_size > 0.0) root["mesh_tet"]["min_size"] = t.min_size;
+  }
   if (!s.materials.empty()) {
     OJson m = OJson::object();
     for (const auto& [name, mat] : s.materials) {

@@ -495,7 +495,10 @@ const std::vector<std::string>& OutputSet::file_names() {
                                                  "mesh_voxel.msh",
                                                  "mesh_voxel.vtu",
                                                  "mesh_tet.inp",
-                                                 "mesh_tet.vtu"};
+                                                 "mesh_tet.vtu",
+                                                 "mesh_tet.msh",
+                                                 "run_tet_conductivity.inp",
+                                                 "run_tet_elasticity.inp"};
   return names;
 }
 

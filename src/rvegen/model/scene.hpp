@@ -161,6 +161,24 @@ struct HomogenizationSpec {
   bool any() const { return conductivity || elasticity; }
 };
 
+/// The element sizes of the conforming tetrahedral mesh (JSON "mesh_tet").
+struct TetMeshSpec {
+  /// Largest element size; 0: a tenth of the smallest box side.
+  double max_size = 0.0;
+  /// Least element size (where gaps are thinner than it, elements do not follow); 0: a
+  /// fiftieth of the smallest inclusion size (radius, or half length if shorter).
+  double min_size = 0.0;
+  /// Chord error allowed against each inclusion's surface, relative to its least radius of
+  /// curvature: the element size near a surface of radius rho is at most rho sqrt(8 chord).
+  double chord_error = 0.003;
+  /// Elements across the gap between two surfaces.
+  double gap_elements = 2.0;
+  bool operator==(const TetMeshSpec& o) const {
+    return max_size == o.max_size && min_size == o.min_size && chord_error == o.chord_error &&
+           gap_elements == o.gap_elements;
+  }
+};
+
 /// What only the representations of a packed set depend on.
 struct OutputSpec {
   Outputs outputs;
@@ -180,6 +198,7 @@ struct OutputSpec {
   /// "materials"), and what to compute with them.
   std::vector<std::pair<std::string, Material>> materials;
   HomogenizationSpec homogenization;
+  TetMeshSpec tet_mesh;
   /// The material given for "matrix", a family's name or "<family name>.coating"; null when
   /// the scene gives none.
   const Material* material(const std::string& key) const;

@@ -1,0 +1,58 @@
+// The tetrahedral mesh's own repairs and checks, on hand-made meshes of the unit box.
+#include <gtest/gtest.h>
+
+#include "rvegen/femesh/tet_mesh.hpp"
+
+namespace rvegen {
+namespace {
+
+// The unit cube cut into six tetrahedra about its diagonal (0,0,0)-(1,1,1).
+TetMesh kuhn_cube() {
+  TetMesh m;
+  m.box.origin = Vec3(0, 0, 0);
+  m.box.size = Vec3(1, 1, 1);
+  for (int k = 0; k < 8; ++k) m.nodes.push_back(Vec3(k & 1, (k >> 1) & 1, (k >> 2) & 1));
+  // Paths from corner 0 to corner 7 adding one axis bit at a time.
+  const int axes[6][3] = {{1, 2, 4}, {1, 4, 2}, {2, 1, 4}, {2, 4, 1}, {4, 1, 2}, {4, 2, 1}};
+  for (const auto& p : axes) {
+    m.tets.push_back({0, p[0], p[0] | p[1], 7});
+    m.phase.push_back(0);
+    m.inclusion_id.push_back(-1);
+  }
+  return m;
+}
+
+TEST(TetMesh, ACubeOfSixTetrahedraConforms) {
+  EXPECT_NO_THROW(check_conforming(kuhn_cube()));
+}
+
+TEST(TetMesh, ASecondNodeAtOnePositionCracksTheMeshAndIsMerged) {
+  TetMesh m = kuhn_cube();
+  // The centre diagonal's end 7 given again as node 8, used by one element: a crack along the
+  // faces that element shares with its neighbours.
+  m.nodes.push_back(m.nodes[7]);
+  m.tets[2][3] = 8;
+  // And a node no element uses.
+  m.nodes.push_back(Vec3(0.5, 0.5, 0.5));
+  EXPECT_THROW(check_conforming(m), MeshError);
+  EXPECT_EQ(merge_coincident_nodes(&m), 1);
+  EXPECT_EQ(m.nodes.size(), 8u);
+  EXPECT_EQ(m.tets[2][3], 7);
+  EXPECT_NO_THROW(check_conforming(m));
+}
+
+TEST(TetMesh, AMissingElementIsAHole) {
+  TetMesh m = kuhn_cube();
+  m.tets.pop_back();
+  EXPECT_THROW(check_conforming(m), MeshError);
+}
+
+TEST(TetMesh, AnElementCollapsedByTheMergeIsRefused) {
+  TetMesh m = kuhn_cube();
+  m.nodes.push_back(m.nodes[0]);  // node 8 at node 0's place, in an element with node 0
+  m.tets[1] = {0, 8, 5, 7};
+  EXPECT_THROW(merge_coincident_nodes(&m), MeshError);
+}
+
+}  // namespace
+}  // namespace rvegen

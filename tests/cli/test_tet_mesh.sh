@@ -21,18 +21,9 @@ SAMPLES=$3
 rm -rf "$WORK" && mkdir -p "$WORK"
 source "$(dirname "$0")/lib.sh"
 command -v ccx >/dev/null || { echo "FAIL: ccx (calculix-ccx) not installed"; exit 1; }
-cat >"$WORK/scene.json" <<'JSON'
-{"box":{"size":[0.6,0.6,0.6]},"seed":5,"min_gap":0.03,"families":[
- {"name":"spheres","shape":"sphere","radius":0.1,"volume_fraction":0.15},
- {"name":"rods","shape":"cylinder","radius":0.05,"aspect_ratio":3,"count":4}],
- "voxels":{"resolution":32},
- "materials":{"matrix":{"conductivity":1,"young":3,"poisson":0.35},
-  "spheres":{"conductivity":10,"young":70,"poisson":0.2},
-  "rods":{"axial_conductivity":20,"transverse_conductivity":2,"axial_young":200,
-   "transverse_young":15,"axial_shear":20,"axial_poisson":0.25,"transverse_poisson":0.3}},
- "homogenization":{"physics":["conductivity"],"tolerance":1e-8},
- "outputs":["inclusions","mesh_tet"]}
-JSON
+# The analyst's sample scene (docs/analyst.md), its tetrahedral mesh alone.
+sed 's/"outputs":.*/"outputs":["inclusions","mesh_tet"]}/' "$SAMPLES/scenes/fe_spheres_rods.json" \
+  >"$WORK/scene.json"
 expect_rc 0 "$RVEGEN" generate "$WORK/scene.json" -o "$WORK/a" -q
 for f in mesh_tet.inp mesh_tet.msh mesh_tet.vtu run_tet_conductivity.inp run_tet_elasticity.inp; do
   [ -s "$WORK/a/$f" ] || fail "$f not written: $(ls "$WORK/a")"

@@ -119,6 +119,14 @@ inline void RVEPolyDataFromGlyphs(const rvegen::GlyphPoints& g, vtkPolyData* out
   pd->SetActiveVectors("scale");
 }
 
+/// Field data "phase_names": the name of each phase label, in label order.
+inline void RVEAddPhaseNames(const std::vector<rvegen::Phase>& phases, vtkDataObject* out) {
+  vtkNew<vtkStringArray> names;
+  names->SetName("phase_names");
+  for (const auto& p : phases) names->InsertNextValue(p.name);
+  out->GetFieldData()->AddArray(names);
+}
+
 /// Voxelizes `set` straight into the arrays of `out` (no copy): cell data phase, inclusion_id,
 /// fraction (with partial volumes), field data phase_names; the geometry of `layout`
 /// (voxel_layout). Runs in `arena` when given (the source's Threads). Returns the conflicts.
@@ -165,10 +173,7 @@ long long RVEVoxelizeInto(const rvegen::InclusionSet& set, const rvegen::VoxelIm
   out->GetCellData()->AddArray(ids);
   if (opt.partial_volume) out->GetCellData()->AddArray(fraction);
   out->GetCellData()->SetActiveScalars("phase");
-  vtkNew<vtkStringArray> names;
-  names->SetName("phase_names");
-  for (const auto& p : layout.phases) names->InsertNextValue(p.name);
-  out->GetFieldData()->AddArray(names);
+  RVEAddPhaseNames(layout.phases, out);
   // The inclusion list, for the filters that need the exact geometry (RVE Effective Properties).
   vtkNew<vtkStringArray> inclusions;
   inclusions->SetName("rvegen_inclusions");

@@ -1,6 +1,10 @@
 // The tetrahedral mesh's own repairs and checks, on hand-made meshes of the unit box.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <string>
+#include <vector>
+
 #include "rvegen/femesh/tet_mesh.hpp"
 
 namespace rvegen {
@@ -52,6 +56,51 @@ TEST(TetMesh, AnElementCollapsedByTheMergeIsRefused) {
   m.nodes.push_back(m.nodes[0]);  // node 8 at node 0's place, in an element with node 0
   m.tets[1] = {0, 8, 5, 7};
   EXPECT_THROW(merge_coincident_nodes(&m), MeshError);
+}
+
+// Two spheres, one cut by a box face, in the unit box.
+InclusionSet two_spheres() {
+  InclusionSet set;
+  set.box.size = Vec3(1, 1, 1);
+  for (const Shape& s :
+       {Shape::sphere({0.5, 0.5, 0.5}, 0.2), Shape::sphere({0.05, 0.2, 0.8}, 0.15)}) {
+    Inclusion inc;
+    inc.id = static_cast<int>(set.inclusions.size());
+    inc.shape = s;
+    set.inclusions.push_back(inc);
+  }
+  set.family_names = {"spheres"};
+  return set;
+}
+
+TEST(TetMesh, ProgressRisesToOneAndAStopIsACancelThatLeavesTheMesherReusable) {
+  const InclusionSet set = two_spheres();
+  std::vector<double> seen;
+  std::vector<std::string> lines;
+  const TetMesh full = tet_mesh(set, {}, [&](double f, const std::string& line) {
+    seen.push_back(f);
+    if (!line.empty()) lines.push_back(line);
+    return true;
+  });
+  ASSERT_FALSE(seen.empty());
+  EXPECT_TRUE(std::is_sorted(seen.begin(), seen.end()));
+  EXPECT_EQ(seen.front(), 0.0);
+  EXPECT_EQ(seen.back(), 1.0);
+  EXPECT_GE(lines.size(), 5u);
+  EXPECT_GT(full.tets.size(), 1000u);
+  // Stopped at the start of the volume stage: Cancelled, and nothing else happens after.
+  int after_stop = 0;
+  bool stopped = false;
+  EXPECT_THROW(tet_mesh(set, {},
+                        [&](double f, const std::string&) {
+                          if (stopped) ++after_stop;
+                          stopped = stopped || f >= 0.35;
+                          return !stopped;
+                        }),
+               Cancelled);
+  EXPECT_EQ(after_stop, 0);
+  // The same call runs again.
+  EXPECT_GT(tet_mesh(set).tets.size(), 1000u);
 }
 
 }  // namespace

@@ -437,7 +437,10 @@ int cmd_generate(const std::vector<std::string>& args) {
         rvegen::TetMeshOptions topt;
         static_cast<rvegen::TetMeshSpec&>(topt) = scene.tet_mesh;
         topt.threads = threads;
-        tets = rvegen::tet_mesh(result.set, topt, progress);
+        tets = rvegen::tet_mesh(result.set, topt, [&](double, const std::string& line) {
+          if (!line.empty() && progress) progress(line);
+          return true;
+        });
       });
       timed("write mesh_tet.inp", [&] {
         out.write_with("mesh_tet.inp",

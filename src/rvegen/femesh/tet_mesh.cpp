@@ -3,6 +3,7 @@
 #include <gmsh.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <map>
 #include <mutex>
@@ -285,10 +286,29 @@ void check_tet_meshable(const InclusionSet& set) {
 }
 
 TetMesh tet_mesh(const InclusionSet& set, const TetMeshOptions& options,
-                 const std::function<void(const std::string&)>& progress) {
+                 const TetMeshProgress& progress) {
   check_tet_meshable(set);
-  auto say = [&](const std::string& line) {
-    if (progress) progress(line);
+  // Progress by stages, each a span of the whole; inside a long stage the size callback reports
+  // too (every 2^16 calls, from the calling thread only: the volume mesher calls it from its
+  // own threads as well), creeping towards the stage's end. Once progress returns false the
+  // next stage does not start. (Gmsh cannot be interrupted inside a stage: answering the
+  // largest size from then on, to end the stage sooner, made the volume stage three times
+  // longer.)
+  const std::thread::id caller = std::this_thread::get_id();
+  std::atomic<bool> stop{false};
+  std::atomic<long long> calls{0};
+  double stage_from = 0.0, stage_to = 0.0;
+  long long stage_calls = 0;
+  auto report = [&](double fraction, const std::string& line) {
+    if (progress && !progress(fraction, line)) stop = true;
+  };
+  auto stage = [&](double from, double to, const std::string& line) {
+    if (stop) throw Cancelled();
+    stage_from = from;
+    stage_to = to;
+    stage_calls = calls;
+    report(from, line);
+    if (stop) throw Cancelled();
   };
   const Box& box = set.box;
   const double side = box.size.minCoeff();
@@ -321,8 +341,9 @@ TetMesh tet_mesh(const InclusionSet& set, const TetMeshOptions& options,
     gmsh::vectorpair originals;
     for (const auto& [inc, tag] : base) originals.push_back({3, tag});
     gmsh::model::occ::remove(originals, true);
-    say("mesh_tet: fragmenting " + std::to_string(images.size()) +
-        " inclusion images against the box");
+    stage(0.0, 0.15,
+          "mesh_tet: fragmenting " + std::to_string(images.size()) +
+              " inclusion images against the box");
     gmsh::vectorpair out;
     std::vector<gmsh::vectorpair> pieces;
     gmsh::model::occ::fragment({{3, box_tag}}, tools, out, pieces);
@@ -402,8 +423,14 @@ TetMesh tet_mesh(const InclusionSet& set, const TetMeshOptions& options,
     }
 
     const SizeField size(set, options, max_size, min_size);
-    gmsh::model::mesh::setSizeCallback(
-        [&size](int, int, double x, double y, double z) { return size(Vec3(x, y, z)); });
+    gmsh::model::mesh::setSizeCallback([&](int, int, double x, double y, double z) {
+      const long long n = ++calls;
+      if (n % 65536 == 0 && !stop && std::this_thread::get_id() == caller) {
+        const double done = static_cast<double>(n - stage_calls);
+        report(stage_from + (stage_to - stage_from) * done / (done + 4e6), "");
+      }
+      return size(Vec3(x, y, z));
+    });
     gmsh::option::setNumber("Mesh.MeshSizeExtendFromBoundary", 0);
     gmsh::option::setNumber("Mesh.MeshSizeFromPoints", 0);
     gmsh::option::setNumber("Mesh.MeshSizeFromCurvature", 0);
@@ -414,10 +441,11 @@ TetMesh tet_mesh(const InclusionSet& set, const TetMeshOptions& options,
     const int threads = options.threads > 0 ? options.threads
                                             : static_cast<int>(std::thread::hardware_concurrency());
     gmsh::option::setNumber("General.NumThreads", std::max(1, threads));
-    say("mesh_tet: meshing the surfaces");
+    stage(0.15, 0.35, "mesh_tet: meshing the surfaces");
     gmsh::model::mesh::generate(2);
-    say("mesh_tet: meshing the volumes");
+    stage(0.35, 0.85, "mesh_tet: meshing the volumes");
     gmsh::model::mesh::generate(3);
+    stage(0.85, 0.95, "mesh_tet: moving nodes of the worst elements");
     // HXT's own optimiser left a few elements under 5 degrees; moving their nodes (Gmsh's
     // Relocate3D) lifted them (test scene: 4.98 to 5.38 degrees, the least angle now at a
     // surface).
@@ -461,10 +489,16 @@ TetMesh tet_mesh(const InclusionSet& set, const TetMeshOptions& options,
     }
   } catch (const MeshError&) {
     throw;
+  } catch (const Cancelled&) {
+    throw;
+  } catch (const std::exception& e) {
+    // Ours (a callback's) or Gmsh's: the message says which.
+    throw MeshError(std::string("mesh_tet: the mesher failed: ") + e.what());
   } catch (...) {
     throw MeshError("mesh_tet: the mesher failed: " + last_gmsh_error());
   }
 
+  stage(0.95, 1.0, "mesh_tet: checking the mesh");
   mesh.merged_nodes = merge_coincident_nodes(&mesh);
   check_conforming(mesh);
 
@@ -515,10 +549,11 @@ TetMesh tet_mesh(const InclusionSet& set, const TetMeshOptions& options,
     }
     mesh.periodic.push_back({i, master});
   }
-  say("mesh_tet: " + std::to_string(mesh.tets.size()) + " tetrahedra, " +
-      std::to_string(mesh.nodes.size()) + " nodes" +
-      (mesh.merged_nodes ? " (" + std::to_string(mesh.merged_nodes) + " coincident nodes merged)"
-                         : ""));
+  report(1.0, "mesh_tet: " + std::to_string(mesh.tets.size()) + " tetrahedra, " +
+                  std::to_string(mesh.nodes.size()) + " nodes" +
+                  (mesh.merged_nodes
+                       ? " (" + std::to_string(mesh.merged_nodes) + " coincident nodes merged)"
+                       : ""));
   return mesh;
 }
 

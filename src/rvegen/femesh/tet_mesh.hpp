@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "rvegen/model/errors.hpp"
 #include "rvegen/model/inclusion_set.hpp"
 #include "rvegen/model/phases.hpp"
 #include "rvegen/model/scene.hpp"
@@ -54,11 +55,16 @@ struct TetMesh {
 /// Refuses (InputError naming the family) a set tet_mesh cannot mesh.
 void check_tet_meshable(const InclusionSet& set);
 
-/// Meshes the set. Throws InputError for what check_tet_meshable refuses and MeshError when
-/// the mesher fails (with its message) or when the faces do not match. `progress` gets a line
-/// per stage.
+/// Called with the share done (0 to 1) and, at each stage, a line naming it (empty between
+/// stages); returning false stops the mesher (tet_mesh then throws Cancelled).
+using TetMeshProgress = std::function<bool(double fraction, const std::string& line)>;
+
+/// Meshes the set. Throws InputError for what check_tet_meshable refuses, MeshError when the
+/// mesher fails (with its message) or when the faces do not match or the mesh does not
+/// conform, and Cancelled when `progress` returned false: at the end of the stage under way
+/// (Gmsh cannot be interrupted inside one; stages: fragments, surfaces, volumes, node moves).
 TetMesh tet_mesh(const InclusionSet& set, const TetMeshOptions& options = {},
-                 const std::function<void(const std::string&)>& progress = {});
+                 const TetMeshProgress& progress = {});
 
 /// Merges nodes at one position (each element then uses the lowest-numbered one), drops nodes
 /// no element uses and renumbers the rest in order. Throws MeshError if an element is left with

@@ -210,6 +210,9 @@ struct Scene : PackingSpec, OutputSpec {};
 /// Checks every field and the cross-field constraints of a scene, however it was built (file,
 /// VTK properties, code); parse_scene runs it too. Throws InputError naming the key.
 void validate_scene(const Scene& scene);
+/// The part of validate_scene that checks "mesh_tet" against the box (for callers that set
+/// only those, such as the VTK filter).
+void validate_tet_mesh_spec(const Scene& scene);
 /// The part of validate_scene that checks "materials" and "homogenization" against the
 /// scene's families (for callers that build only those, such as the VTK filter).
 void validate_homogenization(const Scene& scene);

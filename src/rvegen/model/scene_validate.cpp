@@ -234,6 +234,23 @@ const Material* OutputSpec::material(const std::string& key) const {
   return nullptr;
 }
 
+void validate_tet_mesh_spec(const Scene& s) {
+  const double box_min = s.box.size.minCoeff();
+  const TetMeshSpec& t = s.tet_mesh;
+  if (!(t.max_size >= 0.0 && t.max_size <= box_min))
+    fail("mesh_tet.max_size", "must be positive and at most the smallest box size");
+  if (!(t.min_size >= 0.0 && t.min_size <= box_min))
+    fail("mesh_tet.min_size", "must be positive and at most the smallest box size");
+  if (t.max_size > 0.0 && t.min_size > t.max_size)
+    fail("mesh_tet.min_size", "must not exceed mesh_tet.max_size");
+  if (t.max_size > 0.0 && box_min / t.max_size > 1000.0)
+    fail("mesh_tet.max_size", "too small: more than 1000 elements along the box");
+  if (!(t.chord_error >= 1e-5 && t.chord_error <= 0.1))
+    fail("mesh_tet.chord_error", "must be in [1e-5, 0.1] (a fraction of the radius of curvature)");
+  if (!(t.gap_elements >= 0.5 && t.gap_elements <= 20.0))
+    fail("mesh_tet.gap_elements", "must be in [0.5, 20]");
+}
+
 void validate_scene(const Scene& s) {
   check_box(s.box, "box");
   if (s.families.empty()) fail("families", "at least one family is needed");
@@ -272,19 +289,7 @@ void validate_scene(const Scene& s) {
     fail("levelsets.voxel_size", "too small: more than 8192 voxels along the box");
   }
   if (s.min_gap >= box_min) fail("min_gap", "must be smaller than the box");
-  const TetMeshSpec& t = s.tet_mesh;
-  if (!(t.max_size >= 0.0 && t.max_size <= box_min))
-    fail("mesh_tet.max_size", "must be positive and at most the smallest box size");
-  if (!(t.min_size >= 0.0 && t.min_size <= box_min))
-    fail("mesh_tet.min_size", "must be positive and at most the smallest box size");
-  if (t.max_size > 0.0 && t.min_size > t.max_size)
-    fail("mesh_tet.min_size", "must not exceed mesh_tet.max_size");
-  if (t.max_size > 0.0 && box_min / t.max_size > 1000.0)
-    fail("mesh_tet.max_size", "too small: more than 1000 elements along the box");
-  if (!(t.chord_error >= 1e-5 && t.chord_error <= 0.1))
-    fail("mesh_tet.chord_error", "must be in [1e-5, 0.1] (a fraction of the radius of curvature)");
-  if (!(t.gap_elements >= 0.5 && t.gap_elements <= 20.0))
-    fail("mesh_tet.gap_elements", "must be in [0.5, 20]");
+  validate_tet_mesh_spec(s);
   // Phase labels are 8-bit (0 matrix, a core per family, an interphase per coated family and
   // a void per debonded family).
   size_t phases = 1 + s.families.size();

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "rvegen/model/errors.hpp"
 #include "rvegen/model/scene.hpp"
 
 namespace rvegen {
@@ -52,13 +53,6 @@ struct Monitor {
   /// Polled between steps and inside the long loops of a step (as often as the time budget
   /// is checked); true stops the run and generate() throws Cancelled. Must be cheap.
   std::function<bool()> cancelled;
-};
-
-/// Thrown by the packers and generate() when Monitor::cancelled returned true: the run left
-/// nothing behind, and the same call may be made again.
-class Cancelled : public std::runtime_error {
- public:
-  Cancelled() : std::runtime_error("cancelled") {}
 };
 
 /// Thrown by generate() when the packing stopped (time or step budget, jam) before a single

@@ -1,0 +1,113 @@
+#include "vtkRVETetMesh.h"
+
+#include "rvegen/femesh/tet_mesh.hpp"
+#include "rvegen/model/scene.hpp"
+#include "vtkCellArray.h"
+#include "vtkCellData.h"
+#include "vtkFieldData.h"
+#include "vtkIdTypeArray.h"
+#include "vtkInformation.h"
+#include "vtkInformationVector.h"
+#include "vtkIntArray.h"
+#include "vtkNew.h"
+#include "vtkObjectFactory.h"
+#include "vtkPoints.h"
+#include "vtkRVECommon.h"
+#include "vtkUnsignedCharArray.h"
+#include "vtkUnstructuredGrid.h"
+
+vtkStandardNewMacro(vtkRVETetMesh);
+
+namespace {
+const rvegen::TetMeshSpec kDefaults;
+}
+
+vtkRVETetMesh::vtkRVETetMesh()
+    : MaxSize(kDefaults.max_size),
+      MinSize(kDefaults.min_size),
+      ChordError(kDefaults.chord_error),
+      GapElements(kDefaults.gap_elements) {}
+
+int vtkRVETetMesh::FillInputPortInformation(int, vtkInformation* info) {
+  info->Set(vtkAlgorithm::INPUT_REQUIRED_DATA_TYPE(), "vtkDataObject");
+  return 1;
+}
+
+int vtkRVETetMesh::RequestData(vtkInformation*, vtkInformationVector** in,
+                               vtkInformationVector* out) {
+  vtkDataObject* input = in[0]->GetInformationObject(0)->Get(vtkDataObject::DATA_OBJECT());
+  vtkUnstructuredGrid* grid = vtkUnstructuredGrid::GetData(out);
+  rvegen::InclusionSet set;
+  std::string error;
+  if (!RVEInclusionsFromFieldData(input, &set, &error)) {
+    vtkErrorMacro(<< error);
+    return 0;
+  }
+  // The sizes are checked as a scene's "mesh_tet" is.
+  rvegen::Scene scene;
+  scene.box = set.box;
+  scene.tet_mesh = {this->MaxSize, this->MinSize, this->ChordError, this->GapElements};
+  rvegen::TetMesh mesh;
+  try {
+    rvegen::validate_tet_mesh_spec(scene);
+    rvegen::TetMeshOptions opt;
+    static_cast<rvegen::TetMeshSpec&>(opt) = scene.tet_mesh;
+    this->UpdateProgress(0.0);
+    mesh = rvegen::tet_mesh(set, opt, [this](double f, const std::string&) {
+      this->UpdateProgress(f);
+      return !this->GetAbortExecute();
+    });
+  } catch (const rvegen::Cancelled&) {
+    vtkWarningMacro(<< "aborted; the mesh is empty");
+    this->SetAbortExecute(0);
+    return 1;
+  } catch (const std::exception& e) {
+    vtkErrorMacro(<< e.what());
+    return 0;
+  }
+  vtkNew<vtkPoints> points;
+  points->SetDataTypeToDouble();
+  points->SetNumberOfPoints(static_cast<vtkIdType>(mesh.nodes.size()));
+  for (size_t i = 0; i < mesh.nodes.size(); ++i) {
+    points->SetPoint(static_cast<vtkIdType>(i), mesh.nodes[i].data());
+  }
+  const vtkIdType cells = static_cast<vtkIdType>(mesh.tets.size());
+  vtkNew<vtkIdTypeArray> offsets, connectivity;
+  offsets->SetNumberOfValues(cells + 1);
+  connectivity->SetNumberOfValues(4 * cells);
+  vtkNew<vtkUnsignedCharArray> phase;
+  phase->SetName("phase");
+  phase->SetNumberOfValues(cells);
+  vtkNew<vtkIntArray> ids;
+  ids->SetName("inclusion_id");
+  ids->SetNumberOfValues(cells);
+  for (vtkIdType e = 0; e < cells; ++e) {
+    offsets->SetValue(e, 4 * e);
+    for (int c = 0; c < 4; ++c) connectivity->SetValue(4 * e + c, mesh.tets[e][c]);
+    phase->SetValue(e, static_cast<unsigned char>(mesh.phase[e]));
+    ids->SetValue(e, mesh.inclusion_id[e]);
+  }
+  offsets->SetValue(cells, 4 * cells);
+  vtkNew<vtkCellArray> tets;
+  tets->SetData(offsets, connectivity);
+  grid->SetPoints(points);
+  grid->SetCells(VTK_TETRA, tets);
+  grid->GetCellData()->AddArray(phase);
+  grid->GetCellData()->AddArray(ids);
+  grid->GetCellData()->SetActiveScalars("phase");
+  RVEAddPhaseNames(mesh.phases, grid);
+  vtkNew<vtkIntArray> merged;
+  merged->SetName("merged_nodes");
+  merged->InsertNextValue(static_cast<int>(mesh.merged_nodes));
+  grid->GetFieldData()->AddArray(merged);
+  this->UpdateProgress(1.0);
+  return 1;
+}
+
+void vtkRVETetMesh::PrintSelf(ostream& os, vtkIndent indent) {
+  this->Superclass::PrintSelf(os, indent);
+  os << indent << "MaxSize: " << this->MaxSize << "\n"
+     << indent << "MinSize: " << this->MinSize << "\n"
+     << indent << "ChordError: " << this->ChordError << "\n"
+     << indent << "GapElements: " << this->GapElements << "\n";
+}

@@ -1,0 +1,56 @@
+/**
+ * @class vtkRVETetMesh
+ * @brief Conforming periodic tetrahedral mesh of an RVE (Gmsh), for ParaView and FE codes.
+ *
+ * Input: the Inclusions output of the RVE Generator, or inclusions.vtp written by rvegen
+ * generate (both carry the inclusion list in field data "rvegen_inclusions"). Output: a
+ * vtkUnstructuredGrid of tetrahedra following every interface, with opposite box faces meshed
+ * alike (cell data phase and inclusion_id; field data phase_names, and merged_nodes, the nodes
+ * the mesher left at one position and rvegen merged). Plain spheres and cylinders; other
+ * inclusions give an error naming the family. The sizes are those of a scene's "mesh_tet"
+ * object (0: the default). Progress follows the mesher's stages; Abort stops it (within a
+ * stage it first finishes with coarse elements) and leaves the output empty.
+ */
+#ifndef vtkRVETetMesh_h
+#define vtkRVETetMesh_h
+
+#include "RVEGenFiltersModule.h"
+#include "vtkUnstructuredGridAlgorithm.h"
+
+class RVEGENFILTERS_EXPORT vtkRVETetMesh : public vtkUnstructuredGridAlgorithm {
+ public:
+  static vtkRVETetMesh* New();
+  vtkTypeMacro(vtkRVETetMesh, vtkUnstructuredGridAlgorithm);
+  void PrintSelf(ostream& os, vtkIndent indent) override;
+
+  /// Largest element size (0: a tenth of the smallest box side).
+  vtkSetMacro(MaxSize, double);
+  vtkGetMacro(MaxSize, double);
+  /// Least element size (0: a fiftieth of the smallest inclusion).
+  vtkSetMacro(MinSize, double);
+  vtkGetMacro(MinSize, double);
+  /// Chord error against the inclusions' surfaces, a fraction of their radius of curvature.
+  vtkSetMacro(ChordError, double);
+  vtkGetMacro(ChordError, double);
+  /// Elements across the gap between two surfaces.
+  vtkSetMacro(GapElements, double);
+  vtkGetMacro(GapElements, double);
+
+ protected:
+  vtkRVETetMesh();
+  ~vtkRVETetMesh() override = default;
+  int FillInputPortInformation(int port, vtkInformation* info) override;
+  int RequestData(vtkInformation* request, vtkInformationVector** in,
+                  vtkInformationVector* out) override;
+
+  double MaxSize;
+  double MinSize;
+  double ChordError;
+  double GapElements;
+
+ private:
+  vtkRVETetMesh(const vtkRVETetMesh&) = delete;
+  void operator=(const vtkRVETetMesh&) = delete;
+};
+
+#endif

@@ -1,0 +1,119 @@
+"""pvpython test: the RVE Tetrahedral Mesh filter on the generator's Inclusions output.
+
+1. The analyst's sample scene (samples/scenes/fe_spheres_rods.json): an unstructured grid of
+   tetrahedra whose volumes are positive and fill the box, each phase's volume within 1 % of the
+   exact one (computed here from the inclusion list the input carries), phase names in field
+   data; progress rises to 1 through values strictly between 0 and 1.
+2. An abort set from a progress observer inside the volume stage (progress above 0.36) ends
+   the run at the end of that stage (Gmsh cannot be interrupted inside one): no progress after
+   it, sooner than the whole run, an empty mesh; the filter then meshes again.
+3. A scene the mesher cannot take (the default one, with ellipsoids) and a bad chord error give
+   errors and no mesh.
+
+usage: pvpython test_tet_mesh.py PLUGIN.so SAMPLES_DIR
+"""
+import json
+import math
+import sys
+import time
+
+from paraview.simple import *  # noqa: F401,F403
+from paraview import servermanager
+from vtkmodules.util.numpy_support import vtk_to_numpy
+import numpy as np
+
+plugin, samples = sys.argv[1:3]
+failures = []
+
+
+def check(cond, msg):
+    if not cond:
+        failures.append(msg)
+        print("FAIL:", msg)
+
+
+def volumes(grid):
+    """Element volumes and phases of an unstructured grid of tetrahedra."""
+    pts = vtk_to_numpy(grid.GetPoints().GetData())
+    conn = vtk_to_numpy(grid.GetCells().GetConnectivityArray()).reshape(-1, 4)
+    P = pts[conn]
+    vol = np.einsum("ij,ij->i", P[:, 1] - P[:, 0],
+                    np.cross(P[:, 2] - P[:, 0], P[:, 3] - P[:, 0])) / 6
+    phase = vtk_to_numpy(grid.GetCellData().GetArray("phase")).astype(int)
+    return vol, phase
+
+
+LoadPlugin(plugin, ns=globals())
+gen = RVEGenerator(SceneFile=samples + "/scenes/fe_spheres_rods.json")
+mesh = RVETetrahedralMesh(Input=OutputPort(gen, 0))
+alg = mesh.GetClientSideObject()
+values = []
+tag = alg.AddObserver("ProgressEvent", lambda o, e: values.append(o.GetProgress()))
+start = time.monotonic()
+mesh.UpdatePipeline()
+whole = time.monotonic() - start
+alg.RemoveObserver(tag)
+grid = servermanager.Fetch(mesh)
+vol, phase = volumes(grid)
+print("tetrahedra %d, progress values %d" % (len(vol), len(values)))
+check(len(vol) > 100000, "only %d tetrahedra" % len(vol))
+check(vol.min() > 0, "an element has volume %g" % vol.min())
+incs = json.loads(servermanager.Fetch(gen).GetFieldData().GetAbstractArray("rvegen_inclusions").GetValue(0))
+L = incs["box"]["size"][0]
+check(abs(vol.sum() / L ** 3 - 1) < 1e-9, "the elements do not fill the box: %g" % vol.sum())
+exact = {}
+for i in incs["inclusions"]:
+    v = (4 / 3 * math.pi * i["radius"] ** 3 if i["shape"] == "sphere"
+         else math.pi * i["radius"] ** 2 * 2 * np.linalg.norm(i["half_axis"]))
+    exact[i["family"] + 1] = exact.get(i["family"] + 1, 0.0) + v
+exact[0] = L ** 3 - sum(exact.values())
+for label, v in exact.items():
+    got = vol[phase == label].sum()
+    check(abs(got / v - 1) < 0.01, "phase %d: volume %g, exact %g" % (label, got, v))
+names = grid.GetFieldData().GetAbstractArray("phase_names")
+check(names is not None and names.GetValue(0) == "matrix", "no phase_names")
+check(values and values[-1] == 1.0, "progress does not end at 1: %s" % values[-3:])
+check(len([v for v in values if 0 < v < 1]) >= 4, "progress: %s" % values)
+check(all(a <= b for a, b in zip(values, values[1:])), "progress falls: %s" % values)
+
+# 2. Abort inside the volume stage.
+state = {"at": None, "after": []}
+
+
+def on_progress(obj, ev):
+    if state["at"] is None and obj.GetProgress() > 0.36:
+        state["at"] = time.monotonic()
+        obj.SetAbortExecute(1)
+    elif state["at"] is not None:
+        state["after"].append(obj.GetProgress())
+
+
+mesh.MaxSize = 0.05  # a change, so that the filter runs again
+tag = alg.AddObserver("ProgressEvent", on_progress)
+mesh.UpdatePipeline()
+end = time.monotonic()
+alg.RemoveObserver(tag)
+check(state["at"] is not None, "the abort was never set")
+if state["at"] is not None:
+    print("abort returned after %.2f s (whole run %.2f s)" % (end - state["at"], whole))
+    check(end - state["at"] < whole, "abort took %.2f s, the whole run %.2f s" % (end - state["at"], whole))
+    # The pipeline itself reports 1 when the filter returns.
+    check(state["after"] in ([], [1.0]), "progress after the abort: %s" % state["after"])
+check(servermanager.Fetch(mesh).GetNumberOfCells() == 0, "an aborted mesh is not empty")
+mesh.MaxSize = 0.06
+mesh.UpdatePipeline()
+check(servermanager.Fetch(mesh).GetNumberOfCells() > 100000, "no mesh after the abort")
+
+# 3. What the mesher refuses.
+default = RVEGenerator(Resolution=[8, 8, 8])
+refused = RVETetrahedralMesh(Input=OutputPort(default, 0))
+refused.UpdatePipeline()
+check(servermanager.Fetch(refused).GetNumberOfCells() == 0, "the default scene (ellipsoids) was meshed")
+mesh.ChordError = 0.5
+mesh.UpdatePipeline()
+check(servermanager.Fetch(mesh).GetNumberOfCells() == 0, "a chord error of 0.5 was meshed")
+
+if failures:
+    print("%d failure(s)" % len(failures))
+    sys.exit(1)
+print("all tetrahedral mesh filter checks passed")

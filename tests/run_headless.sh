@@ -2,6 +2,10 @@
 # Runs a command under an X server of its own (Xvfb). Xvfb picks a free display number itself
 # and reports it once it accepts connections (-displayfd), so tests starting together never
 # share or race for a display (xvfb-run -a could hand out the same number twice).
+# -noreset: by default Xvfb resets itself when its last client leaves, and a command that runs
+# two programs in turn (samples_leave_rve.sh) could connect during the reset and abort with "bad
+# X server connection" (1 run in 5 once the plugin also loaded Gmsh's libraries; 0 in 8 with
+# -noreset).
 # A run killed by a signal (an abort while the X server creates a window has been seen once
 # under load) is tried once more with a fresh server; a test that fails by its own checks
 # (exit 1) is not retried.
@@ -10,7 +14,7 @@ set -u
 run_once() {
 numfile=$(mktemp)
 xlog=$(mktemp)
-Xvfb -displayfd 3 -screen 0 1280x1024x24 -nolisten tcp 3>"$numfile" >"$xlog" 2>&1 &
+Xvfb -displayfd 3 -screen 0 1280x1024x24 -nolisten tcp -noreset 3>"$numfile" >"$xlog" 2>&1 &
 pid=$!
 for _ in $(seq 300); do
   if [ -s "$numfile" ] || ! kill -0 "$pid" 2>/dev/null; then break; fi

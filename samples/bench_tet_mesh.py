@@ -1,0 +1,162 @@
+#!/usr/bin/python3
+"""Tetrahedral mesh benchmarks (`--outputs mesh_tet`): whole-command wall time and peak memory
+(/usr/bin/time), elements, elements per second, element quality and phase volumes, for
+
+  1. spheres of radius 0.1 in a periodic box of 0.6 (the analyst's sample without its rods),
+     volume fraction 0.15 to 0.45 against min_gap 0.005, 0.01, 0.03: failures where they happen;
+  2. a short-fibre scene: 40 fibres of L/D 10 at 0.25 in the unit box, orientation tensor
+     diag(0.7, 0.25, 0.05), min_gap 0.005, meshed, then run by CalculiX (the conductivity deck,
+     fibres 10 times the matrix) against rvegen's FFT value on laminate voxels at 128^3;
+  3. the default scene (946 inclusions, with ellipsoids): what the mesher says of it.
+
+Prints the tables (also written to samples/charts/tet_mesh_table.md) and draws
+samples/charts/tet_mesh_sweep.png (time and least dihedral angle against the volume fraction,
+one curve per min_gap).
+
+usage: /usr/bin/python3 samples/bench_tet_mesh.py [BUILD_DIR] [--quick] [--no-ccx]
+"""
+import json
+import math
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench_util import generate, machine, timed  # noqa: E402
+
+args = [a for a in sys.argv[1:] if not a.startswith("--")]
+quick = "--quick" in sys.argv
+build = args[0] if args else "build"
+exe = os.path.abspath(os.path.join(build, "bin", "rvegen"))
+here = os.path.dirname(os.path.abspath(__file__))
+work = tempfile.mkdtemp(prefix="rvegen-tet-")
+charts = os.path.join(here, "charts")
+os.makedirs(charts, exist_ok=True)
+lines = ["Machine: %s. `%s`." % (machine(), " ".join(["samples/bench_tet_mesh.py"] + sys.argv[1:])),
+         ""]
+
+
+def say(text=""):
+    print(text)
+    sys.stdout.flush()
+    lines.append(text)
+
+
+def mesh_row(report):
+    m = report["mesh_tet"]
+    worst = max(abs(p["relative_error"]) for p in m["phases"] if p["exact_volume"] > 0)
+    q = m["min_dihedral_degrees"]
+    return m["tetrahedra"], q["min"], q["below_5_degrees"], worst, m.get("merged_nodes", 0)
+
+
+# 1. Spheres: volume fraction against min_gap.
+fractions = [0.15, 0.35] if quick else [0.15, 0.25, 0.35, 0.45]
+gaps = [0.01, 0.03] if quick else [0.005, 0.01, 0.03]
+say("## Spheres of radius 0.1, box 0.6: volume fraction against min_gap")
+say()
+say("| volume fraction | min_gap | spheres | exit | wall s | peak MiB | tetrahedra | "
+    "tets/s | least angle | under 5 deg | worst volume error |")
+say("|---|---|---|---|---|---|---|---|---|---|---|")
+sweep = {}
+for gap in gaps:
+    for vf in fractions:
+        scene = {"box": {"size": [0.6, 0.6, 0.6]}, "seed": 5, "min_gap": gap,
+                 "md": {"max_seconds": 60},
+                 "families": [{"name": "spheres", "shape": "sphere", "radius": 0.1,
+                               "volume_fraction": vf}],
+                 "outputs": ["inclusions", "mesh_tet"]}
+        name = "s_%g_%g" % (vf, gap)
+        path = os.path.join(work, name + ".json")
+        with open(path, "w") as f:
+            json.dump(scene, f)
+        rc, wall, peak, err = timed([exe, "generate", "-q", path, "-o", os.path.join(work, name)])
+        count = round(vf * 0.216 / (4 / 3 * math.pi * 1e-3))
+        if rc != 0:
+            say("| %.2f | %g | %d | %d | %.1f | %.0f | failed: %s | | | | |"
+                % (vf, gap, count, rc, wall, peak, err.strip().splitlines()[-1][:120]))
+            continue
+        with open(os.path.join(work, name, "report.json")) as f:
+            tets, least, below, worst, merged = mesh_row(json.load(f))
+        sweep.setdefault(gap, []).append((vf, wall, least, tets))
+        say("| %.2f | %g | %d | 0 | %.1f | %.0f | %d | %.0f | %.2f | %d | %.2f %% |"
+            % (vf, gap, count, wall, peak, tets, tets / wall, least, below, 100 * worst))
+        shutil.rmtree(os.path.join(work, name), ignore_errors=True)
+
+fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.2))
+for gap, rows in sorted(sweep.items()):
+    a1.plot([r[0] for r in rows], [r[1] for r in rows], "o-", label="min_gap %g" % gap)
+    a2.plot([r[0] for r in rows], [r[2] for r in rows], "o-", label="min_gap %g" % gap)
+a1.set_xlabel("volume fraction of spheres")
+a1.set_ylabel("whole command, s")
+a1.set_title("Tetrahedral mesh: wall time")
+a2.axhline(5.0, color="grey", ls="--", lw=1)
+a2.set_xlabel("volume fraction of spheres")
+a2.set_ylabel("least dihedral angle, degrees")
+a2.set_title("Element quality (5 degrees dashed)")
+for a in (a1, a2):
+    a.grid(alpha=0.3)
+    a.legend()
+fig.tight_layout()
+fig.savefig(os.path.join(charts, "tet_mesh_sweep.png"), dpi=110)
+
+# 2. Short fibres, meshed and run by CalculiX.
+n = 12 if quick else 40
+r = (0.25 / (2.0 * math.pi * 10 * n)) ** (1.0 / 3.0)
+fibres = {"box": {"size": [1, 1, 1]}, "seed": 1, "min_gap": 0.005, "md": {"max_seconds": 120},
+          "families": [{"name": "fibres", "shape": "cylinder", "radius": r, "aspect_ratio": 10,
+                        "count": n,
+                        "orientation": {"law": "tensor",
+                                        "a2": [[0.7, 0, 0], [0, 0.25, 0], [0, 0, 0.05]]}}],
+          "voxels": {"resolution": 64 if quick else 128},
+          "materials": {"matrix": {"conductivity": 1}, "fibres": {"conductivity": 10}},
+          "homogenization": {"physics": ["conductivity"], "tolerance": 1e-8},
+          "outputs": ["inclusions", "mesh_tet"]}
+say()
+say("## %d fibres of L/D 10 (radius %.4f) at 0.25, tensor orientation, min_gap 0.005" % (n, r))
+say()
+rc, wall, peak, report = generate(exe, fibres, work, "fibres")
+if rc != 0:
+    say("rvegen generate: exit %d" % rc)
+else:
+    tets, least, below, worst, merged = mesh_row(report)
+    fft = report["effective"]["conductivity"]["tensor"]
+    say("rvegen generate (packing, mesh, FFT at %d^3): %.1f s, %.0f MiB; %d tetrahedra, "
+        "least angle %.2f deg, %d under 5 deg, worst phase volume error %.2f %%, %d nodes merged"
+        % (fibres["voxels"]["resolution"], wall, peak, tets, least, below, 100 * worst, merged))
+    if "--no-ccx" not in sys.argv and shutil.which("ccx"):
+        run = os.path.join(work, "fibres_run")
+        shutil.copytree(os.path.join(work, "fibres"), run)
+        p = subprocess.run(["/usr/bin/time", "-f", "TIME %e %M", "ccx", "-i",
+                            "run_tet_conductivity"], cwd=run, capture_output=True, text=True)
+        t = [ln for ln in p.stderr.splitlines() if ln.startswith("TIME ")][-1].split()
+        warned = [ln for ln in p.stdout.splitlines() if "*WARNING" in ln or "*ERROR" in ln]
+        eff = json.loads(subprocess.run([sys.executable, os.path.join(here, "ccx_effective.py"),
+                                         run, "run_tet_conductivity"], check=True,
+                                        capture_output=True, text=True).stdout)["conductivity"]
+        say("CalculiX (conductivity deck): exit %d, %.1f s, %.0f MiB, %d warnings or errors"
+            % (p.returncode, float(t[1]), int(t[2]) / 1024, len(warned)))
+        say()
+        say("| | k11 | k22 | k33 |")
+        say("|---|---|---|---|")
+        say("| CalculiX, tetrahedra | %.4f | %.4f | %.4f |" % (eff[0][0], eff[1][1], eff[2][2]))
+        say("| FFT, laminate voxels | %.4f | %.4f | %.4f |" % (fft[0][0], fft[1][1], fft[2][2]))
+        say("| difference | %+.2f %% | %+.2f %% | %+.2f %% |"
+            % tuple(100 * (eff[i][i] / fft[i][i] - 1) for i in range(3)))
+    shutil.rmtree(os.path.join(work, "fibres"), ignore_errors=True)
+
+# 3. The default scene.
+say()
+rc, wall, peak, err = timed([exe, "generate", "-q", "--outputs", "mesh_tet", "-o",
+                             os.path.join(work, "default")])
+say("## The default scene\n\nexit %d after %.1f s: %s" % (rc, wall, err.strip().splitlines()[-1]))
+
+with open(os.path.join(charts, "tet_mesh_table.md"), "w") as f:
+    f.write("\n".join(lines) + "\n")
+shutil.rmtree(work, ignore_errors=True)

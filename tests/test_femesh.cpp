@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "rvegen/femesh/lsan_suppressions.hpp"  // in sanitizer builds
 #include "rvegen/femesh/tet_mesh.hpp"
 
 namespace rvegen {

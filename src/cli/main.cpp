@@ -16,6 +16,7 @@
 
 #include "effective.hpp"
 #include "process.hpp"
+#include "rvegen/femesh/lsan_suppressions.hpp"  // in sanitizer builds
 #include "rvegen/femesh/tet_mesh.hpp"
 #include "rvegen/io/amitex.hpp"
 #include "rvegen/io/fe_mesh.hpp"
@@ -35,17 +36,6 @@
 #include "rvegen/raster/mesh.hpp"
 #include "rvegen/raster/voxelize.hpp"
 #include "study.hpp"
-
-// The sanitizer build: Gmsh 4.8 and OpenCASCADE keep memory they never free (the model's
-// faces set up while meshing, their own allocator's blocks), which LeakSanitizer would report
-// at exit; leaks with their frames in the stack are theirs.
-#if defined(__has_feature)
-#if __has_feature(address_sanitizer)
-extern "C" const char* __lsan_default_suppressions() {
-  return "leak:libgmsh.so\nleak:libTK\n";
-}
-#endif
-#endif
 
 namespace {
 

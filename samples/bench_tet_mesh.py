@@ -79,8 +79,9 @@ for gap in gaps:
         rc, wall, peak, err = timed([exe, "generate", "-q", path, "-o", os.path.join(work, name)])
         count = round(vf * 0.216 / (4 / 3 * math.pi * 1e-3))
         if rc != 0:
+            why = [ln for ln in err.strip().splitlines() if ln.startswith("rvegen:")]
             say("| %.2f | %g | %d | %d | %.1f | %.0f | failed: %s | | | | |"
-                % (vf, gap, count, rc, wall, peak, err.strip().splitlines()[-1][:120]))
+                % (vf, gap, count, rc, wall, peak, (why or ["?"])[-1][:120]))
             continue
         with open(os.path.join(work, name, "report.json")) as f:
             tets, least, below, worst, merged = mesh_row(json.load(f))
@@ -155,7 +156,8 @@ else:
 say()
 rc, wall, peak, err = timed([exe, "generate", "-q", "--outputs", "mesh_tet", "-o",
                              os.path.join(work, "default")])
-say("## The default scene\n\nexit %d after %.1f s: %s" % (rc, wall, err.strip().splitlines()[-1]))
+why = [ln for ln in err.strip().splitlines() if ln.startswith("rvegen:")]
+say("## The default scene\n\nexit %d after %.1f s: %s" % (rc, wall, (why or ["?"])[-1]))
 
 with open(os.path.join(charts, "tet_mesh_table.md"), "w") as f:
     f.write("\n".join(lines) + "\n")

@@ -20,7 +20,10 @@ TetMesh kuhn_cube() {
   // Paths from corner 0 to corner 7 adding one axis bit at a time.
   const int axes[6][3] = {{1, 2, 4}, {1, 4, 2}, {2, 1, 4}, {2, 4, 1}, {4, 1, 2}, {4, 2, 1}};
   for (const auto& p : axes) {
-    m.tets.push_back({0, p[0], p[0] | p[1], 7});
+    std::array<int32_t, 4> t = {0, p[0], p[0] | p[1], 7};
+    const Vec3 &a = m.nodes[t[0]], &b = m.nodes[t[1]], &c = m.nodes[t[2]], &d = m.nodes[t[3]];
+    if ((b - a).cross(c - a).dot(d - a) < 0.0) std::swap(t[2], t[3]);  // positive, as tet_mesh's
+    m.tets.push_back(t);
     m.phase.push_back(0);
     m.inclusion_id.push_back(-1);
   }
@@ -36,13 +39,13 @@ TEST(TetMesh, ASecondNodeAtOnePositionCracksTheMeshAndIsMerged) {
   // The centre diagonal's end 7 given again as node 8, used by one element: a crack along the
   // faces that element shares with its neighbours.
   m.nodes.push_back(m.nodes[7]);
-  m.tets[2][3] = 8;
+  std::replace(m.tets[2].begin(), m.tets[2].end(), 7, 8);
   // And a node no element uses.
   m.nodes.push_back(Vec3(0.5, 0.5, 0.5));
   EXPECT_THROW(check_conforming(m), MeshError);
   EXPECT_EQ(merge_coincident_nodes(&m), 1);
   EXPECT_EQ(m.nodes.size(), 8u);
-  EXPECT_EQ(m.tets[2][3], 7);
+  EXPECT_EQ(std::count(m.tets[2].begin(), m.tets[2].end(), 7), 1);
   EXPECT_NO_THROW(check_conforming(m));
 }
 
@@ -50,6 +53,15 @@ TEST(TetMesh, AMissingElementIsAHole) {
   TetMesh m = kuhn_cube();
   m.tets.pop_back();
   EXPECT_THROW(check_conforming(m), MeshError);
+}
+
+TEST(TetMesh, AnEmptyOrInvertedMeshDoesNotFillTheBox) {
+  TetMesh empty = kuhn_cube();
+  empty.tets.clear();
+  EXPECT_THROW(check_conforming(empty), MeshError);
+  TetMesh inverted = kuhn_cube();
+  std::swap(inverted.tets[0][0], inverted.tets[0][1]);
+  EXPECT_THROW(check_conforming(inverted), MeshError);
 }
 
 TEST(TetMesh, AnElementCollapsedByTheMergeIsRefused) {

@@ -380,6 +380,15 @@ TEST(Budgets, MemoryEstimateGrowsWithWhatTheSceneAsks) {
   s.levelset_voxel_size = 1.0 / 8000;
   EXPECT_GT(estimate_resources(s).levelset_bytes, 1e10);
   EXPECT_GT(available_memory_bytes(), 0.0);
+  // The tetrahedral mesh: asked for, it counts; a finer chord error needs more.
+  Scene m = small_scene();
+  EXPECT_EQ(estimate_resources(m).tet_mesh_bytes, 0.0);
+  m.outputs.mesh_tet = true;
+  const ResourceEstimate tets = estimate_resources(m);
+  EXPECT_GT(tets.tetrahedra, 0.0);
+  m.tet_mesh.chord_error /= 10.0;
+  EXPECT_GT(estimate_resources(m).tet_mesh_bytes, 5.0 * tets.tet_mesh_bytes);
+  EXPECT_NE(describe(estimate_resources(m)).find("tetrahedral mesh"), std::string::npos);
 }
 
 // --- Level sets -----------------------------------------------------------------------

@@ -9,11 +9,15 @@
    it, sooner than the whole run, an empty mesh; the filter then meshes again.
 3. A scene the mesher cannot take (the default one, with ellipsoids) and a bad chord error give
    errors and no mesh.
+4. ParaView reads mesh_tet.vtu that `rvegen generate` writes (a coarse mesh of the sample):
+   tetrahedra with phase and inclusion_id, as many as report.json counts.
 
-usage: pvpython test_tet_mesh.py PLUGIN.so SAMPLES_DIR
+usage: pvpython test_tet_mesh.py PLUGIN.so SAMPLES_DIR RVEGEN WORK_DIR
 """
 import json
 import math
+import os
+import subprocess
 import sys
 import time
 
@@ -22,7 +26,7 @@ from paraview import servermanager
 from vtkmodules.util.numpy_support import vtk_to_numpy
 import numpy as np
 
-plugin, samples = sys.argv[1:3]
+plugin, samples, rvegen, work = sys.argv[1:5]
 failures = []
 
 
@@ -112,6 +116,24 @@ check(servermanager.Fetch(refused).GetNumberOfCells() == 0, "the default scene (
 mesh.ChordError = 0.5
 mesh.UpdatePipeline()
 check(servermanager.Fetch(mesh).GetNumberOfCells() == 0, "a chord error of 0.5 was meshed")
+
+# 4. The command line's mesh_tet.vtu in ParaView's reader.
+os.makedirs(work, exist_ok=True)
+scene = json.load(open(samples + "/scenes/fe_spheres_rods.json"))
+scene["mesh_tet"] = {"chord_error": 0.03}
+scene["outputs"] = ["mesh_tet"]
+with open(os.path.join(work, "coarse.json"), "w") as f:
+    json.dump(scene, f)
+subprocess.run([rvegen, "generate", "-q", os.path.join(work, "coarse.json"), "-o",
+                os.path.join(work, "coarse")], check=True)
+counted = json.load(open(os.path.join(work, "coarse", "report.json")))["mesh_tet"]["tetrahedra"]
+reader = XMLUnstructuredGridReader(FileName=[os.path.join(work, "coarse", "mesh_tet.vtu")])  # noqa: F405
+reader.UpdatePipeline()
+read = servermanager.Fetch(reader)
+check(read.GetNumberOfCells() == counted and read.GetCellType(0) == 10,
+      "mesh_tet.vtu: %d cells of type %d, report %d" % (read.GetNumberOfCells(), read.GetCellType(0), counted))
+check(read.GetCellData().GetArray("phase") is not None
+      and read.GetCellData().GetArray("inclusion_id") is not None, "mesh_tet.vtu lacks its arrays")
 
 if failures:
     print("%d failure(s)" % len(failures))

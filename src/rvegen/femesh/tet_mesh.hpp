@@ -73,8 +73,9 @@ TetMesh tet_mesh(const InclusionSet& set, const TetMeshOptions& options = {},
 /// Returns the number of nodes merged into others.
 long long merge_coincident_nodes(TetMesh* mesh);
 
-/// Throws MeshError unless the mesh conforms: every face of an element is a face of another
-/// element or lies in a box face. tet_mesh calls it on every mesh.
+/// Throws MeshError unless the mesh conforms (every face of an element is a face of another
+/// element or lies in a box face) and fills the box (every element positive, their volumes
+/// adding up to the box's to 1e-9). tet_mesh calls it on every mesh.
 void check_conforming(const TetMesh& mesh);
 
 /// What the mesh is worth: element volumes and their sum per phase label, the least dihedral

@@ -18,6 +18,8 @@ struct ResourceEstimate {
   double voxel_bytes = 0.0;           // the voxel image (written as it is, no copy)
   double levelset_bytes = 0.0;        // the OpenVDB grids while they are built and written
   double homogenization_bytes = 0.0;  // the FFT solver's fields (the image stays alive)
+  double tetrahedra = 0.0;            // elements of the tetrahedral mesh (mesh_tet)
+  double tet_mesh_bytes = 0.0;        // Gmsh's model and mesh, rvegen's copy, the writers
   /// Peak: the phases run one after the other, the inclusion list stays throughout.
   double total_bytes() const;
 };

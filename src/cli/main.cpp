@@ -445,8 +445,10 @@ int cmd_generate(const std::vector<std::string>& args) {
         std::cerr << "rvegen: mesh_tet: " << angles["below_5_degrees"].get<long long>()
                   << " elements have a dihedral angle under 5 degrees (least "
                   << angles["min"].get<double>()
-                  << "); report.json's mesh_tet gives their distribution. Thin gaps make "
-                     "them: another min_gap or mesh_tet.min_size may help.\n";
+                  << "); report.json's mesh_tet gives their distribution. Thin gaps and "
+                     "inclusions that barely cross a box face (a thin cap, whose edge angle "
+                     "bounds its elements') make them: another min_gap or mesh_tet.min_size "
+                     "may help.\n";
       }
       for (const bool elastic : {false, true}) {
         const std::string deck = rvegen::abaqus_tet_deck(scene, result.set, tets, elastic);

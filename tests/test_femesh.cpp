@@ -21,8 +21,7 @@ TetMesh kuhn_cube() {
   const int axes[6][3] = {{1, 2, 4}, {1, 4, 2}, {2, 1, 4}, {2, 4, 1}, {4, 1, 2}, {4, 2, 1}};
   for (const auto& p : axes) {
     std::array<int32_t, 4> t = {0, p[0], p[0] | p[1], 7};
-    const Vec3 &a = m.nodes[t[0]], &b = m.nodes[t[1]], &c = m.nodes[t[2]], &d = m.nodes[t[3]];
-    if ((b - a).cross(c - a).dot(d - a) < 0.0) std::swap(t[2], t[3]);  // positive, as tet_mesh's
+    if (tet_volume(m.nodes, t) < 0.0) std::swap(t[2], t[3]);  // positive, as tet_mesh's
     m.tets.push_back(t);
     m.phase.push_back(0);
     m.inclusion_id.push_back(-1);

@@ -184,7 +184,7 @@ uint64_t face_key(int32_t a, int32_t b, int32_t c) {
 }  // namespace
 
 // The volume mesher rarely leaves two nodes at one position, each used by elements on its own
-// side (a crack in the mesh: seen once in six runs of the test scene). Such nodes are merged
+// side (a crack in the mesh: seen in 3 runs in 10 of the test scene). Such nodes are merged
 // (the lowest number kept); nodes no element uses are dropped and the rest renumbered in order.
 long long merge_coincident_nodes(TetMesh* mesh) {
   std::vector<int32_t> order(mesh->nodes.size());
@@ -232,16 +232,14 @@ long long merge_coincident_nodes(TetMesh* mesh) {
 // XOR of the keys of all elements' faces equals the XOR of those of the faces in box faces;
 // a face left alone (a crack, a hole) breaks the equality (but for a 2^-64 chance).
 void check_conforming(const TetMesh& mesh) {
-  const double tol = 1e-9 * mesh.box.size.minCoeff();
-  auto plane = [&](int32_t n) {  // bits: the box faces the node lies on
-    int bits = 0;
+  // Per node, bits of the box faces it lies on.
+  const std::vector<std::array<int8_t, 3>> ends = node_ends(mesh);
+  std::vector<uint8_t> plane(ends.size(), 0);
+  for (size_t n = 0; n < ends.size(); ++n) {
     for (int a = 0; a < 3; ++a) {
-      const double x = mesh.nodes[n][a] - mesh.box.origin[a];
-      bits |= (std::abs(x) <= tol) << (2 * a);
-      bits |= (std::abs(x - mesh.box.size[a]) <= tol) << (2 * a + 1);
+      if (ends[n][a] >= 0) plane[n] |= static_cast<uint8_t>(1 << (2 * a + ends[n][a]));
     }
-    return bits;
-  };
+  }
   uint64_t all = 0, outer = 0;
   for (const auto& t : mesh.tets) {
     for (int skip = 0; skip < 4; ++skip) {
@@ -251,7 +249,7 @@ void check_conforming(const TetMesh& mesh) {
       }
       const uint64_t k = face_key(f[0], f[1], f[2]);
       all ^= k;
-      if (plane(f[0]) & plane(f[1]) & plane(f[2])) outer ^= k;
+      if (plane[f[0]] & plane[f[1]] & plane[f[2]]) outer ^= k;
     }
   }
   if (all != outer) {
@@ -262,9 +260,7 @@ void check_conforming(const TetMesh& mesh) {
   // And the elements fill the box: their volumes (each positive) add up to it.
   double total = 0.0, least = 1e300;
   for (const auto& t : mesh.tets) {
-    const Vec3 &p0 = mesh.nodes[t[0]], &p1 = mesh.nodes[t[1]], &p2 = mesh.nodes[t[2]],
-               &p3 = mesh.nodes[t[3]];
-    const double v = (p1 - p0).cross(p2 - p0).dot(p3 - p0) / 6.0;
+    const double v = tet_volume(mesh.nodes, t);
     total += v;
     least = std::min(least, v);
   }
@@ -505,9 +501,7 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
         for (size_t e = 0; e < etags[b].size(); ++e) {
           std::array<int32_t, 4> t;
           for (int c = 0; c < 4; ++c) t[c] = index.at(enodes[b][4 * e + c]);
-          const Vec3 &p0 = mesh.nodes[t[0]], &p1 = mesh.nodes[t[1]], &p2 = mesh.nodes[t[2]],
-                     &p3 = mesh.nodes[t[3]];
-          if ((p1 - p0).cross(p2 - p0).dot(p3 - p0) < 0.0) std::swap(t[2], t[3]);
+          if (tet_volume(mesh.nodes, t) < 0.0) std::swap(t[2], t[3]);
           mesh.tets.push_back(t);
           mesh.phase.push_back(label);
           mesh.inclusion_id.push_back(id);
@@ -620,7 +614,7 @@ TetQuality tet_quality(const TetMesh& mesh) {
   for (size_t e = 0; e < mesh.tets.size(); ++e) {
     Vec3 p[4];
     for (int c = 0; c < 4; ++c) p[c] = mesh.nodes[mesh.tets[e][c]];
-    const double v = (p[1] - p[0]).cross(p[2] - p[0]).dot(p[3] - p[0]) / 6.0;
+    const double v = tet_volume(mesh.nodes, mesh.tets[e]);
     q.min_volume = std::min(q.min_volume, v);
     const int label = mesh.phase[e];
     if (label >= 0 && label < static_cast<int>(q.phase_volume.size())) q.phase_volume[label] += v;

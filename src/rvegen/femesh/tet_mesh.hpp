@@ -13,6 +13,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <stdexcept>
@@ -51,6 +52,27 @@ struct TetMesh {
   /// Nodes the volume mesher left at the position of another, merged (merge_coincident_nodes).
   long long merged_nodes = 0;
 };
+
+/// The signed volume of tetrahedron `t` of the mesh (positive when oriented as tet_mesh gives it).
+inline double tet_volume(const std::vector<Vec3>& nodes, const std::array<int32_t, 4>& t) {
+  const Vec3& p0 = nodes[t[0]];
+  return (nodes[t[1]] - p0).cross(nodes[t[2]] - p0).dot(nodes[t[3]] - p0) / 6.0;
+}
+
+/// Where each node lies: per axis -1 inside, 0 at the box's lower end, 1 at its upper end
+/// (within 1e-9 of the box's smallest side).
+inline std::vector<std::array<int8_t, 3>> node_ends(const TetMesh& mesh) {
+  const Box& box = mesh.box;
+  const double tol = 1e-9 * box.size.minCoeff();
+  std::vector<std::array<int8_t, 3>> at(mesh.nodes.size());
+  for (size_t i = 0; i < mesh.nodes.size(); ++i) {
+    for (int a = 0; a < 3; ++a) {
+      const double x = mesh.nodes[i][a] - box.origin[a];
+      at[i][a] = std::abs(x) <= tol ? 0 : (std::abs(x - box.size[a]) <= tol ? 1 : -1);
+    }
+  }
+  return at;
+}
 
 /// Refuses (InputError naming the family) a set tet_mesh cannot mesh.
 void check_tet_meshable(const InclusionSet& set);

@@ -214,21 +214,6 @@ void tet_rows(const TetMesh& mesh, int label, const char* sep, std::ostringstrea
   }
 }
 
-// Where each node of the tetrahedral mesh lies: per axis -1 inside, 0 at the lower end, 1 at
-// the upper end (within 1e-9 of the box's smallest side).
-std::vector<std::array<int8_t, 3>> node_ends(const TetMesh& mesh) {
-  const Box& box = mesh.box;
-  const double tol = 1e-9 * box.size.minCoeff();
-  std::vector<std::array<int8_t, 3>> at(mesh.nodes.size());
-  for (size_t i = 0; i < mesh.nodes.size(); ++i) {
-    for (int a = 0; a < 3; ++a) {
-      const double x = mesh.nodes[i][a] - box.origin[a];
-      at[i][a] = std::abs(x) <= tol ? 0 : (std::abs(x - box.size[a]) <= tol ? 1 : -1);
-    }
-  }
-  return at;
-}
-
 }  // namespace
 
 void write_abaqus_voxel_mesh(const VoxelImage& im, std::FILE* out) {

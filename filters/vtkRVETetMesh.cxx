@@ -26,7 +26,8 @@ vtkRVETetMesh::vtkRVETetMesh()
     : MaxSize(kDefaults.max_size),
       MinSize(kDefaults.min_size),
       ChordError(kDefaults.chord_error),
-      GapElements(kDefaults.gap_elements) {}
+      GapElements(kDefaults.gap_elements),
+      ShiftCell(kDefaults.shift_cell) {}
 
 int vtkRVETetMesh::FillInputPortInformation(int, vtkInformation* info) {
   info->Set(vtkAlgorithm::INPUT_REQUIRED_DATA_TYPE(), "vtkDataObject");
@@ -46,7 +47,8 @@ int vtkRVETetMesh::RequestData(vtkInformation*, vtkInformationVector** in,
   // The sizes are checked as a scene's "mesh_tet" is.
   rvegen::Scene scene;
   scene.box = set.box;
-  scene.tet_mesh = {this->MaxSize, this->MinSize, this->ChordError, this->GapElements};
+  scene.tet_mesh = {this->MaxSize, this->MinSize, this->ChordError, this->GapElements,
+                    this->ShiftCell};
   rvegen::TetMesh mesh;
   try {
     rvegen::validate_tet_mesh_spec(scene);
@@ -109,5 +111,6 @@ void vtkRVETetMesh::PrintSelf(ostream& os, vtkIndent indent) {
   os << indent << "MaxSize: " << this->MaxSize << "\n"
      << indent << "MinSize: " << this->MinSize << "\n"
      << indent << "ChordError: " << this->ChordError << "\n"
-     << indent << "GapElements: " << this->GapElements << "\n";
+     << indent << "GapElements: " << this->GapElements << "\n"
+     << indent << "ShiftCell: " << this->ShiftCell << "\n";
 }

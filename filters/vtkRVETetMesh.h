@@ -35,6 +35,11 @@ class RVEGENFILTERS_EXPORT vtkRVETetMesh : public vtkUnstructuredGridAlgorithm {
   /// Elements across the gap between two surfaces.
   vtkSetMacro(GapElements, double);
   vtkGetMacro(GapElements, double);
+  /// Whether the mesh's cell may be the box moved along its axes, off the inclusions' extremes
+  /// (the same periodic medium; thin caps at the faces otherwise bound the elements' angles).
+  vtkSetMacro(ShiftCell, bool);
+  vtkGetMacro(ShiftCell, bool);
+  vtkBooleanMacro(ShiftCell, bool);
 
  protected:
   vtkRVETetMesh();
@@ -47,6 +52,7 @@ class RVEGENFILTERS_EXPORT vtkRVETetMesh : public vtkUnstructuredGridAlgorithm {
   double MinSize;
   double ChordError;
   double GapElements;
+  bool ShiftCell;
 
  private:
   vtkRVETetMesh(const vtkRVETetMesh&) = delete;

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -100,6 +101,7 @@ TEST(TetMesh, ProgressRisesToOneAndAStopIsACancelThatLeavesTheMesherReusable) {
   EXPECT_EQ(seen.back(), 1.0);
   EXPECT_GE(lines.size(), 5u);
   EXPECT_GT(full.tets.size(), 1000u);
+  EXPECT_EQ(full.box.origin, cell_origin(set));  // the cell meshed
   // Stopped at the start of the volume stage: Cancelled, and nothing else happens after.
   int after_stop = 0;
   bool stopped = false;
@@ -113,6 +115,63 @@ TEST(TetMesh, ProgressRisesToOneAndAStopIsACancelThatLeavesTheMesherReusable) {
   EXPECT_EQ(after_stop, 0);
   // The same call runs again.
   EXPECT_GT(tet_mesh(set).tets.size(), 1000u);
+}
+
+InclusionSet one_of(const Shape& shape) {
+  InclusionSet set;
+  set.box.size = Vec3(1, 1, 1);
+  Inclusion inc;
+  inc.shape = shape;
+  set.inclusions.push_back(inc);
+  set.family_names = {"one"};
+  return set;
+}
+
+TEST(TetMesh, ACellFaceGrazingASphereIsMovedOffIt) {
+  // The sphere's lowest point 0.001 above the face z = 0 (a cap of 3.6 degrees once cut), its
+  // other extremes far from every face.
+  const InclusionSet set = one_of(Shape::sphere({0.5, 0.5, 0.101}, 0.1));
+  EXPECT_NEAR(face_clearance(set, set.box.origin), 0.01, 1e-9);
+  const Vec3 o = cell_origin(set);
+  EXPECT_EQ(o[0], 0.0);  // x and y were already clear
+  EXPECT_EQ(o[1], 0.0);
+  // Along z the best position lies halfway between the sphere's extremes and their images
+  // (0.001 + 0.5 of the gap left, 0.8): clearance 4, the face at z = 0.601 (moved by -0.399).
+  EXPECT_NEAR(o[2], -0.399, 1e-9);
+  EXPECT_NEAR(face_clearance(set, o), 4.0, 1e-9);
+}
+
+TEST(TetMesh, ACellEdgeGrazingASphereIsMovedOffIt) {
+  // The edge y = z = 0 passes 0.00055 outside the sphere (its faces cut it well inside).
+  const double c = 0.0711;
+  const InclusionSet set = one_of(Shape::sphere({0.5, c, c}, 0.1));
+  EXPECT_GT(face_clearance(set, set.box.origin), 0.25);
+  EXPECT_NEAR(edge_clearance(set, set.box.origin), (std::sqrt(2.0) * c - 0.1) / 0.1, 1e-12);
+  const Vec3 o = cell_origin(set);
+  EXPECT_GE(face_clearance(set, o), kGoodClearance);
+  EXPECT_GE(edge_clearance(set, o), kGoodClearance);
+  // And a corner 0.001 inside an ellipsoid.
+  const Mat3 turn = Eigen::AngleAxisd(0.3, Vec3(1, 2, 3).normalized()).toRotationMatrix();
+  const Vec3 semi(0.12, 0.08, 0.05);
+  Vec3 centre = turn * Vec3(0.0, 0.0, 0.05 - 0.001);  // the corner (0,0,0) in the frame
+  const InclusionSet grain = one_of(Shape::ellipsoid(-centre, semi, turn));
+  EXPECT_LT(edge_clearance(grain, grain.box.origin), 0.03);
+  const Vec3 g = cell_origin(grain);
+  EXPECT_GE(std::min(face_clearance(grain, g), edge_clearance(grain, g)), kGoodClearance);
+}
+
+TEST(TetMesh, ACellFaceNearlyAlongATiltedFibreEndIsMovedOffIt) {
+  // A fibre nearly along z (10 degrees), its upper end disk 0.0005 above the face z = 1 at its
+  // centre: the face would cross the disk at 10 degrees. The disk's span along z and both rims'
+  // extremes are kept clear.
+  const Vec3 u(std::sin(0.1745), 0.0, std::cos(0.1745));
+  const Shape fibre = Shape::cylinder(Vec3(0.5, 0.5, 1.0 - 0.0005 - 0.2 * u[2]), 0.02, 0.2 * u);
+  const InclusionSet set = one_of(fibre);
+  EXPECT_EQ(face_clearance(set, set.box.origin), 0.0);
+  const Vec3 o = cell_origin(set);
+  EXPECT_GE(face_clearance(set, o), kGoodClearance);
+  // The faces left the disk's span (0.00347 either side of its centre, 0.0005 below z = 1).
+  EXPECT_GT(std::abs(o[2] - set.box.origin[2]), 0.0035);
 }
 
 }  // namespace

@@ -7,8 +7,8 @@
 2. An abort set from a progress observer inside the volume stage (progress above 0.36) ends
    the run at the end of that stage (Gmsh cannot be interrupted inside one): no progress after
    it, sooner than the whole run, an empty mesh; the filter then meshes again.
-3. A scene the mesher cannot take (the default one, with ellipsoids) and a bad chord error give
-   errors and no mesh.
+3. A scene the mesher cannot take (the default one with coated spheres) and a bad chord error
+   give errors and no mesh.
 4. ParaView reads mesh_tet.vtu that `rvegen generate` writes (a coarse mesh of the sample):
    tetrahedra with phase and inclusion_id, as many as report.json counts.
 
@@ -109,10 +109,10 @@ mesh.UpdatePipeline()
 check(servermanager.Fetch(mesh).GetNumberOfCells() > 100000, "no mesh after the abort")
 
 # 3. What the mesher refuses.
-default = RVEGenerator(Resolution=[8, 8, 8])
-refused = RVETetrahedralMesh(Input=OutputPort(default, 0))
+coated = RVEGenerator(Resolution=[8, 8, 8], SphereCoating=0.005)
+refused = RVETetrahedralMesh(Input=OutputPort(coated, 0))
 refused.UpdatePipeline()
-check(servermanager.Fetch(refused).GetNumberOfCells() == 0, "the default scene (ellipsoids) was meshed")
+check(servermanager.Fetch(refused).GetNumberOfCells() == 0, "coated spheres were meshed")
 mesh.ChordError = 0.5
 mesh.UpdatePipeline()
 check(servermanager.Fetch(mesh).GetNumberOfCells() == 0, "a chord error of 0.5 was meshed")

@@ -1,6 +1,7 @@
 // rvegen: command-line generator and auditor of Representative Volume Elements.
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -210,6 +211,11 @@ nlohmann::ordered_json tet_mesh_report(const rvegen::InclusionSet& set,
   r["nodes"] = mesh.nodes.size();
   r["periodic_pairs"] = mesh.periodic.size();
   r["merged_nodes"] = mesh.merged_nodes;
+  // The cell meshed: the box, or the box moved along its axes (mesh_tet.shift_cell).
+  r["cell_origin"] = {mesh.box.origin[0], mesh.box.origin[1], mesh.box.origin[2]};
+  // (1 and more alike: far from grazing anything; no inclusion near an edge gives 1.)
+  r["face_clearance"] = std::min(1.0, rvegen::face_clearance(set, mesh.box.origin));
+  r["edge_clearance"] = std::min(1.0, rvegen::edge_clearance(set, mesh.box.origin));
   r["min_element_volume"] = q.min_volume;
   nlohmann::ordered_json phases = nlohmann::ordered_json::array();
   for (const rvegen::Phase& p : mesh.phases) {

@@ -25,7 +25,7 @@ std::mutex gmsh_mutex;
 struct GmshSession {
   GmshSession() {
     gmsh::initialize(0, nullptr, false);
-    gmsh::option::setNumber("General.Terminal", 0);
+    gmsh::option::setNumber("General.Terminal", getenv("DBG_GMSH") ? 1 : 0);
     gmsh::model::add("rve");
   }
   ~GmshSession() { gmsh::finalize(); }
@@ -73,7 +73,10 @@ class SizeField {
  public:
   SizeField(const InclusionSet& set, const TetMeshOptions& opt, double max_size, double min_size)
       : set_(set), opt_(opt), max_(max_size), min_(min_size) {
-    for (const Inclusion& inc : set.inclusions) query_.emplace_back(inc);
+    for (const Inclusion& inc : set.inclusions) {
+      query_.emplace_back(inc);
+      reach_.push_back(inc.shape.bounding_radius());
+    }
     images_ = images_near(set, max_);
     const double side = set.box.size.minCoeff();
     n_ = std::clamp(static_cast<int>(side / max_), 1, 64);
@@ -108,15 +111,20 @@ class SizeField {
       c[a] = std::clamp(static_cast<int>((p[a] - set_.box.origin[a]) / cell_[a]), 0, n_ - 1);
     }
     double d1 = 1e300, d2 = 1e300, rho1 = 0.0, gap_face = 1e300;
+    // Distances past `cap` leave the size at its largest.
+    const double cap = max_ * opt_.gap_elements;
     for (int id : grid_[index(c[0], c[1], c[2])]) {
       const Image& im = images_[id];
       const Vec3 x = p - im.shift;
-      const double d = std::abs(query_[im.inc].core_distance(x));
+      // An image farther than d1 + d2 (or the cap) by its bounding sphere changes nothing:
+      // the exact distance (a root search for ellipsoids) is skipped.
       const Shape& s = set_.inclusions[im.inc].shape;
+      if ((x - s.center).norm() - reach_[im.inc] >= std::min(d1 + d2, cap)) continue;
+      const double d = std::abs(query_[im.inc].core_distance(x));
       if (d < d1) {
         d2 = d1;
         d1 = d;
-        rho1 = s.radius;  // spheres and cylinders: their least radius of curvature
+        rho1 = least_curvature_radius(s, x);
       } else if (d < d2) {
         d2 = d;
       }
@@ -144,6 +152,7 @@ class SizeField {
   const TetMeshOptions& opt_;
   double max_, min_;
   std::vector<BodyQuery> query_;
+  std::vector<double> reach_;  // each inclusion's bounding radius
   std::vector<Image> images_;
   std::vector<Vec3> lo_, hi_;  // each image's bounding box, shifted
   int n_ = 1;
@@ -151,18 +160,127 @@ class SizeField {
   std::vector<std::vector<int>> grid_;
 };
 
-// The OCC solid of a shape; its tag.
-int add_solid(const Shape& s) {
+// OpenCASCADE's spheres (and the ellipsoids made of them) have two poles and a seam, the
+// meridian through +x of their frame (poles at +-z); its cylinders a seam along the mantle at
+// +x. They are edges of the surfaces: a box face that passes near a pole, or runs along a seam,
+// cuts a sliver between the two, and the elements there are slivers too (seen: a face 3e-5 of
+// the size from an ellipsoid's pole; a face nearly along a fibre's seam). Each solid that
+// crosses a box face is built in the frame, of a fixed set, that keeps them farthest from the
+// faces: its score is the least, over the seam's points near each face, of the larger of the
+// point's distance to the face (over the shape's extent across it) and the sine of the seam's
+// angle to the face (0 at the poles).
+//
+// The seam of a shape in frame P: points x(t) of the unit shape's seam and their unit tangents,
+// mapped by x -> c + M P x (M: the shape's own map; a cylinder's P turns about its axis).
+struct Seam {
+  std::vector<Vec3> at, tangent;
+};
+constexpr int kSeamPoints = 65;
+Seam seam_of(const Shape& s, const Mat3& P) {
+  Seam seam;
+  if (s.kind == ShapeKind::Cylinder) {
+    const Vec3 side = P.col(0), along = s.half_axis;  // P's first column: the seam's direction
+    for (int k = 0; k < kSeamPoints; ++k) {
+      const double t = -1.0 + 2.0 * k / (kSeamPoints - 1);
+      seam.at.push_back(s.center + s.radius * side + t * along);
+      seam.tangent.push_back(along.normalized());
+    }
+    return seam;
+  }
+  const Mat3 M = s.kind == ShapeKind::Sphere ? Mat3(s.radius * P)
+                                             : Mat3(s.rotation * s.semi_axes.asDiagonal() * P);
+  for (int k = 0; k < kSeamPoints; ++k) {
+    const double phi = M_PI * k / (kSeamPoints - 1);
+    seam.at.push_back(s.center + M * Vec3(std::sin(phi), 0.0, std::cos(phi)));
+    const bool pole = k == 0 || k == kSeamPoints - 1;
+    seam.tangent.push_back(pole ? Vec3::Zero()
+                                : Vec3(M * Vec3(std::cos(phi), 0.0, -std::sin(phi))).normalized());
+  }
+  return seam;
+}
+
+// The frames tried: the identity, then rotations about axes spread over the sphere (a Fibonacci
+// lattice) by angles spread by the golden ratio; for cylinders, turns about the axis.
+constexpr int kFrames = 32;
+Mat3 frame(const Shape& s, int k) {
+  if (s.kind == ShapeKind::Cylinder) {
+    const Vec3 u = s.half_axis.normalized(), w = any_orthogonal(u), v = u.cross(w);
+    const double psi = 2.0 * M_PI * k / kFrames;
+    Mat3 P;
+    P.col(0) = std::cos(psi) * w + std::sin(psi) * v;
+    P.col(1) = u.cross(P.col(0));
+    P.col(2) = u;
+    return P;
+  }
+  if (k == 0) return Mat3::Identity();
+  const double golden = 0.5 * (std::sqrt(5.0) - 1.0);
+  const double z = 1.0 - (2.0 * k + 1.0) / kFrames, r = std::sqrt(std::max(0.0, 1.0 - z * z));
+  const double az = 2.0 * M_PI * golden * k;
+  const Vec3 axis(r * std::cos(az), r * std::sin(az), z);
+  return Eigen::AngleAxisd(2.0 * M_PI * std::fmod(golden * k * 7.0, 1.0), axis).toRotationMatrix();
+}
+
+double frame_score(const Shape& s, const Seam& seam, const Box& box) {
+  Vec3 lo, hi;
+  s.aabb(&lo, &hi);
+  double score = 1e300;
+  for (int a = 0; a < 3; ++a) {
+    const double L = box.size[a], half = 0.5 * (hi[a] - lo[a]);
+    for (double f = box.origin[a] + L * std::ceil((lo[a] - box.origin[a]) / L); f < hi[a]; f += L) {
+      for (size_t k = 0; k < seam.at.size(); ++k) {
+        score = std::min(
+            score, std::max(std::abs(seam.at[k][a] - f) / half, std::abs(seam.tangent[k][a])));
+      }
+    }
+  }
+  return score;
+}
+
+// The OCC solid of a shape, built in the frame that keeps its seam and poles off the faces of
+// `box` it crosses; its tag.
+int add_solid(const Shape& s, const Box& box) {
+  int best = 0;
+  double best_score = frame_score(s, seam_of(s, frame(s, 0)), box);
+  for (int k = 1; k < kFrames && best_score < 1e300; ++k) {
+    const double score = frame_score(s, seam_of(s, frame(s, k)), box);
+    if (score > best_score) {
+      best = k;
+      best_score = score;
+    }
+  }
+  const Mat3 P = frame(s, best);
   const Vec3 c = s.center;
+  auto turn = [&](int tag, const Mat3& R) {
+    const Eigen::AngleAxisd aa(R);
+    if (aa.angle() > 0.0) {
+      gmsh::model::occ::rotate({{3, tag}}, 0, 0, 0, aa.axis()[0], aa.axis()[1], aa.axis()[2],
+                               aa.angle());
+    }
+    gmsh::model::occ::translate({{3, tag}}, c[0], c[1], c[2]);
+    return tag;
+  };
   switch (s.kind) {
     case ShapeKind::Sphere:
-      return gmsh::model::occ::addSphere(c[0], c[1], c[2], s.radius);
+      return turn(gmsh::model::occ::addSphere(0, 0, 0, s.radius), P);
     case ShapeKind::Cylinder: {
-      const Vec3 b = c - s.half_axis, d = 2.0 * s.half_axis;
-      return gmsh::model::occ::addCylinder(b[0], b[1], b[2], d[0], d[1], d[2], s.radius);
+      // Built along +z with its seam at +x, then turned so that z is the axis and x the seam's
+      // side (P's columns).
+      const double h = s.half_axis.norm();
+      return turn(gmsh::model::occ::addCylinder(0, 0, -h, 0, 0, 2.0 * h, s.radius), P);
     }
-    case ShapeKind::Ellipsoid:
-      break;  // refused by check_tet_meshable
+    case ShapeKind::Ellipsoid: {
+      // A unit sphere mapped by x -> c + R diag(semi-axes) P x (a spline surface in
+      // OpenCASCADE).
+      const int tag = gmsh::model::occ::addSphere(0, 0, 0, 1);
+      const Mat3 M = s.rotation * s.semi_axes.asDiagonal() * P;
+      std::vector<double> a(12);
+      for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) a[4 * i + j] = M(i, j);
+        a[4 * i + 3] = c[i];
+      }
+      gmsh::model::occ::affineTransform({{3, tag}}, a);
+      return tag;
+    }
   }
   return -1;
 }
@@ -280,17 +398,10 @@ void check_tet_meshable(const InclusionSet& set) {
                                  ? set.family_names[inc.family]
                                  : "family " + std::to_string(inc.family);
     if (inc.mod.any()) {
-      throw InputError("outputs: mesh_tet meshes plain spheres and cylinders; family \"" + name +
-                       "\" has coated, wavy, bent, deformed or debonded inclusions (use "
-                       "mesh_voxel for them)");
-    }
-    if (inc.shape.kind == ShapeKind::Ellipsoid) {
-      // OpenCASCADE has no ellipsoid: a scaled sphere becomes a spline surface, and its cuts
-      // by opposite box faces came out different (areas 3 % apart), so the faces' meshes could
-      // not be made periodic.
-      throw InputError("outputs: mesh_tet meshes plain spheres and cylinders; family \"" + name +
-                       "\" has ellipsoids, which it cannot mesh periodically yet (use mesh_voxel "
-                       "for them)");
+      throw InputError(
+          "outputs: mesh_tet meshes plain spheres, cylinders and ellipsoids; family \"" + name +
+          "\" has coated, wavy, bent, deformed or debonded inclusions (use "
+          "mesh_voxel for them)");
     }
   }
 }
@@ -342,39 +453,64 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
   try {
     const Vec3 o = box.origin, len = box.size;
     const int box_tag = gmsh::model::occ::addBox(o[0], o[1], o[2], len[0], len[1], len[2]);
+    // Each inclusion's solid is cut by the box and by its shifted copies, and every piece is
+    // brought into the box by its shift. A face cut by a box face then lies on both opposite faces
+    // as one face and its exact translate, whatever the surface (OpenCASCADE makes spline
+    // surfaces of ellipsoids, and the cuts of two translated images by opposite box faces,
+    // computed apart, differed by 3 % of their area).
     const std::vector<Image> images = images_near(set, 0.0);
-    // Each inclusion's solid is built once and its images are translated copies of it.
+    std::map<int, std::vector<Vec3>> shifts_of;
+    for (const Image& im : images) shifts_of[im.inc].push_back(im.shift);
     gmsh::vectorpair tools;
-    std::map<int, int> base;  // inclusion -> its solid at shift 0 (removed after the copies)
-    for (const Image& im : images) {
-      if (!base.count(im.inc)) base[im.inc] = add_solid(set.inclusions[im.inc].shape);
+    std::vector<int> tool_inc;
+    for (const auto& [inc, shifts] : shifts_of) {
+      const int solid = add_solid(set.inclusions[inc].shape, box);
+      if (shifts.size() == 1 && shifts.front().isZero()) {
+        Vec3 lo, hi;
+        set.inclusions[inc].shape.aabb(&lo, &hi);
+        if ((lo - o).minCoeff() > 0.0 && (o + len - hi).minCoeff() > 0.0) {
+          tools.push_back({3, solid});
+          tool_inc.push_back(inc);
+          continue;
+        }
+      }
+      gmsh::vectorpair cells, out;
+      for (const Vec3& t : shifts) {
+        const Vec3 c = o - t;
+        cells.push_back({3, gmsh::model::occ::addBox(c[0], c[1], c[2], len[0], len[1], len[2])});
+      }
+      std::vector<gmsh::vectorpair> map;
+      gmsh::model::occ::fragment({{3, solid}}, cells, out, map);
+      std::set<int> of_solid;
+      if (!map.empty()) {
+        for (const auto& dt : map[0]) of_solid.insert(dt.second);
+      }
+      for (size_t k = 0; k < shifts.size() && k + 1 < map.size(); ++k) {
+        for (const auto& dt : map[k + 1]) {
+          if (!of_solid.count(dt.second)) continue;
+          gmsh::vectorpair copy;
+          gmsh::model::occ::copy({dt}, copy);
+          gmsh::model::occ::translate(copy, shifts[k][0], shifts[k][1], shifts[k][2]);
+          tools.push_back(copy.front());
+          tool_inc.push_back(inc);
+        }
+      }
+      gmsh::model::occ::remove(out, true);
     }
-    for (const Image& im : images) {
-      gmsh::vectorpair copy;
-      gmsh::model::occ::copy({{3, base[im.inc]}}, copy);
-      gmsh::model::occ::translate(copy, im.shift[0], im.shift[1], im.shift[2]);
-      tools.push_back(copy.front());
-    }
-    gmsh::vectorpair originals;
-    for (const auto& [inc, tag] : base) originals.push_back({3, tag});
-    gmsh::model::occ::remove(originals, true);
     stage(0.0, 0.15,
-          "mesh_tet: fragmenting " + std::to_string(images.size()) +
-              " inclusion images against the box");
+          "mesh_tet: fragmenting " + std::to_string(tools.size()) +
+              " inclusion pieces against the box");
     gmsh::vectorpair out;
     std::vector<gmsh::vectorpair> pieces;
     gmsh::model::occ::fragment({{3, box_tag}}, tools, out, pieces);
     gmsh::model::occ::synchronize();
-    // Which inclusion each volume belongs to (the pieces of tool k); the parts outside the box
-    // are removed.
+    // Which inclusion each volume belongs to (the pieces of tool k).
     std::map<int, int> owner;
-    for (size_t k = 0; k < images.size() && k + 1 < pieces.size(); ++k) {
-      for (const auto& dt : pieces[k + 1]) owner[dt.second] = images[k].inc;
+    for (size_t k = 0; k < tools.size() && k + 1 < pieces.size(); ++k) {
+      for (const auto& dt : pieces[k + 1]) owner[dt.second] = tool_inc[k];
     }
     // The pieces of the box (the fragment's map of its first solid) are the matrix and the
-    // parts of the inclusions inside it; every other piece lies outside. (No geometric test:
-    // OpenCASCADE's bounding boxes of curved pieces are loose, and the part of an inclusion
-    // beyond a box edge wraps around the edge, so its centre of mass can lie inside.)
+    // inclusions' pieces; anything else (none is expected) lies outside.
     std::set<int> in_box;
     if (!pieces.empty()) {
       for (const auto& dt : pieces[0]) in_box.insert(dt.second);
@@ -387,18 +523,29 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
     gmsh::model::occ::synchronize();
 
     // The faces at the upper end of each axis mesh as translated copies of those at the lower
-    // end: matched by centre of mass and area.
+    // end: matched by bounding box and area. The patches of a box face are the planes whose
+    // normal is the axis and whose centre of mass lies in the face (OpenCASCADE's bounding boxes
+    // of patches bounded by spline curves stand out of the plane by the curves' tolerance).
     const double tol = 1e-6 * side;
     gmsh::vectorpair surfaces;
     gmsh::model::getEntities(surfaces, 2);
     for (int a = 0; a < 3; ++a) {
       std::vector<std::pair<int, std::array<double, 7>>> lower, upper;
       for (const auto& s : surfaces) {
-        double b[6];
-        gmsh::model::getBoundingBox(2, s.second, b[0], b[1], b[2], b[3], b[4], b[5]);
+        std::string type;
+        gmsh::model::getType(2, s.second, type);
+        if (type != "Plane") continue;
+        double com[3];
+        gmsh::model::occ::getCenterOfMass(2, s.second, com[0], com[1], com[2]);
         for (int end = 0; end < 2; ++end) {
           const double v = o[a] + (end ? len[a] : 0.0);
-          if (std::abs(b[a] - v) > 10 * tol || std::abs(b[a + 3] - v) > 10 * tol) continue;
+          if (std::abs(com[a] - v) > tol) continue;
+          std::vector<double> lo, hi, normal;
+          gmsh::model::getParametrizationBounds(2, s.second, lo, hi);
+          gmsh::model::getNormal(s.second, {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])}, normal);
+          if (normal.size() < 3 || std::abs(std::abs(normal[a]) - 1.0) > 1e-9) continue;
+          double b[6];
+          gmsh::model::getBoundingBox(2, s.second, b[0], b[1], b[2], b[3], b[4], b[5]);
           std::array<double, 7> key;
           for (int k = 0; k < 6; ++k) key[k] = b[k];
           gmsh::model::occ::getMass(2, s.second, key[6]);
@@ -459,14 +606,31 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
     const int threads = options.threads > 0 ? options.threads
                                             : static_cast<int>(std::thread::hardware_concurrency());
     gmsh::option::setNumber("General.NumThreads", std::max(1, threads));
+    // Gmsh's errors are logged, not thrown, while it meshes: thrown inside its parallel loops
+    // (a surface whose periodic copy fails), they would end the process. The log is read after
+    // each stage.
+    gmsh::option::setNumber("General.AbortOnError", 0);
+    // (Gmsh's logger is not safe from its threads: the last error is compared instead.)
+    // (Gmsh clears the last error when it starts meshing.)
+    std::string known;
+    gmsh::logger::getLastError(known);
+    auto logged_error = [&known] {
+      std::string e;
+      gmsh::logger::getLastError(e);
+      if (e.empty() || e == known) return std::string();
+      known = e;
+      return e;
+    };
     stage(0.15, 0.35, "mesh_tet: meshing the surfaces");
     gmsh::model::mesh::generate(2);
+    if (const std::string e = logged_error(); !e.empty()) {
+      throw MeshError("mesh_tet: the surface mesher failed: " + e);
+    }
     stage(0.35, 0.85, "mesh_tet: meshing the volumes");
-    try {
-      gmsh::model::mesh::generate(3);
-    } catch (...) {
-      if (surface_algorithm == 5) throw;
-      throw SurfacesRefused(last_gmsh_error());
+    gmsh::model::mesh::generate(3);
+    if (const std::string e = logged_error(); !e.empty()) {
+      if (surface_algorithm == 5) throw MeshError("mesh_tet: the volume mesher failed: " + e);
+      throw SurfacesRefused(e);
     }
     stage(0.85, 0.95, "mesh_tet: moving nodes of the worst elements");
     // HXT's own optimiser left a few elements under 5 degrees; moving their nodes (Gmsh's
@@ -567,7 +731,10 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
       }
     }
     if (master < 0) {
-      throw MeshError("mesh_tet: a node on an upper box face has no image on the lower faces");
+      const Vec3& y = mesh.nodes[i];
+      throw MeshError("mesh_tet: the node at (" + std::to_string(y[0]) + ", " +
+                      std::to_string(y[1]) + ", " + std::to_string(y[2]) +
+                      "), on an upper box face, has no image on the lower faces");
     }
     mesh.periodic.push_back({i, master});
   }
@@ -581,9 +748,263 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
 
 }  // namespace
 
-TetMesh tet_mesh(const InclusionSet& set, const TetMeshOptions& options,
+namespace {
+
+// What a face normal to axis a should keep clear of, each with the length its clearance is
+// measured in: the extremes along the axis of every sphere and ellipsoid, in units of its least
+// size, and of both rims of every cylinder, in units of its radius (near them a face cuts a
+// thin cap, or a thin strip of the mantle along the rim); and the span along the axis of every
+// cylinder end disk tilted by less than kSteepDisk from the face (a face crossing such a disk
+// cuts a wedge that thin).
+struct Extremes {
+  std::vector<double> at, half, size;  // centre and half width of each span, its length unit
+};
+constexpr double kSteepDisk = 20.0 * M_PI / 180.0;
+Extremes extremes(const InclusionSet& set, int a, bool disks = true) {
+  Extremes e;
+  auto add = [&](double at, double half, double size) {
+    e.at.push_back(at);
+    e.half.push_back(half);
+    e.size.push_back(size);
+  };
+  for (const Inclusion& inc : set.inclusions) {
+    const Shape& s = inc.shape;
+    if (s.kind != ShapeKind::Cylinder) {
+      Vec3 lo, hi;
+      s.aabb(&lo, &hi);
+      add(lo[a], 0.0, s.min_size());
+      add(hi[a], 0.0, s.min_size());
+      continue;
+    }
+    const Vec3 u = s.half_axis.normalized();
+    const double half = s.radius * std::sqrt(std::max(0.0, 1.0 - u[a] * u[a]));
+    for (const double end : {s.center[a] - s.half_axis[a], s.center[a] + s.half_axis[a]}) {
+      add(end - half, 0.0, s.radius);
+      add(end + half, 0.0, s.radius);
+      if (disks && std::abs(u[a]) >= std::cos(kSteepDisk)) add(end, half, s.radius);
+    }
+  }
+  return e;
+}
+
+// The least clearance of a face at position z (mod the side) along one axis.
+double clearance_at(const Extremes& e, double z, double side) {
+  double least = 1e300;
+  for (size_t k = 0; k < e.at.size(); ++k) {
+    double d = std::fmod(std::abs(e.at[k] - z), side);
+    d = std::max(0.0, std::min(d, side - d) - e.half[k]);
+    least = std::min(least, d / e.size[k]);
+  }
+  return least;
+}
+
+// A position (mod side) whose clearance is at least t, if one exists: the first point the
+// intervals (x - t size, x + t size) around the extremes leave uncovered.
+bool uncovered(const Extremes& e, double t, double side, double* z) {
+  std::vector<std::pair<double, double>> iv;
+  for (size_t k = 0; k < e.at.size(); ++k) {
+    const double r = e.half[k] + t * e.size[k];
+    if (2.0 * r >= side) return false;
+    const double a = e.at[k] - r - side * std::floor((e.at[k] - r) / side), b = a + 2.0 * r;
+    if (b <= side) {
+      iv.push_back({a, b});
+    } else {
+      iv.push_back({a, side});
+      iv.push_back({0.0, b - side});
+    }
+  }
+  std::sort(iv.begin(), iv.end());
+  double reach = 0.0;
+  for (const auto& [a, b] : iv) {
+    if (a > reach) {
+      *z = 0.5 * (reach + a);
+      return true;
+    }
+    reach = std::max(reach, b);
+  }
+  if (reach < side) {
+    *z = 0.5 * (reach + side);
+    return true;
+  }
+  return false;
+}
+
+// The positions o + k side (k integer) within [lo, hi].
+std::vector<double> positions(double o, double side, double lo, double hi) {
+  std::vector<double> out;
+  for (double f = o + side * std::ceil((lo - o) / side); f <= hi; f += side) out.push_back(f);
+  return out;
+}
+
+// The clearance of the line through (fa, fb) along axis c (a box edge) from a shape's surface:
+// how far the line is from grazing it, in the shape's length unit. Spheres and ellipsoids: the
+// distance of the point from the outline of the shape's shadow along c (for ellipsoids, along
+// the ray from the centre, times the shadow's least semi-axis); cylinders: from the mantle (the
+// distance of the line to the axis against the radius, where it passes along the fibre's
+// length) and from both rims (where the line meets an end disk's plane).
+double line_clearance(const Shape& s, int a, int b, int c, double fa, double fb) {
+  const double pa = fa - s.center[a], pb = fb - s.center[b];
+  switch (s.kind) {
+    case ShapeKind::Sphere:
+      return std::abs(std::hypot(pa, pb) - s.radius) / s.radius;
+    case ShapeKind::Ellipsoid: {
+      const Mat3 M = s.rotation * s.semi_axes.asDiagonal();
+      const Mat3 S = M * M.transpose();
+      Eigen::Matrix2d shadow;
+      shadow << S(a, a), S(a, b), S(b, a), S(b, b);
+      const Eigen::Vector2d p(pa, pb);
+      const double q = std::sqrt(p.dot(shadow.inverse() * p));
+      const double least = std::sqrt(
+          Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(shadow).eigenvalues().minCoeff());
+      return std::abs(q - 1.0) * least / s.min_size();
+    }
+    case ShapeKind::Cylinder: {
+      const double r = s.radius, hl = s.half_axis.norm();
+      const Vec3 u = s.half_axis / hl;
+      Vec3 e = Vec3::Zero(), d0 = Vec3::Zero();
+      e[c] = 1.0;
+      d0[a] = pa;
+      d0[b] = pb;
+      double best = 1e300;
+      const Vec3 w = e.cross(u);
+      if (w.squaredNorm() > 1e-18) {
+        const double t = (d0.dot(u) - d0.dot(e) * u.dot(e)) / w.squaredNorm();
+        if (std::abs(t) <= hl) best = std::abs(std::abs(d0.dot(w)) / w.norm() - r) / r;
+      } else {
+        best = std::abs(std::hypot(pa, pb) - r) / r;
+      }
+      if (std::abs(u[c]) > 1e-9) {
+        for (const double sign : {-1.0, 1.0}) {
+          const Vec3 end = sign * s.half_axis;  // from the centre
+          const Vec3 at = d0 + ((end - d0).dot(u) / u[c]) * e;
+          best = std::min(best, std::abs((at - end).norm() - r) / r);
+        }
+      }
+      return best;
+    }
+  }
+  return 1e300;
+}
+
+}  // namespace
+
+double face_clearance(const InclusionSet& set, const Vec3& origin) {
+  double least = 1e300;
+  for (int a = 0; a < 3; ++a) {
+    least = std::min(least, clearance_at(extremes(set, a), origin[a], set.box.size[a]));
+  }
+  return least;
+}
+
+double edge_clearance(const InclusionSet& set, const Vec3& origin) {
+  const Vec3& len = set.box.size;
+  double least = 1e300;
+  for (const Inclusion& inc : set.inclusions) {
+    const Shape& s = inc.shape;
+    Vec3 lo, hi;
+    s.aabb(&lo, &hi);
+    std::vector<double> at[3];
+    for (int a = 0; a < 3; ++a) at[a] = positions(origin[a], len[a], lo[a], hi[a]);
+    for (int c = 0; c < 3; ++c) {
+      const int a = (c + 1) % 3, b = (c + 2) % 3;
+      for (const double fa : at[a]) {
+        for (const double fb : at[b]) least = std::min(least, line_clearance(s, a, b, c, fa, fb));
+      }
+    }
+    if (at[0].empty() || at[1].empty() || at[2].empty()) continue;
+    const BodyQuery query(inc);
+    const double unit = s.kind == ShapeKind::Cylinder ? s.radius : s.min_size();
+    for (const double x : at[0]) {
+      for (const double y : at[1]) {
+        for (const double z : at[2]) {
+          least = std::min(least, std::abs(query.core_distance(Vec3(x, y, z))) / unit);
+        }
+      }
+    }
+  }
+  return least;
+}
+
+Vec3 cell_origin(const InclusionSet& set) {
+  const Vec3 box = set.box.origin;
+  if (set.inclusions.empty() ||
+      std::min(face_clearance(set, box), edge_clearance(set, box)) >= kGoodClearance) {
+    return box;
+  }
+  // Per axis, a few positions of large face clearance: the box's own, the best (by bisection
+  // on the clearance), and the best of an even sampling, each at least a 64th of the side from
+  // the others.
+  constexpr int kSamples = 512, kKeep = 6;
+  std::vector<std::pair<double, double>> candidates[3];  // (face clearance, position)
+  for (int a = 0; a < 3; ++a) {
+    Extremes e = extremes(set, a);
+    const double side = set.box.size[a];
+    double z = box[a];
+    if (!uncovered(e, 0.0, side, &z)) e = extremes(set, a, false);  // disks cover the axis
+    double lo = 0.0, hi = 0.5 * side / *std::min_element(e.size.begin(), e.size.end());
+    double best = box[a];
+    for (int it = 0; it < 60; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      if (uncovered(e, mid, side, &z)) {
+        lo = mid;
+        best = z;
+      } else {
+        hi = mid;
+      }
+    }
+    std::vector<std::pair<double, double>> all = {{clearance_at(e, best, side), best}};
+    for (int k = 0; k < kSamples; ++k) {
+      const double f = box[a] + side * k / kSamples;
+      all.push_back({clearance_at(e, f, side), f});
+    }
+    std::stable_sort(all.begin(), all.end(),
+                     [](const auto& x, const auto& y) { return x.first > y.first; });
+    candidates[a].push_back({clearance_at(e, box[a], side), box[a]});
+    for (const auto& [c, f] : all) {
+      if (static_cast<int>(candidates[a].size()) > kKeep) break;
+      bool apart = true;
+      for (const auto& kept : candidates[a]) {
+        double d = std::fmod(std::abs(f - kept.second), side);
+        apart = apart && std::min(d, side - d) >= side / 64.0;
+      }
+      if (apart) candidates[a].push_back({c, f});
+    }
+  }
+  // The combination whose least clearance, of faces, edges and corners, is the largest (the
+  // box's own first, so that it is kept on a tie).
+  Vec3 origin = box;
+  double best = -1.0;
+  for (const auto& [cx, x] : candidates[0]) {
+    for (const auto& [cy, y] : candidates[1]) {
+      for (const auto& [cz, z] : candidates[2]) {
+        const double faces = std::min({cx, cy, cz});
+        if (faces <= best) continue;
+        const Vec3 o(x, y, z);
+        const double score = std::min(faces, edge_clearance(set, o));
+        if (score > best) {
+          best = score;
+          origin = o;
+        }
+      }
+    }
+  }
+  // Positions nearest the box's own (moved by less than half a side).
+  for (int a = 0; a < 3; ++a) {
+    const double side = set.box.size[a];
+    origin[a] = box[a] + (origin[a] - box[a]) - side * std::round((origin[a] - box[a]) / side);
+  }
+  return origin;
+}
+
+TetMesh tet_mesh(const InclusionSet& set_in, const TetMeshOptions& options,
                  const TetMeshProgress& progress) {
-  check_tet_meshable(set);
+  check_tet_meshable(set_in);
+  InclusionSet moved;
+  if (options.shift_cell) {
+    moved = set_in;
+    moved.box.origin = cell_origin(set_in);
+  }
+  const InclusionSet& set = options.shift_cell ? moved : set_in;
   // The share shown never falls, through a second attempt too.
   double shown = 0.0;
   const TetMeshProgress steady = [&](double f, const std::string& line) {

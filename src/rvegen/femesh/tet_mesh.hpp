@@ -1,15 +1,16 @@
 // Conforming periodic tetrahedral meshes of an RVE, built on Gmsh (its OpenCASCADE kernel and
-// its HXT volume mesher): the inclusions and their periodic images are fragmented against the
-// box, so every interface and every box face is a surface of the mesh; the faces at the upper
+// its HXT volume mesher): each inclusion is cut by the box faces, its pieces are brought into the
+// box by their periodic shifts and fragmented against it, so every interface and every box face
+// is a surface of the mesh, and a cut face lies on opposite box faces as one face and its exact
+// translate; the faces at the upper
 // end of each axis are meshed as translated copies of those at the lower end (Gmsh's periodic
 // surfaces), so opposite faces carry identical triangulations. The element size follows the
 // local gap between surfaces (two inclusions, or an inclusion and a box face it does not cross)
 // and the curvature of the inclusions (a bound on the chord error), between a least and a
 // largest size.
 //
-// Spheres and cylinders (flat ends) without modifiers. Ellipsoids (OpenCASCADE makes spline
-// surfaces of them, whose cuts by opposite faces do not match), coated, wavy, bent, deformed and
-// debonded inclusions are refused (InputError), and so are closed boxes.
+// Spheres, cylinders (flat ends) and ellipsoids without modifiers. Coated, wavy, bent, deformed
+// and debonded inclusions are refused (InputError), and so are closed boxes.
 #pragma once
 
 #include <array>
@@ -39,6 +40,7 @@ struct TetMeshOptions : TetMeshSpec {
 };
 
 struct TetMesh {
+  /// The mesh's cell: the set's box, moved along its axes when the options allow (cell_shift).
   Box box;
   std::vector<Phase> phases;  // phase_table of the set
   std::vector<Vec3> nodes;
@@ -87,6 +89,28 @@ using TetMeshProgress = std::function<bool(double fraction, const std::string& l
 /// (Gmsh cannot be interrupted inside one; stages: fragments, surfaces, volumes, node moves).
 TetMesh tet_mesh(const InclusionSet& set, const TetMeshOptions& options = {},
                  const TetMeshProgress& progress = {});
+
+/// The face clearance of a cell with lower corner `origin` (and the box's size): the least
+/// distance from a box face (any periodic copy of it) to an extreme point along the face's
+/// normal of a sphere or ellipsoid, over its least size (Shape::min_size), or of a cylinder's
+/// rim, over its radius, and to the span of a cylinder's end disk within 20 degrees of parallel
+/// to the face, over the radius. A face that cuts a sphere at distance c r inside its extreme
+/// leaves a cap with an edge angle of acos(1 - c); one that crosses an end disk at angle phi, a
+/// wedge of phi.
+double face_clearance(const InclusionSet& set, const Vec3& origin);
+
+/// The edge clearance of a cell with lower corner `origin`: how far, in the same units, the
+/// cell's edges (any periodic copy) are from grazing an inclusion's surface (from the outline of
+/// its shadow along the edge; for cylinders, from the mantle and the rims), and its corners from
+/// the surface.
+double edge_clearance(const InclusionSet& set, const Vec3& origin);
+
+/// Where tet_mesh puts the cell's lower corner when options.shift_cell: the box's when its face
+/// and edge clearances are at least kGoodClearance; otherwise, of a few positions per axis with
+/// the largest face clearance (the box's among them), the combination with the largest least
+/// clearance of faces and edges. The same medium: the cell is a window on the periodic RVE.
+Vec3 cell_origin(const InclusionSet& set);
+inline constexpr double kGoodClearance = 0.05;  // caps of 18 degrees or more
 
 /// Merges nodes at one position (each element then uses the lowest-numbered one), drops nodes
 /// no element uses and renumbers the rest in order. Throws MeshError if an element is left with

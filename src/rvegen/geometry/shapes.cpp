@@ -219,4 +219,23 @@ double ellipsoid_distance(const Shape& e, const Vec3& x) {
   return (y - z).norm();
 }
 
+// From the Gaussian and mean curvatures at the surface point p (x^T diag(a)^-2 x = 1):
+// K = 1 / (abc h^2)^2 and H = (a^2 + b^2 + c^2 - |p|^2) / (2 (abc)^2 h^3), h^2 = sum p_i^2 / a_i^4;
+// the larger principal curvature is H + sqrt(H^2 - K).
+double ellipsoid_least_curvature_radius(const Vec3& a, const Vec3& p) {
+  const double q = p.cwiseQuotient(a).norm();
+  if (!(q > 0.0)) return a.minCoeff() * a.minCoeff() / a.maxCoeff();
+  const Vec3 x = p / q;
+  const double abc = a[0] * a[1] * a[2];
+  const double h2 = x.cwiseQuotient(a.cwiseProduct(a)).squaredNorm();
+  const double K = 1.0 / (abc * abc * h2 * h2);
+  const double H = (a.squaredNorm() - x.squaredNorm()) / (2.0 * abc * abc * h2 * std::sqrt(h2));
+  return 1.0 / (H + std::sqrt(std::max(0.0, H * H - K)));
+}
+
+double least_curvature_radius(const Shape& s, const Vec3& x) {
+  if (s.kind != ShapeKind::Ellipsoid) return s.radius;
+  return ellipsoid_least_curvature_radius(s.semi_axes, s.rotation.transpose() * (x - s.center));
+}
+
 }  // namespace rvegen

@@ -74,4 +74,12 @@ Vec3 principal_axis(const Shape& s);
 /// Exact Euclidean distance from x to an ellipsoid (0 inside).
 double ellipsoid_distance(const Shape& e, const Vec3& x);
 
+/// The least principal radius of curvature of the surface of the ellipsoid of semi-axes `a`
+/// (principal frame) at the radial projection of p != 0 onto it.
+double ellipsoid_least_curvature_radius(const Vec3& a, const Vec3& p);
+
+/// The least principal radius of curvature of a shape's surface near x: the radius of a sphere
+/// or of a cylinder's mantle; for an ellipsoid, at the radial projection of x onto its surface.
+double least_curvature_radius(const Shape& s, const Vec3& x);
+
 }  // namespace rvegen

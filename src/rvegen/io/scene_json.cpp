@@ -417,7 +417,7 @@ Scene parse_scene(const std::string& text) {
   }
   if (root.contains("mesh_tet")) {
     const Json& m = root["mesh_tet"];
-    only_keys(m, {"max_size", "min_size", "chord_error", "gap_elements"}, "mesh_tet");
+    only_keys(m, {"max_size", "min_size", "chord_error", "gap_elements", "shift_cell"}, "mesh_tet");
     TetMeshSpec& t = s.tet_mesh;
     if (m.contains("max_size")) t.max_size = positive(m["max_size"], "mesh_tet.max_size");
     if (m.contains("min_size")) t.min_size = positive(m["min_size"], "mesh_tet.min_size");
@@ -425,6 +425,7 @@ Scene parse_scene(const std::string& text) {
       t.chord_error = positive(m["chord_error"], "mesh_tet.chord_error");
     if (m.contains("gap_elements"))
       t.gap_elements = positive(m["gap_elements"], "mesh_tet.gap_elements");
+    if (m.contains("shift_cell")) t.shift_cell = boolean(m["shift_cell"], "mesh_tet.shift_cell");
   }
   if (root.contains("materials")) parse_materials(root["materials"], &s);
   if (root.contains("homogenization")) {
@@ -587,7 +588,9 @@ std::string scene_to_json(const Scene& s) {
   root["surfaces"] = {{"clip", s.clip_surfaces}, {"chord_error", s.surface_chord_error}};
   if (s.outputs.mesh_tet || !(s.tet_mesh == TetMeshSpec{})) {
     const TetMeshSpec& t = s.tet_mesh;
-    root["mesh_tet"] = {{"chord_error", t.chord_error}, {"gap_elements", t.gap_elements}};
+    root["mesh_tet"] = {{"chord_error", t.chord_error},
+                        {"gap_elements", t.gap_elements},
+                        {"shift_cell", t.shift_cell}};
     if (t.max_size > 0.0) root["mesh_tet"]["max_size"] = t.max_size;
     if (t.min_size > 0.0) root["mesh_tet"]["min_size"] = t.min_size;
   }

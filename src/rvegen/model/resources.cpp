@@ -80,6 +80,34 @@ double mean_area(const Family& f) {
   return 0.0;
 }
 
+// The integral of dA / h^2 over a mean-size inclusion's surface, h being the element size near
+// it: the chord bound on its least radius of curvature there, rho sqrt(8 chord_error), at most
+// `largest`. Ellipsoids by a midpoint rule in their polar angles (the curvature varies over the
+// surface: c^2 / a at the ends of the longest axis).
+double area_over_size2(const Family& f, double chord_error, double largest) {
+  auto size2 = [&](double rho) {
+    const double h = std::min(rho * std::sqrt(8.0 * chord_error), largest);
+    return h * h;
+  };
+  if (f.shape != ShapeKind::Ellipsoid) return mean_area(f) / size2(f.radius.mean());
+  const Vec3 a(f.semi_axes[0].mean(), f.semi_axes[1].mean(), f.semi_axes[2].mean());
+  constexpr int kTheta = 48, kPhi = 96;
+  const double dt = M_PI / kTheta, dp = 2.0 * M_PI / kPhi;
+  double sum = 0.0;
+  for (int i = 0; i < kTheta; ++i) {
+    const double t = (i + 0.5) * dt, st = std::sin(t), ct = std::cos(t);
+    for (int j = 0; j < kPhi; ++j) {
+      const double p = (j + 0.5) * dp, sp = std::sin(p), cp = std::cos(p);
+      const Vec3 x(a[0] * st * cp, a[1] * st * sp, a[2] * ct);
+      const Vec3 dx_dt(a[0] * ct * cp, a[1] * ct * sp, -a[2] * st);
+      const Vec3 dx_dp(-a[0] * st * sp, a[1] * st * cp, 0.0);
+      const double dA = dx_dt.cross(dx_dp).norm() * dt * dp;
+      sum += dA / size2(ellipsoid_least_curvature_radius(a, x));
+    }
+  }
+  return sum;
+}
+
 }  // namespace
 
 double ResourceEstimate::total_bytes() const {
@@ -119,15 +147,9 @@ ResourceEstimate estimate_resources(const Scene& scene) {
     if (scene.outputs.levelsets)
       e.band_voxels += n * surfaces * area * 2.0 * scene.levelset_half_width / (vs * vs);
     if (scene.outputs.mesh_tet) {
-      // Near a surface the element size is the chord bound on its least radius of curvature.
-      const double rho =
-          f.shape == ShapeKind::Ellipsoid
-              ? std::min({f.semi_axes[0].mean(), f.semi_axes[1].mean(), f.semi_axes[2].mean()})
-              : f.radius.mean();
       const TetMeshSpec& t = scene.tet_mesh;
       const double largest = t.max_size > 0.0 ? t.max_size : scene.box.size.minCoeff() / 10.0;
-      const double h = std::min(rho * std::sqrt(8.0 * t.chord_error), largest);
-      e.tetrahedra += kTetsPerArea * n * mean_area(f) / (h * h);
+      e.tetrahedra += kTetsPerArea * n * area_over_size2(f, t.chord_error, largest);
     }
   }
   if (scene.outputs.mesh_tet) {

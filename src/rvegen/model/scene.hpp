@@ -173,9 +173,12 @@ struct TetMeshSpec {
   double chord_error = 0.003;
   /// Elements across the gap between two surfaces.
   double gap_elements = 2.0;
+  /// The mesh's cell may be the box moved along its axes (the same periodic medium), so that no
+  /// box face grazes an inclusion (a thin cap bounds its elements' angles); false: the box.
+  bool shift_cell = true;
   bool operator==(const TetMeshSpec& o) const {
     return max_size == o.max_size && min_size == o.min_size && chord_error == o.chord_error &&
-           gap_elements == o.gap_elements;
+           gap_elements == o.gap_elements && shift_cell == o.shift_cell;
   }
 };
 

@@ -1,0 +1,130 @@
+"""Checks a directory's tetrahedral mesh (mesh_tet.vtu, .inp) against inclusions.json, with
+numpy and meshio only: positive elements filling the box, each phase's volume within 1 % of the
+exact one (spheres, cylinders, ellipsoids), conforming (no two nodes at one position; every
+element face shared by two elements or lying in a box face), every least dihedral angle at least
+5 degrees and as report.json gives it, opposite faces carrying the same nodes within 1e-9 of the
+box, and the face, edge and corner node sets of the .inp. The mesh's cell is the box moved to
+report.json's cell_origin (mesh_tet.shift_cell); its face clearance, computed here from the
+inclusions, is the report's and at least 0.05 (every face at least 5 % of an inclusion's least
+size, or of a fibre's radius, from its extremes and rims: no thin caps).
+
+usage: check_tet_mesh.py DIR
+"""
+import json, math, sys
+import numpy as np
+import meshio
+d = sys.argv[1]
+incs = json.load(open(d + "/inclusions.json"))
+L = incs["box"]["size"][0]
+rep = json.load(open(d + "/report.json"))["mesh_tet"]
+o = np.asarray(rep["cell_origin"], float)
+
+
+def clearance(incs, o, L):
+    """Least distance of a face to an inclusion's extremes (rims, steep end disks) per unit."""
+    least = 1e300
+    def dist(x, a, half=0.0):
+        d = abs(x - o[a]) % L
+        return max(0.0, min(d, L - d) - half)
+    for i in incs["inclusions"]:
+        c = np.asarray(i["center"], float)
+        for a in range(3):
+            if i["shape"] == "sphere":
+                r = i["radius"]
+                least = min(least, dist(c[a] - r, a) / r, dist(c[a] + r, a) / r)
+            elif i["shape"] == "ellipsoid":
+                A = np.asarray(i["rotation"]) * np.asarray(i["semi_axes"])[None, :]
+                ext, unit = np.linalg.norm(A[a]), min(i["semi_axes"])
+                least = min(least, dist(c[a] - ext, a) / unit, dist(c[a] + ext, a) / unit)
+            else:
+                h = np.asarray(i["half_axis"], float)
+                r = i["radius"]
+                u = h / np.linalg.norm(h)
+                half = r * math.sqrt(max(0.0, 1 - u[a] ** 2))
+                for end in (c[a] - h[a], c[a] + h[a]):
+                    least = min(least, dist(end - half, a) / r, dist(end + half, a) / r)
+                    if abs(u[a]) >= math.cos(math.radians(20)):
+                        least = min(least, dist(end, a, half) / r)
+    return least
+
+
+got = min(1.0, clearance(incs, o, L))  # the report caps it at 1
+assert abs(got - rep["face_clearance"]) <= 1e-9, (got, rep["face_clearance"])
+assert got >= 0.05, "face clearance %g" % got
+m = meshio.read(d + "/mesh_tet.vtu")
+pts = m.points
+tets = m.cells_dict["tetra"]
+phase = np.asarray(m.cell_data_dict["phase"]["tetra"]).astype(int)
+inp = meshio.read(d + "/mesh_tet.inp", file_format="abaqus")
+assert len(inp.cells_dict["tetra"]) == len(tets), "the .inp and the .vtu differ in elements"
+# Volumes: positive, and per phase within 1 % of the exact ones.
+P = pts[tets]
+vol = np.einsum("ij,ij->i", P[:, 1] - P[:, 0], np.cross(P[:, 2] - P[:, 0], P[:, 3] - P[:, 0])) / 6
+assert vol.min() > 0, "an element has volume %g" % vol.min()
+exact = {}
+for i in incs["inclusions"]:
+    if i["shape"] == "sphere":
+        v = 4 / 3 * math.pi * i["radius"] ** 3
+    elif i["shape"] == "cylinder":
+        v = math.pi * i["radius"] ** 2 * 2 * np.linalg.norm(i["half_axis"])
+    elif i["shape"] == "ellipsoid":
+        v = 4 / 3 * math.pi * np.prod(i["semi_axes"])
+    else:
+        raise AssertionError("unexpected shape " + i["shape"])
+    exact[i["family"] + 1] = exact.get(i["family"] + 1, 0.0) + v
+exact[0] = L ** 3 - sum(exact.values())
+for label, v in exact.items():
+    got = vol[phase == label].sum()
+    assert abs(got / v - 1) < 0.01, "phase %d: volume %g, exact %g" % (label, got, v)
+assert np.all(pts >= o - 1e-12) and np.all(pts <= o + L + 1e-12), "nodes outside the cell"
+assert abs(vol.sum() / L ** 3 - 1) < 1e-9, "the elements do not fill the box: %g" % vol.sum()
+# Conforming: no two nodes at one position, and every element face is shared by exactly two
+# elements or lies in a box face (shared by one).
+u = np.unique(np.round(pts / (1e-12 * L)).astype(np.int64), axis=0)
+assert len(u) == len(pts), "%d nodes share a position" % (len(pts) - len(u))
+faces = np.sort(np.concatenate([tets[:, [1, 2, 3]], tets[:, [0, 2, 3]], tets[:, [0, 1, 3]],
+                                tets[:, [0, 1, 2]]]), axis=1)
+f, count = np.unique(faces, axis=0, return_counts=True)
+assert count.max() == 2, "a face shared by %d elements" % count.max()
+single = f[count == 1]
+on_plane = np.zeros(len(single), bool)
+for a in range(3):
+    for end in (0.0, L):
+        on_plane |= np.all(np.abs(pts[single][:, :, a] - o[a] - end) <= 1e-9 * L, axis=1)
+assert on_plane.all(), "%d faces inside the box belong to one element" % (~on_plane).sum()
+# Least dihedral angle of every element.
+least = np.full(len(tets), 180.0)
+for i in range(4):
+    for j in range(i + 1, 4):
+        k, l = [x for x in range(4) if x not in (i, j)]
+        e = P[:, j] - P[:, i]
+        e /= np.linalg.norm(e, axis=1)[:, None]
+        u = P[:, k] - P[:, i]; w = P[:, l] - P[:, i]
+        u -= np.einsum("ij,ij->i", u, e)[:, None] * e
+        w -= np.einsum("ij,ij->i", w, e)[:, None] * e
+        c = np.einsum("ij,ij->i", u, w) / np.linalg.norm(u, axis=1) / np.linalg.norm(w, axis=1)
+        least = np.minimum(least, np.degrees(np.arccos(np.clip(c, -1, 1))))
+assert least.min() >= 5.0, "least dihedral angle %.2f degrees" % least.min()
+assert rep["tetrahedra"] == len(tets) and rep["min_dihedral_degrees"]["below_5_degrees"] == 0
+assert abs(rep["min_dihedral_degrees"]["min"] - least.min()) < 1e-6, (rep["min_dihedral_degrees"]["min"], least.min())
+# Periodic: the nodes of each face, brought to the opposite one, are its nodes.
+tol = 1e-9 * L
+for a in range(3):
+    lo = pts[np.abs(pts[:, a] - o[a]) <= tol]
+    hi = pts[np.abs(pts[:, a] - o[a] - L) <= tol]
+    assert len(lo) == len(hi) and len(lo) > 0, (a, len(lo), len(hi))
+    others = [b for b in range(3) if b != a]
+    key = lambda q: set(map(tuple, np.round(q[:, others] / tol).astype(np.int64)))
+    klo, khi = key(lo), key(hi)
+    # rounding may put a coordinate pair one step apart: compare nearest instead when sets differ
+    if klo != khi:
+        from scipy.spatial import cKDTree
+        dist, _ = cKDTree(lo[:, others]).query(hi[:, others])
+        assert dist.max() <= tol, "axis %d: a face node has no image (%g)" % (a, dist.max())
+# The node sets of the faces and edges: as many on each side.
+ps = inp.point_sets
+for a in "XYZ":
+    assert len(ps[a + "MIN"]) == len(ps[a + "MAX"]) > 0, a
+for s in ("EDGE_Y0Z0", "EDGE_Y1Z1", "EDGE_X0Z1", "CORNER_X1Y1Z1", "CORNER_X0Y0Z0"):
+    assert len(ps[s]) >= 1, s
+print("tets %d, least dihedral %.2f, volumes within 1 %%" % (len(tets), least.min()))

@@ -1,6 +1,7 @@
 #include "vtkRVETetMesh.h"
 
 #include "rvegen/femesh/tet_mesh.hpp"
+#include "rvegen/model/resources.hpp"
 #include "rvegen/model/scene.hpp"
 #include "vtkCellArray.h"
 #include "vtkCellData.h"
@@ -52,6 +53,15 @@ int vtkRVETetMesh::RequestData(vtkInformation*, vtkInformationVector** in,
   rvegen::TetMesh mesh;
   try {
     rvegen::validate_tet_mesh_spec(scene);
+    // A mesh the machine cannot hold is refused before it starts (as the command line does).
+    const double need = rvegen::tet_mesh_bytes(set, scene.tet_mesh);
+    const double have = rvegen::available_memory_bytes();
+    if (have > 0.0 && need > have) {
+      vtkErrorMacro(<< "the tetrahedral mesh would need about " << rvegen::format_bytes(need)
+                    << ", more than the " << rvegen::format_bytes(have)
+                    << " available: raise ChordError or MaxSize");
+      return 0;
+    }
     rvegen::TetMeshOptions opt;
     static_cast<rvegen::TetMeshSpec&>(opt) = scene.tet_mesh;
     this->UpdateProgress(0.0);

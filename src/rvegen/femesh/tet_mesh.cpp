@@ -25,7 +25,7 @@ std::mutex gmsh_mutex;
 struct GmshSession {
   GmshSession() {
     gmsh::initialize(0, nullptr, false);
-    gmsh::option::setNumber("General.Terminal", getenv("DBG_GMSH") ? 1 : 0);
+    gmsh::option::setNumber("General.Terminal", 0);
     gmsh::model::add("rve");
   }
   ~GmshSession() { gmsh::finalize(); }

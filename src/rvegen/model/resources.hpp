@@ -5,6 +5,7 @@
 
 #include <string>
 
+#include "rvegen/model/inclusion_set.hpp"
 #include "rvegen/model/scene.hpp"
 
 namespace rvegen {
@@ -28,6 +29,13 @@ struct ResourceEstimate {
 /// per-item costs were measured on this program's runs; on the scenes of samples/scenes and a
 /// 400^3 image the estimate was within -7 % to +25 % of the measured peak of the whole run.
 ResourceEstimate estimate_resources(const Scene& scene);
+
+/// Elements of a tetrahedral mesh near one inclusion's surface: the element size there is the
+/// chord bound on the least radius of curvature, rho sqrt(8 chord_error), at most `largest`.
+double tet_elements_near(const Shape& s, double chord_error, double largest);
+
+/// Peak bytes of meshing an inclusion set with these sizes (the inclusions as they are).
+double tet_mesh_bytes(const InclusionSet& set, const TetMeshSpec& t);
 
 /// Memory this process may still take: the smaller of MemAvailable (/proc/meminfo) and what
 /// its cgroup allows; 0 when unknown.

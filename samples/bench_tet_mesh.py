@@ -7,7 +7,8 @@
   2. a short-fibre scene: 40 fibres of L/D 10 at 0.25 in the unit box, orientation tensor
      diag(0.7, 0.25, 0.05), min_gap 0.005, meshed, then run by CalculiX (the conductivity deck,
      fibres 10 times the matrix) against rvegen's FFT value on laminate voxels at 128^3;
-  3. the default scene (946 inclusions, with ellipsoids): what the mesher says of it.
+  3. the default scene (946 inclusions: spheres, fibres of radius 0.02, ellipsoids; min_gap 0):
+     the memory estimate at the default chord error, and the mesh at coarser ones.
 
 Prints the tables (also written to samples/charts/tet_mesh_table.md) and draws
 samples/charts/tet_mesh_sweep.png (time and least dihedral angle against the volume fraction,
@@ -56,14 +57,22 @@ def mesh_row(report):
     return m["tetrahedra"], q["min"], q["below_5_degrees"], worst, m.get("merged_nodes", 0)
 
 
+def clearance(report):
+    """The cell's move and its least face and edge clearances, as a table cell."""
+    m = report["mesh_tet"]
+    moved = any(abs(x) > 0 for x in m["cell_origin"])
+    return "%s %.2f / %.2f" % ("moved" if moved else "box", m["face_clearance"],
+                               m["edge_clearance"])
+
+
 # 1. Spheres: volume fraction against min_gap.
 fractions = [0.15, 0.35] if quick else [0.15, 0.25, 0.35, 0.45]
 gaps = [0.01, 0.03] if quick else [0.005, 0.01, 0.03]
 say("## Spheres of radius 0.1, box 0.6: volume fraction against min_gap")
 say()
 say("| volume fraction | min_gap | spheres | exit | wall s | peak MiB | tetrahedra | "
-    "tets/s | least angle | under 5 deg | worst volume error |")
-say("|---|---|---|---|---|---|---|---|---|---|---|")
+    "tets/s | least angle | under 5 deg | worst volume error | cell, clearance face / edge |")
+say("|---|---|---|---|---|---|---|---|---|---|---|---|")
 sweep = {}
 for gap in gaps:
     for vf in fractions:
@@ -81,7 +90,7 @@ for gap in gaps:
         reached = os.path.exists(os.path.join(work, name, "report.json"))
         if rc != 0 and not (rc == 3 and reached):  # 3: the packing stopped short, RVE written
             why = [ln for ln in err.strip().splitlines() if ln.startswith("rvegen:")]
-            say("| %.2f | %g | %d | %d | %.1f | %.0f | failed: %s | | | | |"
+            say("| %.2f | %g | %d | %d | %.1f | %.0f | failed: %s | | | | | |"
                 % (vf, gap, count, rc, wall, peak, (why or ["?"])[-1][:120]))
             continue
         with open(os.path.join(work, name, "report.json")) as f:
@@ -89,9 +98,9 @@ for gap in gaps:
         tets, least, below, worst, merged = mesh_row(report)
         sweep.setdefault(gap, []).append((vf, wall, least, tets))
         got = report["volume_fraction"]
-        say("| %.2f%s | %g | %d | %d | %.1f | %.0f | %d | %.0f | %.2f | %d | %.2f %% |"
+        say("| %.2f%s | %g | %d | %d | %.1f | %.0f | %d | %.0f | %.2f | %d | %.2f %% | %s |"
             % (vf, " (packed %.3f)" % got if rc == 3 else "", gap, count, rc, wall, peak, tets,
-               tets / wall, least, below, 100 * worst))
+               tets / wall, least, below, 100 * worst, clearance(report)))
         shutil.rmtree(os.path.join(work, name), ignore_errors=True)
 
 fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.2))
@@ -111,61 +120,89 @@ for a in (a1, a2):
 fig.tight_layout()
 fig.savefig(os.path.join(charts, "tet_mesh_sweep.png"), dpi=110)
 
-# 2. Short fibres, meshed and run by CalculiX.
-if "--no-fibres" in sys.argv:
-    with open(os.path.join(charts, "tet_mesh_table.md"), "w") as f:
-        f.write("\n".join(lines) + "\n")
-    sys.exit(0)
-n = 12 if quick else 40
-r = (0.25 / (2.0 * math.pi * 10 * n)) ** (1.0 / 3.0)
-fibres = {"box": {"size": [1, 1, 1]}, "seed": 1, "min_gap": 0.005, "md": {"max_seconds": 120},
-          "families": [{"name": "fibres", "shape": "cylinder", "radius": r, "aspect_ratio": 10,
-                        "count": n,
-                        "orientation": {"law": "tensor",
-                                        "a2": [[0.7, 0, 0], [0, 0.25, 0], [0, 0, 0.05]]}}],
-          "voxels": {"resolution": 64 if quick else 128},
-          "materials": {"matrix": {"conductivity": 1}, "fibres": {"conductivity": 10}},
-          "homogenization": {"physics": ["conductivity"], "tolerance": 1e-8},
-          "outputs": ["inclusions", "mesh_tet"]}
-say()
-say("## %d fibres of L/D 10 (radius %.4f) at 0.25, tensor orientation, min_gap 0.005" % (n, r))
-say()
-rc, wall, peak, report = generate(exe, fibres, work, "fibres")
-if rc != 0:
-    say("rvegen generate: exit %d" % rc)
-else:
-    tets, least, below, worst, merged = mesh_row(report)
-    fft = report["effective"]["conductivity"]["tensor"]
-    say("rvegen generate (packing, mesh, FFT at %d^3): %.1f s, %.0f MiB; %d tetrahedra, "
-        "least angle %.2f deg, %d under 5 deg, worst phase volume error %.2f %%, %d nodes merged"
-        % (fibres["voxels"]["resolution"], wall, peak, tets, least, below, 100 * worst, merged))
-    if "--no-ccx" not in sys.argv and shutil.which("ccx"):
-        run = os.path.join(work, "fibres_run")
-        shutil.copytree(os.path.join(work, "fibres"), run)
-        p = subprocess.run(["/usr/bin/time", "-f", "TIME %e %M", "ccx", "-i",
-                            "run_tet_conductivity"], cwd=run, capture_output=True, text=True)
-        t = [ln for ln in p.stderr.splitlines() if ln.startswith("TIME ")][-1].split()
-        warned = [ln for ln in p.stdout.splitlines() if "*WARNING" in ln or "*ERROR" in ln]
-        eff = json.loads(subprocess.run([sys.executable, os.path.join(here, "ccx_effective.py"),
-                                         run, "run_tet_conductivity"], check=True,
-                                        capture_output=True, text=True).stdout)["conductivity"]
-        say("CalculiX (conductivity deck): exit %d, %.1f s, %.0f MiB, %d warnings or errors"
-            % (p.returncode, float(t[1]), int(t[2]) / 1024, len(warned)))
-        say()
-        say("| | k11 | k22 | k33 |")
-        say("|---|---|---|---|")
-        say("| CalculiX, tetrahedra | %.4f | %.4f | %.4f |" % (eff[0][0], eff[1][1], eff[2][2]))
-        say("| FFT, laminate voxels | %.4f | %.4f | %.4f |" % (fft[0][0], fft[1][1], fft[2][2]))
-        say("| difference | %+.2f %% | %+.2f %% | %+.2f %% |"
-            % tuple(100 * (eff[i][i] / fft[i][i] - 1) for i in range(3)))
-    shutil.rmtree(os.path.join(work, "fibres"), ignore_errors=True)
 
-# 3. The default scene.
+
+def fibres_part():
+    """2. Short fibres, meshed and run by CalculiX."""
+    n = 12 if quick else 40
+    r = (0.25 / (2.0 * math.pi * 10 * n)) ** (1.0 / 3.0)
+    fibres = {"box": {"size": [1, 1, 1]}, "seed": 1, "min_gap": 0.005, "md": {"max_seconds": 120},
+              "families": [{"name": "fibres", "shape": "cylinder", "radius": r, "aspect_ratio": 10,
+                            "count": n,
+                            "orientation": {"law": "tensor",
+                                            "a2": [[0.7, 0, 0], [0, 0.25, 0], [0, 0, 0.05]]}}],
+              "voxels": {"resolution": 64 if quick else 128},
+              "materials": {"matrix": {"conductivity": 1}, "fibres": {"conductivity": 10}},
+              "homogenization": {"physics": ["conductivity"], "tolerance": 1e-8},
+              "outputs": ["inclusions", "mesh_tet"]}
+    say()
+    say("## %d fibres of L/D 10 (radius %.4f) at 0.25, tensor orientation, min_gap 0.005" % (n, r))
+    say()
+    rc, wall, peak, report = generate(exe, fibres, work, "fibres")
+    if rc != 0:
+        say("rvegen generate: exit %d" % rc)
+    else:
+        tets, least, below, worst, merged = mesh_row(report)
+        fft = report["effective"]["conductivity"]["tensor"]
+        say("rvegen generate (packing, mesh, FFT at %d^3): %.1f s, %.0f MiB; %d tetrahedra, "
+            "least angle %.2f deg, %d under 5 deg, worst phase volume error %.2f %%, %d nodes merged"
+            % (fibres["voxels"]["resolution"], wall, peak, tets, least, below, 100 * worst, merged))
+        if "--no-ccx" not in sys.argv and shutil.which("ccx"):
+            run = os.path.join(work, "fibres_run")
+            shutil.copytree(os.path.join(work, "fibres"), run)
+            p = subprocess.run(["/usr/bin/time", "-f", "TIME %e %M", "ccx", "-i",
+                                "run_tet_conductivity"], cwd=run, capture_output=True, text=True)
+            t = [ln for ln in p.stderr.splitlines() if ln.startswith("TIME ")][-1].split()
+            warned = [ln for ln in p.stdout.splitlines() if "*WARNING" in ln or "*ERROR" in ln]
+            eff = json.loads(subprocess.run([sys.executable, os.path.join(here, "ccx_effective.py"),
+                                             run, "run_tet_conductivity"], check=True,
+                                            capture_output=True, text=True).stdout)["conductivity"]
+            say("CalculiX (conductivity deck): exit %d, %.1f s, %.0f MiB, %d warnings or errors"
+                % (p.returncode, float(t[1]), int(t[2]) / 1024, len(warned)))
+            say()
+            say("| | k11 | k22 | k33 |")
+            say("|---|---|---|---|")
+            say("| CalculiX, tetrahedra | %.4f | %.4f | %.4f |" % (eff[0][0], eff[1][1], eff[2][2]))
+            say("| FFT, laminate voxels | %.4f | %.4f | %.4f |" % (fft[0][0], fft[1][1], fft[2][2]))
+            say("| difference | %+.2f %% | %+.2f %% | %+.2f %% |"
+                % tuple(100 * (eff[i][i] / fft[i][i] - 1) for i in range(3)))
+        shutil.rmtree(os.path.join(work, "fibres"), ignore_errors=True)
+
+if "--no-fibres" not in sys.argv:
+    fibres_part()
+
+# 3. The default scene: the estimate at the default chord error, then meshes at coarser ones.
 say()
-rc, wall, peak, err = timed([exe, "generate", "-q", "--outputs", "mesh_tet", "-o",
-                             os.path.join(work, "default")])
+say("## The default scene (946 inclusions, min_gap 0)")
+say()
+rc, wall, peak, err = timed([exe, "generate", "-q", "--outputs", "mesh_tet", "--max-memory", "4G",
+                             "-o", os.path.join(work, "default")])
 why = [ln for ln in err.strip().splitlines() if ln.startswith("rvegen:")]
-say("## The default scene\n\nexit %d after %.1f s: %s" % (rc, wall, (why or ["?"])[-1]))
+say("Default chord error 0.003, `--max-memory 4G`: exit %d after %.1f s: %s"
+    % (rc, wall, (why or ["?"])[-1]))
+say()
+say("| chord error | exit | wall s | peak MiB | tetrahedra | tets/s | least angle | under 5 deg "
+    "| volume error per phase | cell, clearance face / edge |")
+say("|---|---|---|---|---|---|---|---|---|---|")
+for chord in ([0.03] if quick else [0.03, 0.01]):
+    scene = json.loads(subprocess.run([exe, "default-scene"], check=True, capture_output=True,
+                                      text=True).stdout)
+    scene["mesh_tet"] = {"chord_error": chord}
+    scene["outputs"] = ["mesh_tet"]
+    try:
+        rc, wall, peak, report = generate(exe, scene, work, "default_%g" % chord)
+    except SystemExit as e:
+        say("| %g | failed: %s | | | | | | | | |" % (chord, str(e)[-200:].replace("\n", " ")))
+        continue
+    if rc != 0:
+        say("| %g | %d | %.1f | %.0f | failed | | | | | |" % (chord, rc, wall, peak))
+        continue
+    tets, least, below, worst, merged = mesh_row(report)
+    errors = ", ".join("%s %+.1f %%" % (p["name"], 100 * p["relative_error"])
+                       for p in report["mesh_tet"]["phases"])
+    say("| %g | %d | %.1f | %.0f | %d | %.0f | %.2f | %d | %s | %s |"
+        % (chord, rc, wall, peak, tets, tets / wall, least, below, errors, clearance(report)))
+    shutil.rmtree(os.path.join(work, "default_%g" % chord), ignore_errors=True)
 
 with open(os.path.join(charts, "tet_mesh_table.md"), "w") as f:
     f.write("\n".join(lines) + "\n")

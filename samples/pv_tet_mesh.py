@@ -3,7 +3,7 @@
 usage: xvfb-run -a -s "-screen 0 1280x1024x24" pvpython --force-offscreen-rendering \\
          samples/pv_tet_mesh.py [SCENE.json] [OUT_DIR] [CHORD_ERROR]
 
-SCENE.json: plain spheres and cylinders (default samples/scenes/fe_spheres_rods.json). Writes
+SCENE.json: plain spheres, cylinders and ellipsoids (default samples/scenes/fe_spheres_rods.json). Writes
 OUT_DIR/mesh_tet.png (the elements behind a clip through the middle of the box, coloured by
 phase, with their edges) and OUT_DIR/mesh_tet.vtu, and prints the element count and each
 phase's volume.

@@ -7,7 +7,7 @@
 2. An abort set from a progress observer inside the volume stage (progress above 0.36) ends
    the run at the end of that stage (Gmsh cannot be interrupted inside one): no progress after
    it, sooner than the whole run, an empty mesh; the filter then meshes again.
-3. A scene the mesher cannot take (the default one with coated spheres), a bad chord error and
+3. A scene the mesher cannot take (the default one with wavy fibres), a bad chord error and
    a mesh larger than the machine's memory (the default scene at a chord error of 1e-5: about
    10^10 elements) give errors and no mesh.
 4. ParaView reads mesh_tet.vtu that `rvegen generate` writes (a coarse mesh of the sample):
@@ -110,10 +110,10 @@ mesh.UpdatePipeline()
 check(servermanager.Fetch(mesh).GetNumberOfCells() > 100000, "no mesh after the abort")
 
 # 3. What the mesher refuses.
-coated = RVEGenerator(Resolution=[8, 8, 8], SphereCoating=0.005)
-refused = RVETetrahedralMesh(Input=OutputPort(coated, 0))
+wavy = RVEGenerator(Resolution=[8, 8, 8], FibreWaveAmplitude=0.01)
+refused = RVETetrahedralMesh(Input=OutputPort(wavy, 0))
 refused.UpdatePipeline()
-check(servermanager.Fetch(refused).GetNumberOfCells() == 0, "coated spheres were meshed")
+check(servermanager.Fetch(refused).GetNumberOfCells() == 0, "wavy fibres were meshed")
 default = RVEGenerator(Resolution=[8, 8, 8])
 huge = RVETetrahedralMesh(Input=OutputPort(default, 0), ChordError=1e-5)
 huge.UpdatePipeline()

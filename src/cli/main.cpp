@@ -75,8 +75,9 @@ const char* kGenerateUsage =
     "    mesh_tet    mesh_tet.inp, .msh, .vtu: a conforming tetrahedral mesh (Gmsh),\n"
     "                periodic: opposite box faces carry the same triangles; node sets of the\n"
     "                faces, edges and corners; with materials, run_tet_conductivity.inp and\n"
-    "                run_tet_elasticity.inp (plain spheres and cylinders; sizes: the scene's\n"
-    "                \"mesh_tet\" object)\n"
+    "                run_tet_elasticity.inp (plain spheres, cylinders, ellipsoids; sizes:\n"
+    "                the scene's \"mesh_tet\" object; the cell may be the box moved along\n"
+    "                its axes, off inclusions it would graze: report.json's cell_origin)\n"
     "    statistics  g(r) of sphere families and nearest-neighbour distances in report.json\n"
     "  By default inclusions, voxels, levelsets and statistics; the scene's \"outputs\" list or\n"
     "  --outputs LIST (names separated by commas) chooses others. DIR is replaced as a whole:\n"
@@ -198,10 +199,20 @@ nlohmann::ordered_json tet_mesh_report(const rvegen::InclusionSet& set,
   const rvegen::TetQuality q = rvegen::tet_quality(mesh);
   std::vector<double> exact(mesh.phases.size(), 0.0);
   double cores = 0.0;
+  std::vector<int> shell_of(set.family_names.size() + 1, -1);  // per family, its shells' label
+  for (const rvegen::Phase& p : mesh.phases) {
+    if (p.kind != rvegen::PhaseKind::kInterphase) continue;
+    if (p.family >= static_cast<int>(shell_of.size())) shell_of.resize(p.family + 1, -1);
+    shell_of[p.family] = p.label;
+  }
   for (const rvegen::Inclusion& inc : set.inclusions) {
-    const double v = rvegen::region_volumes(inc).core;
-    exact[rvegen::core_label(inc.family)] += v;
-    cores += v;
+    const rvegen::RegionVolumes v = rvegen::region_volumes(inc);
+    exact[rvegen::core_label(inc.family)] += v.core;
+    cores += v.core;
+    if (v.shell > 0.0 && shell_of[inc.family] >= 0) {
+      exact[shell_of[inc.family]] += v.shell;
+      cores += v.shell;
+    }
   }
   exact[0] = set.box.volume() - cores;
   nlohmann::ordered_json r;

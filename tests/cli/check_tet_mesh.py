@@ -1,6 +1,7 @@
 """Checks a directory's tetrahedral mesh (mesh_tet.vtu, .inp) against inclusions.json, with
 numpy and meshio only: positive elements filling the box, each phase's volume within 1 % of the
-exact one (spheres, cylinders, ellipsoids), conforming (no two nodes at one position; every
+exact one (spheres, cylinders, ellipsoids; the interphase shells of coated spheres and cylinders),
+conforming (no two nodes at one position; every
 element face shared by two elements or lying in a box face), every least dihedral angle at least
 5 degrees and as report.json gives it, opposite faces carrying the same nodes within 1e-9 of the
 box, and the face, edge and corner node sets of the .inp. The mesh's cell is the box moved to
@@ -21,17 +22,22 @@ o = np.asarray(rep["cell_origin"], float)
 
 
 def clearance(incs, o, L):
-    """Least distance of a face to an inclusion's extremes (rims, steep end disks) per unit."""
+    """Least distance of a face to an inclusion's extremes (rims, steep end disks, shells' outer
+    surfaces) per unit."""
     least = 1e300
     def dist(x, a, half=0.0):
         d = abs(x - o[a]) % L
         return max(0.0, min(d, L - d) - half)
     for i in incs["inclusions"]:
         c = np.asarray(i["center"], float)
+        t = i.get("modifiers", {}).get("coating", 0.0)  # a shell's outer surface: the extremes moved out by t
         for a in range(3):
             if i["shape"] == "sphere":
                 r = i["radius"]
                 least = min(least, dist(c[a] - r, a) / r, dist(c[a] + r, a) / r)
+                if t > 0:
+                    least = min(least, dist(c[a] - r - t, a) / (r + t),
+                                dist(c[a] + r + t, a) / (r + t))
             elif i["shape"] == "ellipsoid":
                 A = np.asarray(i["rotation"]) * np.asarray(i["semi_axes"])[None, :]
                 ext, unit = np.linalg.norm(A[a]), min(i["semi_axes"])
@@ -43,6 +49,9 @@ def clearance(incs, o, L):
                 half = r * math.sqrt(max(0.0, 1 - u[a] ** 2))
                 for end in (c[a] - h[a], c[a] + h[a]):
                     least = min(least, dist(end - half, a) / r, dist(end + half, a) / r)
+                    if t > 0:
+                        least = min(least, dist(end - half - t, a) / (r + t),
+                                    dist(end + half + t, a) / (r + t))
                     if abs(u[a]) >= math.cos(math.radians(20)):
                         least = min(least, dist(end, a, half) / r)
     return least
@@ -61,17 +70,31 @@ assert len(inp.cells_dict["tetra"]) == len(tets), "the .inp and the .vtu differ 
 P = pts[tets]
 vol = np.einsum("ij,ij->i", P[:, 1] - P[:, 0], np.cross(P[:, 2] - P[:, 0], P[:, 3] - P[:, 0])) / 6
 assert vol.min() > 0, "an element has volume %g" % vol.min()
+# Interphase labels: after the cores (1..F), one per family with coated inclusions, in order.
+families = len(incs["family_names"])
+coated = sorted({i["family"] for i in incs["inclusions"] if i.get("modifiers", {}).get("coating", 0) > 0})
+shell_label = {f: families + 1 + k for k, f in enumerate(coated)}
 exact = {}
 for i in incs["inclusions"]:
+    t = i.get("modifiers", {}).get("coating", 0.0)
     if i["shape"] == "sphere":
-        v = 4 / 3 * math.pi * i["radius"] ** 3
+        r = i["radius"]
+        v, shell = 4 / 3 * math.pi * r ** 3, 4 / 3 * math.pi * ((r + t) ** 3 - r ** 3)
     elif i["shape"] == "cylinder":
-        v = math.pi * i["radius"] ** 2 * 2 * np.linalg.norm(i["half_axis"])
+        r, length = i["radius"], 2 * np.linalg.norm(i["half_axis"])
+        v = math.pi * r ** 2 * length
+        # The offset by t of a flat-ended cylinder: the mantle's shell, the end disks moved out,
+        # and at each rim a quarter disk of radius t turned about the axis (Pappus).
+        shell = (math.pi * ((r + t) ** 2 - r ** 2) * length + 2 * math.pi * r ** 2 * t
+                 + 2 * (math.pi * t ** 2 / 4) * 2 * math.pi * (r + 4 * t / (3 * math.pi)))
     elif i["shape"] == "ellipsoid":
-        v = 4 / 3 * math.pi * np.prod(i["semi_axes"])
+        assert t == 0, "coated ellipsoids are not meshed"
+        v, shell = 4 / 3 * math.pi * np.prod(i["semi_axes"]), 0.0
     else:
         raise AssertionError("unexpected shape " + i["shape"])
     exact[i["family"] + 1] = exact.get(i["family"] + 1, 0.0) + v
+    if t > 0:
+        exact[shell_label[i["family"]]] = exact.get(shell_label[i["family"]], 0.0) + shell
 exact[0] = L ** 3 - sum(exact.values())
 for label, v in exact.items():
     got = vol[phase == label].sum()

@@ -13,8 +13,9 @@
 #    agrees with rvegen's FFT solver (laminate voxels, 32^3: 0.2 % from 64^3) within 2 %, with
 #    spheres and transversely isotropic rods, each in its own orientation;
 #  - the scene's "mesh_tet" sizes reach the mesher (a coarser chord error, fewer elements);
-#  - ellipsoids cut by the cell's faces pass the same checks;
-#  - inclusions the mesher cannot take are refused.
+#  - coated spheres and rods (their shells) and ellipsoids, cut by the cell's faces, pass the
+#    same checks;
+#  - inclusions the mesher cannot take (wavy fibres) are refused.
 # (The mesh is not the same from run to run: Gmsh's HXT mesher varies, with one thread too.)
 # usage: test_tet_mesh.sh RVEGEN_BINARY WORK_DIR SAMPLES_DIR
 set -u
@@ -95,38 +96,51 @@ assert coarse < 0.7 * fine, (fine, coarse)
 PY
 
 # What the mesher cannot take is refused, naming the family, with nothing written.
-cat >"$WORK/coated.json" <<'JSON'
+cat >"$WORK/wavy.json" <<'JSON'
 {"box":{"size":[0.6,0.6,0.6]},"seed":5,"families":[
- {"name":"coated","shape":"sphere","radius":0.08,"volume_fraction":0.1,"coating":{"thickness":0.01}}],
+ {"name":"wavy","shape":"cylinder","radius":0.03,"aspect_ratio":4,"count":3,
+  "waviness":{"amplitude":0.01,"wavelength":0.12}}],
  "outputs":["inclusions","mesh_tet"]}
 JSON
-expect_rc 2 "$RVEGEN" generate "$WORK/coated.json" -o "$WORK/c" -q
-grep -q 'family "coated"' "$WORK/last.err" || fail "the refused family is not named: $(cat "$WORK/last.err")"
-[ -e "$WORK/c" ] && fail "a refused mesh left a directory"
+expect_rc 2 "$RVEGEN" generate "$WORK/wavy.json" -o "$WORK/w" -q
+grep -q 'family "wavy"' "$WORK/last.err" || fail "the refused family is not named: $(cat "$WORK/last.err")"
+[ -e "$WORK/w" ] && fail "a refused mesh left a directory"
 
-# Ellipsoids (spline surfaces in OpenCASCADE), some cut by the cell's faces: the same checks.
-cat >"$WORK/ellipsoids.json" <<'JSON'
+# Coated spheres and rods (their interphase shells, offsets of the cores) and ellipsoids (spline
+# surfaces in OpenCASCADE), some cut by the cell's faces: the same checks.
+cat >"$WORK/mixed.json" <<'JSON'
 {"box":{"size":[0.6,0.6,0.6]},"seed":1,"min_gap":0.01,"families":[
- {"name":"grains","shape":"ellipsoid","semi_axes":[0.1,0.07,0.05],"count":3,
+ {"name":"beads","shape":"sphere","radius":0.08,"count":3,"coating":{"thickness":0.01}},
+ {"name":"rods","shape":"cylinder","radius":0.03,"aspect_ratio":3,"count":2,
+  "coating":{"thickness":0.008},"orientation":{"law":"isotropic"}},
+ {"name":"grains","shape":"ellipsoid","semi_axes":[0.1,0.07,0.05],"count":2,
   "orientation":{"law":"isotropic"}}],
  "outputs":["inclusions","mesh_tet"]}
 JSON
-expect_rc 0 "$RVEGEN" generate "$WORK/ellipsoids.json" -o "$WORK/e" -q
-$py "$(dirname "$0")/check_tet_mesh.py" "$WORK/e" || fail "tetrahedral mesh of ellipsoids"
-$py - "$WORK/e" <<'PY' || fail "few ellipsoids cross the cell's faces: the test lost its point"
+expect_rc 0 "$RVEGEN" generate "$WORK/mixed.json" -o "$WORK/m" -q
+$py "$(dirname "$0")/check_tet_mesh.py" "$WORK/m" || fail "tetrahedral mesh of coated inclusions and ellipsoids"
+$py - "$WORK/m" <<'PY' || fail "few inclusions cross the cell's faces: the test lost its point"
 import json, sys
 import numpy as np
 d = sys.argv[1]
 incs = json.load(open(d + "/inclusions.json"))
 o = np.asarray(json.load(open(d + "/report.json"))["mesh_tet"]["cell_origin"])
 L = incs["box"]["size"][0]
-cut = 0
+cut = {}
 for i in incs["inclusions"]:
-    A = np.asarray(i["rotation"]) * np.asarray(i["semi_axes"])[None, :]
-    ext = np.linalg.norm(A, axis=1)
+    t = i.get("modifiers", {}).get("coating", 0.0)
+    if i["shape"] == "ellipsoid":
+        ext = np.linalg.norm(np.asarray(i["rotation"]) * np.asarray(i["semi_axes"])[None, :], axis=1)
+    elif i["shape"] == "sphere":
+        ext = np.full(3, i["radius"])
+    else:
+        h = np.abs(np.asarray(i["half_axis"]))
+        ext = h + i["radius"] * np.sqrt(np.maximum(0, 1 - (h / np.linalg.norm(h)) ** 2))
     c = np.asarray(i["center"]) - o
-    cut += int(np.sum(np.floor((c - ext) / L) != np.floor((c + ext) / L)))
-print("%d cuts of %d ellipsoids by the cell's faces" % (cut, len(incs["inclusions"])))
-assert cut >= 3, cut
+    n = int(np.sum(np.floor((c - ext - t) / L) != np.floor((c + ext + t) / L)))
+    key = i["shape"] + (" coated" if t > 0 else "")
+    cut[key] = cut.get(key, 0) + n
+print("cuts by the cell's faces:", cut)
+assert cut.get("ellipsoid", 0) >= 1 and cut.get("sphere coated", 0) + cut.get("cylinder coated", 0) >= 2, cut
 PY
 finish "tetrahedral mesh tests"

@@ -43,13 +43,31 @@ struct Image {
   Vec3 shift;
 };
 
+// Per family, the label of its interphase shells (phase_table's numbering; -1 for none).
+std::vector<int32_t> interphase_labels(const InclusionSet& set) {
+  std::vector<int32_t> out(set.family_names.size() + 1, -1);
+  for (const Phase& p : phase_table(set)) {
+    if (p.kind != PhaseKind::kInterphase) continue;
+    if (p.family >= static_cast<int>(out.size())) out.resize(p.family + 1, -1);
+    out[p.family] = p.label;
+  }
+  return out;
+}
+
+// An inclusion's bounding box, its interphase shell included.
+void outer_aabb(const Inclusion& inc, Vec3* lo, Vec3* hi) {
+  inc.shape.aabb(lo, hi);
+  *lo -= Vec3::Constant(inc.mod.coating);
+  *hi += Vec3::Constant(inc.mod.coating);
+}
+
 // The images of the set's inclusions whose box, grown by `margin`, meets the box.
 std::vector<Image> images_near(const InclusionSet& set, double margin) {
   const Vec3 o = set.box.origin, len = set.box.size;
   std::vector<Image> out;
   for (size_t m = 0; m < set.inclusions.size(); ++m) {
     Vec3 lo, hi;
-    set.inclusions[m].shape.aabb(&lo, &hi);
+    outer_aabb(set.inclusions[m], &lo, &hi);
     for (int ox = -1; ox <= 1; ++ox) {
       for (int oy = -1; oy <= 1; ++oy) {
         for (int oz = -1; oz <= 1; ++oz) {
@@ -66,16 +84,25 @@ std::vector<Image> images_near(const InclusionSet& set, double margin) {
   return out;
 }
 
+// How fast elements grow away from a surface (size per distance). Before, the chord bound held
+// at full strength out to the largest size and then jumped; grown by 0.2 instead, the test
+// scene took 0.22 M elements instead of 0.54 M, its least dihedral angle rose from 8.5 to 12
+// degrees, and CalculiX's conductivity on it moved from 0.2 % to 0.55 % above the FFT's at 32^3
+// (0.5: 0.12 M, 1.5 %). A mixed scene (coated beads and rods, ellipsoids) fell under 5 degrees
+// in 3 runs of 9 without it, in none of 5 with it.
+constexpr double kGrowth = 0.2;
+
 // The element size wanted at a point: the gap between the two nearest surfaces (two
 // inclusions, or an inclusion and a box face it does not cross) over gap_elements, the chord
-// bound near a surface, between min_size and max_size. A cell list of the images.
+// bound at the nearest surface grown by kGrowth with the distance, between min_size and
+// max_size. A cell list of the images.
 class SizeField {
  public:
   SizeField(const InclusionSet& set, const TetMeshOptions& opt, double max_size, double min_size)
       : set_(set), opt_(opt), max_(max_size), min_(min_size) {
     for (const Inclusion& inc : set.inclusions) {
       query_.emplace_back(inc);
-      reach_.push_back(inc.shape.bounding_radius());
+      reach_.push_back(inc.shape.bounding_radius() + inc.mod.coating);
     }
     images_ = images_near(set, max_);
     const double side = set.box.size.minCoeff();
@@ -87,7 +114,7 @@ class SizeField {
     for (size_t id = 0; id < images_.size(); ++id) {
       Vec3& lo = lo_[id];
       Vec3& hi = hi_[id];
-      set.inclusions[images_[id].inc].shape.aabb(&lo, &hi);
+      outer_aabb(set.inclusions[images_[id].inc], &lo, &hi);
       lo += images_[id].shift;
       hi += images_[id].shift;
       int c0[3], c1[3];
@@ -120,14 +147,22 @@ class SizeField {
       // the exact distance (a root search for ellipsoids) is skipped.
       const Shape& s = set_.inclusions[im.inc].shape;
       if ((x - s.center).norm() - reach_[im.inc] >= std::min(d1 + d2, cap)) continue;
-      const double d = std::abs(query_[im.inc].core_distance(x));
-      if (d < d1) {
-        d2 = d1;
-        d1 = d;
-        rho1 = least_curvature_radius(s, x);
-      } else if (d < d2) {
-        d2 = d;
-      }
+      // The core's surface and, for a coated inclusion, its shell's (the offset by the coating
+      // thickness t: the shell gets gap_elements across it).
+      const double dc = query_[im.inc].core_distance(x), t = set_.inclusions[im.inc].mod.coating;
+      const double rho = least_curvature_radius(s, x);
+      auto take = [&](double d, double r) {
+        if (d < d1) {
+          d2 = d1;
+          d1 = d;
+          rho1 = r;
+        } else if (d < d2) {
+          d2 = d;
+        }
+      };
+      take(std::abs(dc), rho);
+      if (t > 0.0) take(std::abs(dc - t), rho + t);
+      const double d = t > 0.0 ? std::abs(dc - t) : std::abs(dc);  // the outer surface
       // A thin layer of matrix between this image and a box face it does not cross.
       const Vec3 &lo = lo_[id], &hi = hi_[id];
       for (int a = 0; a < 3; ++a) {
@@ -142,7 +177,8 @@ class SizeField {
       }
     }
     double h = std::min(d1 + d2, gap_face) / opt_.gap_elements;
-    if (d1 < max_) h = std::min(h, rho1 * std::sqrt(8.0 * opt_.chord_error));
+    // The chord bound at the nearest surface, growing by kGrowth with the distance from it.
+    h = std::min(h, rho1 * std::sqrt(8.0 * opt_.chord_error) + kGrowth * d1);
     return std::clamp(h, min_, max_);
   }
 
@@ -236,9 +272,11 @@ double frame_score(const Shape& s, const Seam& seam, const Box& box) {
   return score;
 }
 
-// The OCC solid of a shape, built in the frame that keeps its seam and poles off the faces of
-// `box` it crosses; its tag.
-int add_solid(const Shape& s, const Box& box) {
+// The OCC solid of a shape grown by `offset` (every point within it of the shape: an
+// interphase shell's outer surface; spheres and cylinders), built in the frame that keeps its
+// seam and poles off the faces of `box` it crosses (the shape's own, whatever the offset); its
+// tag.
+int add_solid(const Shape& s, const Box& box, double offset = 0.0) {
   int best = 0;
   double best_score = frame_score(s, seam_of(s, frame(s, 0)), box);
   for (int k = 1; k < kFrames && best_score < 1e300; ++k) {
@@ -261,12 +299,34 @@ int add_solid(const Shape& s, const Box& box) {
   };
   switch (s.kind) {
     case ShapeKind::Sphere:
-      return turn(gmsh::model::occ::addSphere(0, 0, 0, s.radius), P);
+      return turn(gmsh::model::occ::addSphere(0, 0, 0, s.radius + offset), P);
     case ShapeKind::Cylinder: {
       // Built along +z with its seam at +x, then turned so that z is the axis and x the seam's
       // side (P's columns).
-      const double h = s.half_axis.norm();
-      return turn(gmsh::model::occ::addCylinder(0, 0, -h, 0, 0, 2.0 * h, s.radius), P);
+      const double h = s.half_axis.norm(), r = s.radius;
+      if (offset <= 0.0) return turn(gmsh::model::occ::addCylinder(0, 0, -h, 0, 0, 2.0 * h, r), P);
+      // Grown: its profile in the half plane x >= 0 of y = 0 (end disks of radius r moved out
+      // by the offset t, the mantle at r + t, quarter circles of radius t about the rims),
+      // turned about z: its seam at +x too.
+      const double t = offset;
+      namespace occ = gmsh::model::occ;
+      const int a0 = occ::addPoint(0, 0, -h - t), a1 = occ::addPoint(r, 0, -h - t),
+                rim0 = occ::addPoint(r, 0, -h), a2 = occ::addPoint(r + t, 0, -h),
+                a3 = occ::addPoint(r + t, 0, h), rim1 = occ::addPoint(r, 0, h),
+                a4 = occ::addPoint(r, 0, h + t), a5 = occ::addPoint(0, 0, h + t);
+      const int loop = occ::addCurveLoop({occ::addLine(a0, a1), occ::addCircleArc(a1, rim0, a2),
+                                          occ::addLine(a2, a3), occ::addCircleArc(a3, rim1, a4),
+                                          occ::addLine(a4, a5), occ::addLine(a5, a0)});
+      const int profile = occ::addPlaneSurface({loop});
+      gmsh::vectorpair out;
+      occ::revolve({{2, profile}}, 0, 0, 0, 0, 0, 1, 2.0 * M_PI, out);
+      int solid = -1;
+      for (const auto& dt : out) {
+        if (dt.first == 3) solid = dt.second;
+      }
+      occ::remove({{2, profile}}, true);
+      occ::remove({{0, rim0}, {0, rim1}});
+      return turn(solid, P);
     }
     case ShapeKind::Ellipsoid: {
       // A unit sphere mapped by x -> c + R diag(semi-axes) P x (a spline surface in
@@ -397,11 +457,16 @@ void check_tet_meshable(const InclusionSet& set) {
     const std::string name = inc.family < static_cast<int>(set.family_names.size())
                                  ? set.family_names[inc.family]
                                  : "family " + std::to_string(inc.family);
-    if (inc.mod.any()) {
+    const Modifiers& m = inc.mod;
+    if (m.curved() || m.deformed() || m.debonded()) {
       throw InputError(
-          "outputs: mesh_tet meshes plain spheres, cylinders and ellipsoids; family \"" + name +
-          "\" has coated, wavy, bent, deformed or debonded inclusions (use "
-          "mesh_voxel for them)");
+          "outputs: mesh_tet meshes spheres, cylinders and ellipsoids, coated or not; family \"" +
+          name + "\" has wavy, bent, deformed or debonded inclusions (use mesh_voxel for them)");
+    }
+    if (m.coated() && inc.shape.kind == ShapeKind::Ellipsoid) {
+      throw InputError("outputs: mesh_tet meshes coated spheres and cylinders; family \"" + name +
+                       "\" has coated ellipsoids, whose shells (offsets of an ellipsoid) it cannot "
+                       "build (use mesh_voxel for them)");
     }
   }
 }
@@ -463,36 +528,51 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
     for (const Image& im : images) shifts_of[im.inc].push_back(im.shift);
     gmsh::vectorpair tools;
     std::vector<int> tool_inc;
+    std::vector<int32_t> tool_label;  // the phase of each piece
+    const std::vector<int32_t> shell_label = interphase_labels(set);
     for (const auto& [inc, shifts] : shifts_of) {
-      const int solid = add_solid(set.inclusions[inc].shape, box);
-      if (shifts.size() == 1 && shifts.front().isZero()) {
-        Vec3 lo, hi;
-        set.inclusions[inc].shape.aabb(&lo, &hi);
-        if ((lo - o).minCoeff() > 0.0 && (o + len - hi).minCoeff() > 0.0) {
-          tools.push_back({3, solid});
-          tool_inc.push_back(inc);
-          continue;
+      const Inclusion& in = set.inclusions[inc];
+      const int32_t core_phase = core_label(in.family);
+      const int core = add_solid(in.shape, box);
+      Vec3 lo, hi;
+      outer_aabb(in, &lo, &hi);
+      const bool inside = shifts.size() == 1 && shifts.front().isZero() &&
+                          (lo - o).minCoeff() > 0.0 && (o + len - hi).minCoeff() > 0.0;
+      if (inside && !in.mod.coated()) {
+        tools.push_back({3, core});
+        tool_inc.push_back(inc);
+        tool_label.push_back(core_phase);
+        continue;
+      }
+      // The core and its shell's outer surface, cut together by the cells (none when inside).
+      gmsh::vectorpair objects = {{3, core}}, cells, out;
+      if (in.mod.coated()) objects.push_back({3, add_solid(in.shape, box, in.mod.coating)});
+      const std::vector<Vec3> moves = inside ? std::vector<Vec3>{Vec3::Zero()} : shifts;
+      if (!inside) {
+        for (const Vec3& t : shifts) {
+          const Vec3 c = o - t;
+          cells.push_back({3, gmsh::model::occ::addBox(c[0], c[1], c[2], len[0], len[1], len[2])});
         }
       }
-      gmsh::vectorpair cells, out;
-      for (const Vec3& t : shifts) {
-        const Vec3 c = o - t;
-        cells.push_back({3, gmsh::model::occ::addBox(c[0], c[1], c[2], len[0], len[1], len[2])});
-      }
       std::vector<gmsh::vectorpair> map;
-      gmsh::model::occ::fragment({{3, solid}}, cells, out, map);
-      std::set<int> of_solid;
-      if (!map.empty()) {
-        for (const auto& dt : map[0]) of_solid.insert(dt.second);
+      gmsh::model::occ::fragment(objects, cells, out, map);
+      std::set<int> of_core, of_outer;
+      for (size_t k = 0; k < objects.size() && k < map.size(); ++k) {
+        for (const auto& dt : map[k]) (k == 0 ? of_core : of_outer).insert(dt.second);
       }
-      for (size_t k = 0; k < shifts.size() && k + 1 < map.size(); ++k) {
-        for (const auto& dt : map[k + 1]) {
-          if (!of_solid.count(dt.second)) continue;
+      for (size_t k = 0; k < moves.size(); ++k) {
+        // Inside the box: every piece; otherwise cell k's.
+        if (!inside && objects.size() + k >= map.size()) break;
+        const gmsh::vectorpair& in_cell = inside ? out : map[objects.size() + k];
+        for (const auto& dt : in_cell) {
+          const bool core_piece = of_core.count(dt.second) > 0;
+          if (!core_piece && !of_outer.count(dt.second)) continue;
           gmsh::vectorpair copy;
           gmsh::model::occ::copy({dt}, copy);
-          gmsh::model::occ::translate(copy, shifts[k][0], shifts[k][1], shifts[k][2]);
+          gmsh::model::occ::translate(copy, moves[k][0], moves[k][1], moves[k][2]);
           tools.push_back(copy.front());
           tool_inc.push_back(inc);
+          tool_label.push_back(core_piece ? core_phase : shell_label[in.family]);
         }
       }
       gmsh::model::occ::remove(out, true);
@@ -504,10 +584,13 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
     std::vector<gmsh::vectorpair> pieces;
     gmsh::model::occ::fragment({{3, box_tag}}, tools, out, pieces);
     gmsh::model::occ::synchronize();
-    // Which inclusion each volume belongs to (the pieces of tool k).
-    std::map<int, int> owner;
+    // Which inclusion and phase each volume belongs to (the pieces of tool k; where shells
+    // that may touch overlap, the first).
+    std::map<int, std::pair<int, int32_t>> owner;
     for (size_t k = 0; k < tools.size() && k + 1 < pieces.size(); ++k) {
-      for (const auto& dt : pieces[k + 1]) owner[dt.second] = tool_inc[k];
+      for (const auto& dt : pieces[k + 1]) {
+        owner.emplace(dt.second, std::make_pair(tool_inc[k], tool_label[k]));
+      }
     }
     // The pieces of the box (the fragment's map of its first solid) are the matrix and the
     // inclusions' pieces; anything else (none is expected) lies outside.
@@ -653,8 +736,8 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
     gmsh::model::getEntities(volumes, 3);
     for (const auto& v : volumes) {
       const auto it = owner.find(v.second);
-      const int inc = it == owner.end() ? -1 : it->second;
-      const int32_t label = inc < 0 ? 0 : core_label(set.inclusions[inc].family);
+      const int inc = it == owner.end() ? -1 : it->second.first;
+      const int32_t label = inc < 0 ? 0 : it->second.second;
       const int32_t id = inc < 0 ? -1 : set.inclusions[inc].id;
       std::vector<int> types;
       std::vector<std::vector<std::size_t>> etags, enodes;
@@ -769,11 +852,16 @@ Extremes extremes(const InclusionSet& set, int a, bool disks = true) {
   };
   for (const Inclusion& inc : set.inclusions) {
     const Shape& s = inc.shape;
+    const double t = inc.mod.coating;  // a shell's outer surface: the core's extremes moved out
     if (s.kind != ShapeKind::Cylinder) {
       Vec3 lo, hi;
       s.aabb(&lo, &hi);
       add(lo[a], 0.0, s.min_size());
       add(hi[a], 0.0, s.min_size());
+      if (t > 0.0) {
+        add(lo[a] - t, 0.0, s.min_size() + t);
+        add(hi[a] + t, 0.0, s.min_size() + t);
+      }
       continue;
     }
     const Vec3 u = s.half_axis.normalized();
@@ -782,6 +870,10 @@ Extremes extremes(const InclusionSet& set, int a, bool disks = true) {
       add(end - half, 0.0, s.radius);
       add(end + half, 0.0, s.radius);
       if (disks && std::abs(u[a]) >= std::cos(kSteepDisk)) add(end, half, s.radius);
+      if (t > 0.0) {
+        add(end - half - t, 0.0, s.radius + t);
+        add(end + half + t, 0.0, s.radius + t);
+      }
     }
   }
   return e;
@@ -901,14 +993,25 @@ double edge_clearance(const InclusionSet& set, const Vec3& origin) {
   double least = 1e300;
   for (const Inclusion& inc : set.inclusions) {
     const Shape& s = inc.shape;
+    const double t = inc.mod.coating;
     Vec3 lo, hi;
-    s.aabb(&lo, &hi);
+    outer_aabb(inc, &lo, &hi);
+    // A shell's outer surface, as a shape: the sphere grown by t; for a cylinder, the one of
+    // radius r + t and half length l + t that holds it (its rims are rounded).
+    Shape grown = s;
+    if (t > 0.0) {
+      grown.radius += t;
+      if (s.kind == ShapeKind::Cylinder) grown.half_axis *= 1.0 + t / s.half_axis.norm();
+    }
     std::vector<double> at[3];
     for (int a = 0; a < 3; ++a) at[a] = positions(origin[a], len[a], lo[a], hi[a]);
     for (int c = 0; c < 3; ++c) {
       const int a = (c + 1) % 3, b = (c + 2) % 3;
       for (const double fa : at[a]) {
-        for (const double fb : at[b]) least = std::min(least, line_clearance(s, a, b, c, fa, fb));
+        for (const double fb : at[b]) {
+          least = std::min(least, line_clearance(s, a, b, c, fa, fb));
+          if (t > 0.0) least = std::min(least, line_clearance(grown, a, b, c, fa, fb));
+        }
       }
     }
     if (at[0].empty() || at[1].empty() || at[2].empty()) continue;
@@ -917,7 +1020,9 @@ double edge_clearance(const InclusionSet& set, const Vec3& origin) {
     for (const double x : at[0]) {
       for (const double y : at[1]) {
         for (const double z : at[2]) {
-          least = std::min(least, std::abs(query.core_distance(Vec3(x, y, z))) / unit);
+          const double d = query.core_distance(Vec3(x, y, z));
+          least = std::min(least, std::abs(d) / unit);
+          if (t > 0.0) least = std::min(least, std::abs(d - t) / (unit + t));
         }
       }
     }

@@ -22,7 +22,7 @@ constexpr double kBytesPerGlyphPoint = 600.0;  // arrays and file, periodic imag
 // the size from the chord error (fitted: 23-34 for spheres in a box of 0.6 at 0.15-0.45, 47
 // for the analyst's sample, 52 for 40 fibres of L/D 10 at 0.25; the larger is taken), and the
 // peak bytes per element of the whole command (2.2 GB for 10.9 M elements).
-constexpr double kTetsPerArea = 52.0;
+constexpr double kTetsPerArea = 24.0;
 // Ellipsoids' spline surfaces get more elements than the curvature asks for (1.5 on three
 // ellipsoids of 0.1 x 0.07 x 0.05 in a box of 0.6).
 constexpr double kEllipsoidExtra = 1.5;
@@ -60,29 +60,6 @@ double triangles(const Family& f, double box_min) {
 }
 constexpr double kBaseBytes = 64.0 * 1024 * 1024;  // program, libraries, small buffers
 
-// Surface area of a family's mean-size inclusion (an estimate for the narrow band).
-double mean_area(const Family& f) {
-  switch (f.shape) {
-    case ShapeKind::Sphere: {
-      const double r = f.radius.mean();
-      return 4.0 * M_PI * r * r;
-    }
-    case ShapeKind::Cylinder: {
-      const double r = f.radius.mean(), l = r * f.aspect_ratio.mean();
-      return 2.0 * M_PI * r * r + 4.0 * M_PI * r * l;
-    }
-    case ShapeKind::Ellipsoid: {
-      // Knud Thomsen's approximation.
-      const double a = f.semi_axes[0].mean(), b = f.semi_axes[1].mean(), c = f.semi_axes[2].mean(),
-                   p = 1.6075;
-      return 4.0 * M_PI *
-             std::pow((std::pow(a * b, p) + std::pow(a * c, p) + std::pow(b * c, p)) / 3.0,
-                      1.0 / p);
-    }
-  }
-  return 0.0;
-}
-
 // A shape of the family's mean sizes (centred at the origin, along z).
 Shape mean_shape(const Family& f) {
   switch (f.shape) {
@@ -100,6 +77,30 @@ Shape mean_shape(const Family& f) {
   return Shape{};
 }
 
+// A shape's surface area (Knud Thomsen's approximation for ellipsoids).
+double surface_area(const Shape& s) {
+  switch (s.kind) {
+    case ShapeKind::Sphere:
+      return 4.0 * M_PI * s.radius * s.radius;
+    case ShapeKind::Cylinder: {
+      const double r = s.radius, l = s.half_axis.norm();
+      return 2.0 * M_PI * r * r + 4.0 * M_PI * r * l;
+    }
+    case ShapeKind::Ellipsoid: {
+      const double a = s.semi_axes[0], b = s.semi_axes[1], c = s.semi_axes[2], p = 1.6075;
+      return 4.0 * M_PI *
+             std::pow((std::pow(a * b, p) + std::pow(a * c, p) + std::pow(b * c, p)) / 3.0,
+                      1.0 / p);
+    }
+  }
+  return 0.0;
+}
+
+// Surface area of a family's mean-size inclusion (an estimate for the narrow band).
+double mean_area(const Family& f) {
+  return surface_area(mean_shape(f));
+}
+
 // The matrix away from the inclusions, at the largest size (six elements a cube).
 double tet_elements_away(const Box& box, double largest) {
   return 6.0 * box.volume() / (largest * largest * largest);
@@ -107,18 +108,17 @@ double tet_elements_away(const Box& box, double largest) {
 
 }  // namespace
 
-double tet_elements_near(const Shape& s, double chord_error, double largest) {
+namespace {
+
+double surface_elements(const Shape& s, double chord_error, double largest) {
   auto size2 = [&](double rho) {
     const double h = std::min(rho * std::sqrt(8.0 * chord_error), largest);
     return h * h;
   };
   switch (s.kind) {
     case ShapeKind::Sphere:
-      return kTetsPerArea * 4.0 * M_PI * s.radius * s.radius / size2(s.radius);
-    case ShapeKind::Cylinder: {
-      const double r = s.radius, l = s.half_axis.norm();
-      return kTetsPerArea * (2.0 * M_PI * r * r + 4.0 * M_PI * r * l) / size2(r);
-    }
+    case ShapeKind::Cylinder:
+      return kTetsPerArea * surface_area(s) / size2(s.radius);
     case ShapeKind::Ellipsoid:
       break;
   }
@@ -141,11 +141,23 @@ double tet_elements_near(const Shape& s, double chord_error, double largest) {
   return kTetsPerArea * kEllipsoidExtra * sum;
 }
 
+}  // namespace
+
+double tet_elements_near(const Shape& s, double coating, const TetMeshSpec& t, double largest) {
+  double n = surface_elements(s, t.chord_error, largest);
+  if (coating > 0.0) {
+    // The shell: gap_elements across its thickness (six elements a cube), over the core's area.
+    const double h = coating / t.gap_elements;
+    n += 6.0 * surface_area(s) * coating / (h * h * h);
+  }
+  return n;
+}
+
 double tet_mesh_bytes(const InclusionSet& set, const TetMeshSpec& t) {
   const double largest = t.max_size > 0.0 ? t.max_size : set.box.size.minCoeff() / 10.0;
   double n = tet_elements_away(set.box, largest);
   for (const Inclusion& inc : set.inclusions) {
-    n += tet_elements_near(inc.shape, t.chord_error, largest);
+    n += tet_elements_near(inc.shape, inc.mod.coating, t, largest);
   }
   return n * kBytesPerTet;
 }
@@ -189,7 +201,7 @@ ResourceEstimate estimate_resources(const Scene& scene) {
     if (scene.outputs.mesh_tet) {
       const TetMeshSpec& t = scene.tet_mesh;
       const double largest = t.max_size > 0.0 ? t.max_size : scene.box.size.minCoeff() / 10.0;
-      e.tetrahedra += n * tet_elements_near(mean_shape(f), t.chord_error, largest);
+      e.tetrahedra += n * tet_elements_near(mean_shape(f), m.coating, t, largest);
     }
   }
   if (scene.outputs.mesh_tet) {

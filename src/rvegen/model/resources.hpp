@@ -30,9 +30,10 @@ struct ResourceEstimate {
 /// 400^3 image the estimate was within -7 % to +25 % of the measured peak of the whole run.
 ResourceEstimate estimate_resources(const Scene& scene);
 
-/// Elements of a tetrahedral mesh near one inclusion's surface: the element size there is the
-/// chord bound on the least radius of curvature, rho sqrt(8 chord_error), at most `largest`.
-double tet_elements_near(const Shape& s, double chord_error, double largest);
+/// Elements of a tetrahedral mesh near one inclusion's surface (the element size there is the
+/// chord bound on the least radius of curvature, rho sqrt(8 chord_error), at most `largest`, and
+/// grows away from it) and, when coated, in its shell (gap_elements across the coating).
+double tet_elements_near(const Shape& s, double coating, const TetMeshSpec& t, double largest);
 
 /// Peak bytes of meshing an inclusion set with these sizes (the inclusions as they are).
 double tet_mesh_bytes(const InclusionSet& set, const TetMeshSpec& t);

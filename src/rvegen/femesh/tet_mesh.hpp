@@ -2,15 +2,17 @@
 // its HXT volume mesher): each inclusion is cut by the box faces, its pieces are brought into the
 // box by their periodic shifts and fragmented against it, so every interface and every box face
 // is a surface of the mesh, and a cut face lies on opposite box faces as one face and its exact
-// translate; the faces at the upper
-// end of each axis are meshed as translated copies of those at the lower end (Gmsh's periodic
-// surfaces), so opposite faces carry identical triangulations. The element size follows the
-// local gap between surfaces (two inclusions, or an inclusion and a box face it does not cross)
-// and the curvature of the inclusions (a bound on the chord error), between a least and a
-// largest size.
+// translate; the faces at the upper end of each axis are meshed as translated copies of those at
+// the lower end (Gmsh's periodic surfaces), so opposite faces carry identical triangulations.
+// The cell may be the box moved along its axes, off inclusions its faces, edges or corners would
+// graze (cell_origin). The element size follows the local gap between surfaces (two inclusions,
+// an inclusion and a box face it does not cross, a shell's two surfaces) and the curvature of
+// the inclusions (a bound on the chord error, grown away from the surface), between a least and
+// a largest size.
 //
-// Spheres, cylinders (flat ends) and ellipsoids without modifiers. Coated, wavy, bent, deformed
-// and debonded inclusions are refused (InputError), and so are closed boxes.
+// Spheres, cylinders (flat ends) and ellipsoids; coated spheres and cylinders with their
+// interphase shells (the exact offsets of the cores). Coated ellipsoids, wavy, bent, deformed and
+// debonded inclusions are refused (InputError), and so are closed boxes.
 #pragma once
 
 #include <array>

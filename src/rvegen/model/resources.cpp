@@ -19,10 +19,13 @@ constexpr double kBytesPerTriangle = 300.0;    // mesh, .vtp text and arrays
 constexpr double kBytesPerBandVoxel = 40.0;    // values, OpenVDB leaves, the build's buffers
 constexpr double kBytesPerGlyphPoint = 600.0;  // arrays and file, periodic images (x 1.3)
 // The tetrahedral mesh: elements per (surface area / element size^2) of the inclusions, with
-// the size from the chord error (fitted: 23-34 for spheres in a box of 0.6 at 0.15-0.45, 47
-// for the analyst's sample, 52 for 40 fibres of L/D 10 at 0.25; the larger is taken), and the
-// peak bytes per element of the whole command (2.2 GB for 10.9 M elements).
+// the size from the chord error, grown by 0.2 away from the surface (fitted: 0.22 M elements
+// for the analyst's sample, 24 per unit, against 0.28 M estimated), the peak bytes per element
+// of the whole command (2.2 GB for 10.9 M elements), and per inclusion OpenCASCADE's solids and
+// their fragments (the default scene at chord error 0.03: 5.4 GB for 946 inclusions and 6.7 M
+// elements, 4 MB an inclusion beyond the elements).
 constexpr double kTetsPerArea = 24.0;
+constexpr double kBytesPerMeshedInclusion = 4.0e6;
 // Ellipsoids' spline surfaces get more elements than the curvature asks for (1.5 on three
 // ellipsoids of 0.1 x 0.07 x 0.05 in a box of 0.6).
 constexpr double kEllipsoidExtra = 1.5;
@@ -159,7 +162,7 @@ double tet_mesh_bytes(const InclusionSet& set, const TetMeshSpec& t) {
   for (const Inclusion& inc : set.inclusions) {
     n += tet_elements_near(inc.shape, inc.mod.coating, t, largest);
   }
-  return n * kBytesPerTet;
+  return n * kBytesPerTet + set.inclusions.size() * kBytesPerMeshedInclusion;
 }
 
 double ResourceEstimate::total_bytes() const {
@@ -209,7 +212,7 @@ ResourceEstimate estimate_resources(const Scene& scene) {
     const TetMeshSpec& t = scene.tet_mesh;
     const double largest = t.max_size > 0.0 ? t.max_size : scene.box.size.minCoeff() / 10.0;
     e.tetrahedra += tet_elements_away(scene.box, largest);
-    e.tet_mesh_bytes = e.tetrahedra * kBytesPerTet;
+    e.tet_mesh_bytes = e.tetrahedra * kBytesPerTet + e.inclusions * kBytesPerMeshedInclusion;
   }
   e.voxels = static_cast<double>(scene.resolution[0]) * scene.resolution[1] * scene.resolution[2];
   e.voxel_bytes = e.voxels * (scene.partial_volume ? 9.0 : 5.0) * 1.1;

@@ -199,17 +199,14 @@ nlohmann::ordered_json tet_mesh_report(const rvegen::InclusionSet& set,
   const rvegen::TetQuality q = rvegen::tet_quality(mesh);
   std::vector<double> exact(mesh.phases.size(), 0.0);
   double cores = 0.0;
-  std::vector<int> shell_of(set.family_names.size() + 1, -1);  // per family, its shells' label
-  for (const rvegen::Phase& p : mesh.phases) {
-    if (p.kind != rvegen::PhaseKind::kInterphase) continue;
-    if (p.family >= static_cast<int>(shell_of.size())) shell_of.resize(p.family + 1, -1);
-    shell_of[p.family] = p.label;
-  }
+  const std::vector<int> shell_of =
+      rvegen::interphase_labels(mesh.phases, static_cast<int>(set.family_names.size()));
   for (const rvegen::Inclusion& inc : set.inclusions) {
     const rvegen::RegionVolumes v = rvegen::region_volumes(inc);
     exact[rvegen::core_label(inc.family)] += v.core;
     cores += v.core;
-    if (v.shell > 0.0 && shell_of[inc.family] >= 0) {
+    if (v.shell > 0.0 && inc.family < static_cast<int>(shell_of.size()) &&
+        shell_of[inc.family] >= 0) {
       exact[shell_of[inc.family]] += v.shell;
       cores += v.shell;
     }

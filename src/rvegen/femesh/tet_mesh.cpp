@@ -43,17 +43,6 @@ struct Image {
   Vec3 shift;
 };
 
-// Per family, the label of its interphase shells (phase_table's numbering; -1 for none).
-std::vector<int32_t> interphase_labels(const InclusionSet& set) {
-  std::vector<int32_t> out(set.family_names.size() + 1, -1);
-  for (const Phase& p : phase_table(set)) {
-    if (p.kind != PhaseKind::kInterphase) continue;
-    if (p.family >= static_cast<int>(out.size())) out.resize(p.family + 1, -1);
-    out[p.family] = p.label;
-  }
-  return out;
-}
-
 // An inclusion's bounding box, its interphase shell included.
 void outer_aabb(const Inclusion& inc, Vec3* lo, Vec3* hi) {
   inc.shape.aabb(lo, hi);
@@ -150,18 +139,17 @@ class SizeField {
       // The core's surface and, for a coated inclusion, its shell's (the offset by the coating
       // thickness t: the shell gets gap_elements across it).
       const double dc = query_[im.inc].core_distance(x), t = set_.inclusions[im.inc].mod.coating;
-      const double rho = least_curvature_radius(s, x);
-      auto take = [&](double d, double r) {
+      auto take = [&](double d, double grown) {
         if (d < d1) {
           d2 = d1;
           d1 = d;
-          rho1 = r;
+          rho1 = least_curvature_radius(s, x) + grown;  // only for the nearest surface
         } else if (d < d2) {
           d2 = d;
         }
       };
-      take(std::abs(dc), rho);
-      if (t > 0.0) take(std::abs(dc - t), rho + t);
+      take(std::abs(dc), 0.0);
+      if (t > 0.0) take(std::abs(dc - t), t);
       const double d = t > 0.0 ? std::abs(dc - t) : std::abs(dc);  // the outer surface
       // A thin layer of matrix between this image and a box face it does not cross.
       const Vec3 &lo = lo_[id], &hi = hi_[id];
@@ -529,7 +517,8 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
     gmsh::vectorpair tools;
     std::vector<int> tool_inc;
     std::vector<int32_t> tool_label;  // the phase of each piece
-    const std::vector<int32_t> shell_label = interphase_labels(set);
+    const std::vector<int> shell_label =
+        interphase_labels(mesh.phases, static_cast<int>(set.family_names.size()));
     for (const auto& [inc, shifts] : shifts_of) {
       const Inclusion& in = set.inclusions[inc];
       const int32_t core_phase = core_label(in.family);
@@ -693,8 +682,8 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
     // (a surface whose periodic copy fails), they would end the process. The log is read after
     // each stage.
     gmsh::option::setNumber("General.AbortOnError", 0);
-    // (Gmsh's logger is not safe from its threads: the last error is compared instead.)
-    // (Gmsh clears the last error when it starts meshing.)
+    // (Gmsh's logger is not safe from its threads, so the last error is compared instead; Gmsh
+    // clears it when it starts meshing.)
     std::string known;
     gmsh::logger::getLastError(known);
     auto logged_error = [&known] {

@@ -45,4 +45,14 @@ std::vector<Phase> phase_table(const InclusionSet& set) {
   return out;
 }
 
+std::vector<int> interphase_labels(const std::vector<Phase>& phases, int families) {
+  std::vector<int> out(static_cast<size_t>(std::max(families, 0)), -1);
+  for (const Phase& p : phases) {
+    if (p.kind != PhaseKind::kInterphase) continue;
+    if (p.family >= static_cast<int>(out.size())) out.resize(p.family + 1, -1);
+    out[p.family] = p.label;
+  }
+  return out;
+}
+
 }  // namespace rvegen

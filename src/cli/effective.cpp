@@ -48,12 +48,14 @@ SolveProgress progress_lines(const ProgressFn& progress) {
 }  // namespace
 
 Json effective_properties(const Scene& scene, const InclusionSet& set, const VoxelImage& image,
-                          const ProgressFn& progress, EffectiveProperties* keep) {
+                          const ProgressFn& progress, EffectiveProperties* keep,
+                          const Communicator& comm) {
   const HomogenizationSpec& h = scene.homogenization;
   EffectiveProperties local;
   EffectiveProperties& e = keep ? *keep : local;
-  e = rvegen::effective_properties(scene, set, image, progress_lines(progress));
+  e = rvegen::effective_properties(scene, set, image, progress_lines(progress), comm);
   Json out;
+  if (ranks_of(comm) > 1) out["ranks"] = ranks_of(comm);
   out["voxel_rule"] = {
       {"rule", e.voxel_rule},
       {"meaning",

@@ -18,8 +18,10 @@ namespace rvegen::cli {
 /// cut by one core surface take the scene's voxel rule. Progress lines go to `progress` (about
 /// once a second).
 /// With scene.homogenization.fields, `fields` receives the local fields (owned by `*keep`).
+/// With `comm`, `image` is this rank's slab (spectral::fft_slab) and every rank calls.
 nlohmann::ordered_json effective_properties(const Scene& scene, const InclusionSet& set,
                                             const VoxelImage& image, const ProgressFn& progress,
-                                            EffectiveProperties* keep = nullptr);
+                                            EffectiveProperties* keep = nullptr,
+                                            const Communicator& comm = {});
 
 }  // namespace rvegen::cli

@@ -6,6 +6,7 @@
 #include <mpi.h>
 
 #include <cstdlib>
+#include <iostream>
 #include <string>
 
 namespace rvegen::cli {
@@ -41,6 +42,15 @@ Ranks::Ranks() {
 
 Ranks::~Ranks() {
   if (mpi_) MPI_Finalize();
+}
+
+std::ostream& say_once(const Ranks& ranks) {
+  static std::ostream nowhere(nullptr);
+  return ranks.root() ? std::cerr : nowhere;
+}
+
+Communicator Ranks::communicator() const {
+  return mpi_ ? Communicator::from_fortran(MPI_Comm_c2f(MPI_COMM_WORLD)) : Communicator();
 }
 
 int Ranks::broadcast(int value) const {

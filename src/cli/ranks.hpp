@@ -3,8 +3,11 @@
 // without a launcher, the command is one process and MPI is never initialised.
 #pragma once
 
+#include <ostream>
 #include <string>
 #include <vector>
+
+#include "rvegen/homogenize/spectral.hpp"
 
 namespace rvegen::cli {
 
@@ -22,6 +25,9 @@ class Ranks {
   /// Processes of this command on this machine (for sharing its cores).
   int local_size() const { return local_size_; }
 
+  /// The ranks' communicator for the core's distributed solvers (unset in one process).
+  Communicator communicator() const;
+
   /// Rank 0's value, on every rank.
   int broadcast(int value) const;
   std::vector<int> broadcast(std::vector<int> values) const;
@@ -34,5 +40,9 @@ class Ranks {
   int local_size_ = 1;
   bool mpi_ = false;
 };
+
+/// Where messages go: standard error on rank 0 (or the only process); nowhere on the other
+/// ranks, which meet the same input and would repeat them.
+std::ostream& say_once(const Ranks& ranks);
 
 }  // namespace rvegen::cli

@@ -61,13 +61,6 @@ const char* kStudyUsage =
     "  cannot be written; 3 when some realization did not reach its target (they are left out\n"
     "  of the statistics, and counted).\n";
 
-// Where messages go: standard error on rank 0 (or the only process); nowhere on the other
-// ranks, which meet the same input and would repeat them.
-std::ostream& say_once(const Ranks& ranks) {
-  static std::ostream nowhere(nullptr);
-  return ranks.root() ? std::cerr : nowhere;
-}
-
 // A realization's seed from the scene's, the size and the realization's number: the same
 // realization always gets the same seed, however many are asked for.
 uint64_t realization_seed(uint64_t seed, double size, int k) {

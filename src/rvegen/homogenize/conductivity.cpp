@@ -22,9 +22,9 @@ using spectral::cplx;
 class GradientProjection {
  public:
   GradientProjection(const std::array<int, 3>& dims, const Vec3& box, GradientScheme scheme,
-                     int threads)
-      : grid_(dims, box, scheme, threads), spectrum_(3) {
-    for (auto& s : spectrum_) s.resize(grid_.frequencies());
+                     int threads, const Communicator& comm)
+      : grid_(dims, box, scheme, threads, comm), spectrum_(3) {
+    for (auto& s : spectrum_) s.resize(grid_.spectrum_size());
   }
   size_t size() const { return grid_.size(); }
   void apply(const double* in, double* out) {
@@ -49,14 +49,13 @@ class GradientProjection {
   std::vector<std::vector<cplx>> spectrum_;
 };
 
-using spectral::dot;
-
 }  // namespace
 
 ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const Vec3& box_size,
                                           const std::vector<double>& conductivity,
                                           const ConductivityOptions& opt) {
-  const size_t n = spectral::checked_voxels(dims, box_size);
+  spectral::checked_voxels(dims, box_size);
+  const size_t n = spectral::slab_voxels(dims, opt.comm);
   if (conductivity.size() != n) {
     throw InputError("homogenization: " + std::to_string(conductivity.size()) +
                      " conductivities for " + std::to_string(n) + " voxels");
@@ -81,12 +80,13 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
                                           const ConductivityMedium& medium,
                                           const ConductivityOptions& opt) {
   const auto t0 = std::chrono::steady_clock::now();
-  const size_t n = spectral::checked_voxels(dims, box_size);
+  const size_t whole = spectral::checked_voxels(dims, box_size),
+               n = spectral::slab_voxels(dims, opt.comm);
   if (medium.index.size() != n) {
     throw InputError("homogenization: a medium of " + std::to_string(medium.index.size()) +
                      " voxels for " + std::to_string(n));
   }
-  // The extreme eigenvalues over the tensors in use (the fixed-point reference).
+  // The extreme eigenvalues over the tensors in use (the fixed-point reference; every rank's).
   double kmin = INFINITY, kmax = 0.0;
   for (const Mat3& t : medium.tensors) {
     if (!t.allFinite()) throw InputError("homogenization: conductivities must be finite");
@@ -100,7 +100,12 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
   for (uint32_t i : medium.index) {
     if (i >= medium.tensors.size()) throw InputError("homogenization: a voxel has no tensor");
   }
-  GradientProjection project(dims, box_size, opt.scheme, opt.threads);
+  if (opt.solver == LinearSolver::kFixedPoint && opt.comm.set) {
+    kmin = -max_over_ranks(-kmin, opt.comm);
+    kmax = max_over_ranks(kmax, opt.comm);
+  }
+  GradientProjection project(dims, box_size, opt.scheme, opt.threads, opt.comm);
+  const spectral::Grid& grid = project.grid();
   ConductivityResult res;
   // x and, for conjugate gradients, the solver's three fields (products computed in place:
   // the projection reads every component before it writes one); the fixed-point scheme's
@@ -130,7 +135,7 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
     times_k(b, &b);
     project.apply(b.data(), b.data());
     for (double& v : b) v = -v;
-    const double bnorm = std::sqrt(dot(b, b));
+    const double bnorm = std::sqrt(grid.dot(b, b));
     auto progress = [&](int it, double rel) {
       return !opt.progress || opt.progress(load, it, rel);
     };
@@ -162,7 +167,7 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
         times_k(e, &tmp);
         project.apply(tmp.data(), r.data());
         out.iterations = it;
-        out.residual = std::sqrt(dot(r, r)) / bnorm;
+        out.residual = std::sqrt(grid.dot(r, r)) / bnorm;
         if (!progress(it, out.residual)) {
           out.stopped = true;
           break;
@@ -181,7 +186,8 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
     for (size_t i = 0; i < n; ++i) x[load * n + i] += 1.0;
     Vec3 sum = Vec3::Zero();
     for (size_t i = 0; i < n; ++i) sum += medium.at(i) * Vec3(x[i], x[n + i], x[2 * n + i]);
-    res.tensor.col(load) = sum / static_cast<double>(n);
+    sum_over_ranks(sum.data(), 3, opt.comm);
+    res.tensor.col(load) = sum / static_cast<double>(whole);
     if (opt.field) opt.field(load, x);
   }
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

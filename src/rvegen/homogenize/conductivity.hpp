@@ -35,11 +35,15 @@ struct ConductivityOptions {
   int max_iterations = 5000;
   /// FFTW threads (0: all cores).
   int threads = 0;
+  /// Ranks that share the grid in z slabs (unset: this process alone); the medium is then this
+  /// rank's slab, spectral::fft_slab(dims, comm), and every rank calls the solver.
+  Communicator comm;
   /// Called after each iteration with the load case (0-2), the iteration and the relative
   /// residual; returning false stops the solve (Cancelled is thrown).
   std::function<bool(int, int, double)> progress;
   /// Called after each load case with the load case and its local gradient field (the unit
-  /// mean gradient plus the fluctuation; 3 blocks of one value per voxel, x fastest).
+  /// mean gradient plus the fluctuation; 3 blocks of one value per voxel, x fastest; this
+  /// rank's slab with comm).
   std::function<void(int, const std::vector<double>&)> field;
 };
 
@@ -55,7 +59,8 @@ struct ConductivityResult {
 
 /// Effective conductivity of the periodic image with `dims` voxels over a box of `box_size`;
 /// `conductivity` holds one non-negative value per voxel, x fastest (dims[0] * dims[1] *
-/// dims[2] values). Throws InputError on a size mismatch or a negative or non-finite value.
+/// dims[2] values, or the slab's with options.comm). Throws InputError on a size mismatch or a
+/// negative or non-finite value.
 ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const Vec3& box_size,
                                           const std::vector<double>& conductivity,
                                           const ConductivityOptions& options = {});

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "rvegen/homogenize/medium.hpp"
+#include "rvegen/model/errors.hpp"
 #include "rvegen/raster/cut_voxels.hpp"
 
 namespace rvegen {
@@ -81,11 +82,13 @@ TensorMedium<D> build_medium(const InclusionSet& set, const VoxelImage& image, c
   return compose_medium<D>(material, rows, composites, rule);
 }
 
-// Shares of each phase label in the image.
-std::vector<double> label_shares(const VoxelImage& image) {
+// Shares of each phase label in the whole image (every rank's slab).
+std::vector<double> label_shares(const VoxelImage& image, const Communicator& comm) {
   std::vector<double> f(image.phases.size(), 0.0);
   for (uint8_t l : image.phase) f[l] += 1.0;
-  for (double& v : f) v /= static_cast<double>(image.phase.size());
+  sum_over_ranks(f.data(), static_cast<int>(f.size()), comm);
+  const double whole = static_cast<double>(image.dims[0]) * image.dims[1] * image.dims[2];
+  for (double& v : f) v /= whole;
   return f;
 }
 
@@ -141,13 +144,21 @@ Bounds scalar_bounds(const std::vector<double>& f, const std::vector<double>& v,
 }  // namespace
 
 EffectiveProperties effective_properties(const Scene& scene, const InclusionSet& set,
-                                         const VoxelImage& image, const SolveProgress& progress) {
+                                         const VoxelImage& image, const SolveProgress& progress,
+                                         const Communicator& comm) {
   const HomogenizationSpec& h = scene.homogenization;
+  const std::array<int, 3> dims = image.dims;
+  const std::array<int, 2> slab = spectral::fft_slab(dims, comm);
+  const std::array<int, 6> want = {0, dims[0], 0, dims[1], slab[0], slab[1]};
+  if (image.extent != want || image.phase.size() != image.count() ||
+      image.inclusion_id.size() != image.count()) {
+    throw InputError("homogenization: the image is not " +
+                     std::string(comm.set ? "this rank's slab" : "whole"));
+  }
   const PhaseProperties props = phase_properties(scene, image);
   EffectiveProperties out;
-  out.phase_shares = label_shares(image);
+  out.phase_shares = label_shares(image, comm);
   const std::vector<double>& f = out.phase_shares;
-  const std::array<int, 3> dims = {image.size(0), image.size(1), image.size(2)};
   out.resolution = dims;
   const Vec3 box = scene.box.size;
   const GradientScheme scheme =
@@ -156,8 +167,10 @@ EffectiveProperties effective_properties(const Scene& scene, const InclusionSet&
   CutVoxels cut;
   if (rule != VoxelRule::kPlain) cut = cut_voxels(set, image);
   out.voxel_rule = h.voxel_rule;
-  out.cut_voxels = cut.voxels.size();
-  out.shared_voxels = cut.shared;
+  double counts[2] = {static_cast<double>(cut.voxels.size()), static_cast<double>(cut.shared)};
+  sum_over_ranks(counts, 2, comm);
+  out.cut_voxels = static_cast<size_t>(counts[0]);
+  out.shared_voxels = static_cast<size_t>(counts[1]);
   auto report = [&](const char* physics, int loads) {
     return [=, &progress](int load, int it, double rel) {
       return !progress || progress(physics, load, loads, it, rel);
@@ -181,6 +194,7 @@ EffectiveProperties effective_properties(const Scene& scene, const InclusionSet&
     opt.tolerance = h.tolerance;
     opt.max_iterations = h.max_iterations;
     opt.progress = report("conductivity", 3);
+    opt.comm = comm;
     if (h.fields) {
       opt.field = [&](int, const std::vector<double>& g) {
         const size_t n = g.size() / 3;
@@ -217,6 +231,7 @@ EffectiveProperties effective_properties(const Scene& scene, const InclusionSet&
     opt.tolerance = h.tolerance;
     opt.max_iterations = h.max_iterations;
     opt.progress = report("elasticity", 6);
+    opt.comm = comm;
     if (h.fields) {
       // Mandel to tensor components: shear ones over sqrt 2.
       opt.field = [&](int, const std::vector<double>& e) {

@@ -48,11 +48,14 @@ struct EffectiveProperties {
 /// cases, the iteration and the relative residual; false stops the solve (Cancelled is thrown).
 using SolveProgress = std::function<bool(const char*, int, int, int, double)>;
 
-/// Solves what scene.homogenization asks for on `image` (the whole image: labels at voxel
-/// centres and inclusion ids) of the inclusions `set`. The scene's materials must have been
-/// validated (validate_homogenization).
+/// Solves what scene.homogenization asks for on `image` (labels at voxel centres and inclusion
+/// ids) of the inclusions `set`. The scene's materials must have been validated
+/// (validate_homogenization). The image is the whole one, or with `comm` this rank's z slab,
+/// spectral::fft_slab(image.dims, comm): every rank calls, the image is never gathered, and
+/// every rank gets the whole image's results (the local fields are of its slab).
 EffectiveProperties effective_properties(const Scene& scene, const InclusionSet& set,
                                          const VoxelImage& image,
-                                         const SolveProgress& progress = nullptr);
+                                         const SolveProgress& progress = nullptr,
+                                         const Communicator& comm = {});
 
 }  // namespace rvegen

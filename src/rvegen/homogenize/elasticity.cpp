@@ -26,9 +26,9 @@ constexpr int kPair[6][2] = {{0, 0}, {1, 1}, {2, 2}, {1, 2}, {0, 2}, {0, 1}};
 class StrainProjection {
  public:
   StrainProjection(const std::array<int, 3>& dims, const Vec3& box, GradientScheme scheme,
-                   int threads)
-      : grid_(dims, box, scheme, threads), spectrum_(6) {
-    for (auto& s : spectrum_) s.resize(grid_.frequencies());
+                   int threads, const Communicator& comm)
+      : grid_(dims, box, scheme, threads, comm), spectrum_(6) {
+    for (auto& s : spectrum_) s.resize(grid_.spectrum_size());
   }
   void apply(const double* in, double* out) {
     const size_t n = grid_.size();
@@ -103,7 +103,8 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
                                      const std::vector<double>& young,
                                      const std::vector<double>& poisson,
                                      const ElasticityOptions& opt) {
-  const size_t n = spectral::checked_voxels(dims, box_size);
+  spectral::checked_voxels(dims, box_size);
+  const size_t n = spectral::slab_voxels(dims, opt.comm);
   if (young.size() != n || poisson.size() != n) {
     throw InputError("homogenization: " + std::to_string(young.size()) + " Young's moduli and " +
                      std::to_string(poisson.size()) + " Poisson's ratios for " + std::to_string(n) +
@@ -131,7 +132,8 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
 ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3& box_size,
                                      const StiffnessMedium& medium, const ElasticityOptions& opt) {
   const auto t0 = std::chrono::steady_clock::now();
-  const size_t n = spectral::checked_voxels(dims, box_size);
+  const size_t whole = spectral::checked_voxels(dims, box_size);
+  const size_t n = spectral::slab_voxels(dims, opt.comm);
   if (medium.index.size() != n) {
     throw InputError("homogenization: a medium of " + std::to_string(medium.index.size()) +
                      " voxels for " + std::to_string(n));
@@ -153,7 +155,7 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
       }
     });
   };
-  StrainProjection project(dims, box_size, opt.scheme, opt.threads);
+  StrainProjection project(dims, box_size, opt.scheme, opt.threads, opt.comm);
   ElasticityResult res;
   // At peak: x and the solver's residual and direction (three 6-component fields), the six
   // spectra and the grid's real field; the right-hand side's stress and its projection are
@@ -193,7 +195,8 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
       for (int c = 0; c < 6; ++c) v[c] = x[c * n + i];
       sum += medium.at(i) * v;
     }
-    res.stiffness.col(load) = sum / static_cast<double>(n);
+    sum_over_ranks(sum.data(), 6, opt.comm);
+    res.stiffness.col(load) = sum / static_cast<double>(whole);
     if (opt.field) opt.field(load, x);
   }
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

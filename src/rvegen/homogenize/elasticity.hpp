@@ -22,6 +22,9 @@ struct ElasticityOptions {
   double tolerance = 1e-8;
   int max_iterations = 5000;
   int threads = 0;  // FFTW threads (0: all cores)
+  /// Ranks that share the grid in z slabs (unset: this process alone); the medium is then this
+  /// rank's slab, spectral::fft_slab(dims, comm), and every rank calls the solver.
+  Communicator comm;
   /// Called after each iteration with the load case (0-5), the iteration and the relative
   /// residual; returning false stops the solve (Cancelled is thrown).
   std::function<bool(int, int, double)> progress;

@@ -1,6 +1,8 @@
 // What the FFT solvers share: the periodic voxel grid in Fourier space (FFTW plans, the
 // gradient multiplier of the chosen discretization) and the conjugate-gradient solver of the
-// Galerkin form (Zeman et al. 2010; Vondrejc, Zeman, Marek 2014).
+// Galerkin form (Zeman et al. 2010; Vondrejc, Zeman, Marek 2014). The grid may be whole in this
+// process or split in z slabs over the ranks of an MPI communicator (FFTW's MPI interface); the
+// solvers are the same code either way, with their sums taken over the ranks.
 #pragma once
 
 #include <array>
@@ -15,56 +17,114 @@ namespace rvegen {
 
 enum class GradientScheme { kRotated, kMoulinecSuquet };
 
+/// An MPI communicator handed through interfaces that do not include mpi.h: the handle
+/// MPI_Comm_c2f gives (MPI_Comm_f2c turns it back). Unset: this process alone, no MPI call.
+struct Communicator {
+  bool set = false;
+  int handle = 0;
+  static Communicator from_fortran(int handle) { return {true, handle}; }
+};
+/// This process's rank in the communicator and the number of ranks (0 and 1 when unset).
+int rank_of(const Communicator& comm);
+int ranks_of(const Communicator& comm);
+/// Sums `count` values over the ranks, in place (nothing when unset); the largest of a value
+/// over the ranks.
+void sum_over_ranks(double* values, int count, const Communicator& comm);
+double max_over_ranks(double value, const Communicator& comm);
+
 namespace spectral {
 
 using cplx = std::complex<double>;
 
+/// The planes [lo, hi) along z that FFTW's MPI transforms give this rank of `comm` for a grid of
+/// dims voxels (the whole [0, dims[2]) when the communicator is unset). A rank may get none.
+std::array<int, 2> fft_slab(const std::array<int, 3>& dims, const Communicator& comm);
+/// Voxels of that slab.
+size_t slab_voxels(const std::array<int, 3>& dims, const Communicator& comm);
+
 /// The grid of dims voxels over a box, with r2c/c2r FFTs of one real field at a time (x
 /// fastest) and, per stored frequency, the unit gradient multiplier k(xi) / |k(xi)| of the
 /// scheme (zero where k vanishes: the mean, and the rotated scheme's checkerboard modes).
+///
+/// With a communicator, this process holds the z planes fft_slab() gives it (real fields of
+/// size() values, x fastest) and, after a transform, the spectra of a slab of y frequencies
+/// (FFTW's transposed layout: kx fastest, then kz, then ky); sums and means are over the ranks.
 class Grid {
  public:
-  Grid(const std::array<int, 3>& dims, const Vec3& box, GradientScheme scheme, int threads);
+  Grid(const std::array<int, 3>& dims, const Vec3& box, GradientScheme scheme, int threads,
+       const Communicator& comm = {});
   ~Grid();
   Grid(const Grid&) = delete;
   Grid& operator=(const Grid&) = delete;
 
-  /// Real values per field, and complex values per transformed field.
+  /// Real values per field held here, and the frequencies held here (complex values per
+  /// transformed field); spectrum_size() is what a spectrum's buffer needs (FFTW's MPI
+  /// transforms may need more room than the frequencies).
   size_t size() const { return n_; }
   size_t frequencies() const { return nc_; }
+  size_t spectrum_size() const { return alloc_; }
+  /// Voxels of the whole grid (over every rank).
+  size_t voxels() const { return total_; }
+  /// The planes [lo, hi) along z held here.
+  std::array<int, 2> slab() const { return slab_; }
+  const Communicator& communicator() const { return comm_; }
+  /// A sum of per-rank values over the ranks, and sum_i a[i] b[i] over the whole grid (the
+  /// same bits whatever the number of threads).
+  double sum(double local) const;
+  double dot(const std::vector<double>& a, const std::vector<double>& b) const;
   /// f(at, k) for the stored frequencies at in [lo, hi), k the unit multiplier there (3
   /// values), formed from per-axis factors and the stored 1 / |k| as it is needed (a stored
   /// table of k would cost 48 bytes a frequency, a sixth of the elasticity solver's memory).
   template <class F>
   void for_each_unit_k(size_t lo, size_t hi, F&& f) const {
-    const size_t hx = static_cast<size_t>(dims_[0] / 2 + 1), ny = static_cast<size_t>(dims_[1]);
-    size_t kx = lo % hx, ky = (lo / hx) % ny, kz = lo / hx / ny;
+    // Indices along x, then the middle and the slowest axis of the stored layout.
+    const size_t hx = static_cast<size_t>(dims_[0] / 2 + 1);
+    const size_t nm = static_cast<size_t>(dims_[mid_]);
+    size_t q[3];
+    q[0] = lo % hx;
+    q[mid_] = (lo / hx) % nm;
+    q[slow_] = lo / hx / nm + slow_start_;
+    size_t &kx = q[0], &km = q[mid_], &ks = q[slow_];
     for (size_t at = lo; at < hi; ++at) {
-      cplx k[3] = {diff_[0][kx] * (avg_[1][ky] * avg_[2][kz]),
-                   diff_[1][ky] * (avg_[0][kx] * avg_[2][kz]),
-                   diff_[2][kz] * (avg_[0][kx] * avg_[1][ky])};
+      cplx k[3] = {diff_[0][q[0]] * (avg_[1][q[1]] * avg_[2][q[2]]),
+                   diff_[1][q[1]] * (avg_[0][q[0]] * avg_[2][q[2]]),
+                   diff_[2][q[2]] * (avg_[0][q[0]] * avg_[1][q[1]])};
       const double s = inv_norm_[at];
       for (cplx& v : k) v *= s;
       f(at, k);
       if (++kx == hx) {
         kx = 0;
-        if (++ky == ny) ky = 0, ++kz;
+        if (++km == nm) km = 0, ++ks;
       }
     }
   }
   /// Spectrum of a real field (n values) into `out` (frequencies() values).
   void forward(const double* field, cplx* out);
-  /// Real field of a spectrum, divided by n (so inverse(forward(f)) = f); `in` is destroyed.
+  /// Real field of a spectrum, divided by voxels() (so inverse(forward(f)) = f); `in` is
+  /// destroyed.
   void inverse(cplx* in, double* field);
-  /// The grid's own real field (size() values): forward_scratch transforms it where it is,
-  /// inverse_to_scratch leaves n times the field of a spectrum in it (no copies).
-  double* scratch() { return real_; }
+  /// The grid's own real field (size() values): forward_scratch transforms it,
+  /// inverse_to_scratch leaves voxels() times the field of a spectrum in it (in one process
+  /// where it is, without copies).
+  double* scratch() { return field_; }
   void forward_scratch(cplx* out);
   void inverse_to_scratch(cplx* in);
 
  private:
-  size_t n_, nc_;
+  // Rows of x between the caller's fields and FFTW's padded real array (MPI transforms only).
+  void pad_from(const double* field);
+  void unpad_to(double* field, double scale) const;
+
+  size_t n_, nc_, alloc_, total_;
+  Communicator comm_;
+  std::array<int, 2> slab_ = {0, 0};
+  // The stored layout's middle and slowest axes, and the first index along the slowest.
+  int mid_ = 1, slow_ = 2;
+  size_t slow_start_ = 0;
+  // FFTW's real array (padded rows of 2 (nx / 2 + 1) values for the MPI transforms) and the
+  // scratch field (the real array itself in one process).
   double* real_;
+  double* field_;
   void* forward_;
   void* inverse_;
   std::array<int, 3> dims_;
@@ -81,8 +141,8 @@ size_t checked_voxels(const std::array<int, 3>& dims, const Vec3& box);
 
 /// Runs f(begin, end) over [0, n) in fixed blocks on all cores.
 void parallel_blocks(size_t n, const std::function<void(size_t, size_t)>& f);
-/// Sum of a[i] b[i], added in fixed blocks and then in block order: the same bits whatever the
-/// number of threads.
+/// Sum of a[i] b[i] over this process's values, added in fixed blocks and then in block order:
+/// the same bits whatever the number of threads.
 double dot(const std::vector<double>& a, const std::vector<double>& b);
 
 /// What a conjugate-gradient solve ended with: the iterations and the last relative residual

@@ -3,7 +3,7 @@
  * @brief Effective conductivity and stiffness of an RVE's voxel image by FFT.
  *
  * Input: the RVE Generator's Voxels output or RVE Voxelize's (cell data phase and
- * inclusion_id, field data rvegen_inclusions), the whole image. Materials: the scene's
+ * inclusion_id, field data rvegen_inclusions). Materials: the scene's
  * "materials" object as JSON text, keyed by "matrix", family name and "<family>.coating"
  * (isotropic conductivity, young and poisson, or transversely isotropic fibre constants).
  * Output: a vtkTable in long form, one row per number, columns quantity, name, index, value:
@@ -14,6 +14,11 @@
  *  - iterations and residual per load case, seconds, cut_voxels.
  * Progress rises with the load cases and each case's residual; AbortExecute stops the solve
  * (the table is then empty).
+ *
+ * Under MPI with every rank running the pipeline in step (pvbatch --symmetric), each rank asks
+ * its input for its own z slab of the image (FFTW's MPI distribution) and the ranks solve
+ * together: the image is never gathered; rank 0 gives the table (row ranks/solve: the number
+ * of ranks). Otherwise each rank solves the whole image.
  */
 #ifndef vtkRVEEffectiveProperties_h
 #define vtkRVEEffectiveProperties_h
@@ -49,6 +54,8 @@ class RVEGENFILTERS_EXPORT vtkRVEEffectiveProperties : public vtkTableAlgorithm 
   vtkRVEEffectiveProperties();
   ~vtkRVEEffectiveProperties() override = default;
   int FillInputPortInformation(int port, vtkInformation* info) override;
+  int RequestUpdateExtent(vtkInformation* request, vtkInformationVector** inInfo,
+                          vtkInformationVector* outInfo) override;
   int RequestData(vtkInformation* request, vtkInformationVector** inInfo,
                   vtkInformationVector* outInfo) override;
 

@@ -8,9 +8,16 @@ With --symmetric every rank runs this script and the pipeline in step: rank 0 pa
 broadcasts (PackingRuns, summed over the ranks, is 1). Without it only rank 0 runs the script and
 every rank packs the same RVE itself (no collective where satellites may not be executing).
 
-usage: mpirun -np 2 pvbatch [--symmetric] test_mpi.py PLUGIN.so OUT_DIR CLI_OUTPUT_DIR
+RVE Effective Properties on the Voxels port: with --symmetric the ranks solve together, each on
+its own z slab of the image (its input holds only those planes), and the conductivity equals
+`rvegen homogenize` in one process to 1e-10 relative; driven from rank 0, each rank solves the
+whole image (no collective) and the result is the same.
+
+usage: mpirun -np 2 pvbatch [--symmetric] test_mpi.py PLUGIN.so OUT_DIR CLI_OUTPUT_DIR RVEGEN
 """
+import json
 import os
+import subprocess
 import sys
 
 from paraview.simple import *  # noqa: F401,F403
@@ -20,7 +27,7 @@ from vtkmodules.vtkIOXML import vtkXMLImageDataReader, vtkXMLPImageDataReader, v
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from checks import differing_values  # noqa: E402
 
-plugin, out_dir, cli_dir = sys.argv[1:4]
+plugin, out_dir, cli_dir, rvegen = sys.argv[1:5]
 os.makedirs(out_dir, exist_ok=True)
 failures = []
 
@@ -44,6 +51,52 @@ gen.UpdatePropertyInformation()
 runs = gen.GetProperty("PackingRuns").GetElement(0)
 if symmetric:
     check(runs == 1, "the RVE was packed %d times over 2 ranks" % runs)
+
+# Effective conductivity on the Voxels port (collective with --symmetric).
+materials = {"matrix": {"conductivity": 1}, "spheres": {"conductivity": 10},
+             "fibres": {"axial_conductivity": 50, "transverse_conductivity": 5},
+             "grains": {"conductivity": 5}}
+tolerance = 1e-9
+eff = RVEEffectiveProperties(Input=OutputPort(gen, 1), Materials=json.dumps(materials),
+                             Physics=0, Tolerance=tolerance)
+eff.UpdatePipeline()
+planes = eff.GetClientSideObject().GetInputDataObject(0, 0).GetExtent()[4:6]
+print("rank %d solved planes %d..%d of z" % (pm.GetPartitionId(), planes[0], planes[1]))
+if symmetric:
+    check(0 < planes[1] - planes[0] < 64, "rank %d was given planes %s of 64"
+          % (pm.GetPartitionId(), planes))
+effective_table = servermanager.Fetch(eff)
+
+
+def effective_rows(table):
+    q, n, v = (table.GetColumnByName(c) for c in ("quantity", "name", "value"))
+    if q is None:
+        return {}
+    return {(q.GetValue(i), n.GetValue(i)): v.GetValue(i) for i in range(table.GetNumberOfRows())}
+
+
+def check_effective():
+    """Rank 0: the table against rvegen homogenize in one process on the same inclusions."""
+    got = effective_rows(effective_table)
+    solved_by = got.get(("ranks", "solve"))
+    check(solved_by == (2 if symmetric else 1), "solved by %s ranks" % solved_by)
+    scene = json.loads(subprocess.run([rvegen, "default-scene"], check=True, capture_output=True,
+                                      text=True).stdout)
+    scene["materials"] = materials
+    scene["homogenization"] = {"physics": ["conductivity"], "tolerance": tolerance}
+    path = os.path.join(out_dir, "effective_scene.json")
+    with open(path, "w") as f:
+        json.dump(scene, f)
+    # One process: without the launcher's variables, which would make it a rank of its own.
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("OMPI_", "PMIX", "PMI_"))}
+    one = json.loads(subprocess.run([rvegen, "homogenize", cli_dir, path], check=True, env=env,
+                                    capture_output=True, text=True).stdout)
+    k = one["conductivity"]["tensor"]
+    worst = max(abs(k[i][j] - got.get(("conductivity", "k%d%d" % (i + 1, j + 1)), float("nan")))
+                for i in range(3) for j in range(3))
+    print("conductivity: largest difference to one process %.2e (k11 %.6f)" % (worst, k[0][0]))
+    check(worst < 1e-10 * k[0][0], "the ranks' conductivity differs from one process's by %s"
+          % worst)
 
 
 
@@ -110,6 +163,7 @@ def check_files():
 # leaving the script normally (exiting early breaks MPI's finalization).
 if not symmetric or pm.GetPartitionId() == 0:
     check_files()
+    check_effective()
 print("%s (%s, %d packing runs)" % ("%d failure(s)" % len(failures) if failures else "ok",
                                     "symmetric" if symmetric else "driven from rank 0", runs))
 if failures:

@@ -609,8 +609,12 @@ int cmd_homogenize(const std::vector<std::string>& args) {
     return kExitInvalid;
   }
   try {
-    // This rank's planes of z (all of them in one process).
+    // This rank's planes of z (all of them in one process), on its share of the machine's
+    // cores (the processes a launcher put on it).
     const rvegen::Communicator comm = ranks.communicator();
+    const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    tbb::global_control share(tbb::global_control::max_allowed_parallelism,
+                              static_cast<size_t>(std::max(1, cores / ranks.local_size())));
     const std::array<int, 3>& res = scene.resolution;
     const std::array<int, 2> z = rvegen::spectral::fft_slab(res, comm);
     rvegen::VoxelOptions vopt;

@@ -168,7 +168,7 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
         project.apply(tmp.data(), r.data());
         out.iterations = it;
         out.residual = std::sqrt(grid.dot(r, r)) / bnorm;
-        if (!progress(it, out.residual)) {
+        if (grid.sum(progress(it, out.residual) ? 0.0 : 1.0) > 0.0) {  // on any rank
           out.stopped = true;
           break;
         }

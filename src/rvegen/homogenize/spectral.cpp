@@ -7,6 +7,7 @@
 #include <fftw3.h>
 #include <mpi.h>
 #include <tbb/blocked_range.h>
+#include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 #include <tbb/partitioner.h>
 
@@ -72,7 +73,10 @@ constexpr size_t kBlock = size_t(1) << 14;
 void prepare_fftw(int threads, bool mpi) {
   static const bool threads_ready = fftw_init_threads() != 0;
   if (threads_ready) {
-    const unsigned all = std::max(1u, std::thread::hardware_concurrency());
+    // All cores, or as many as a tbb::global_control allows (rvegen --threads, ranks sharing
+    // a machine).
+    const size_t all = std::max<size_t>(
+        1, tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
     fftw_plan_with_nthreads(threads > 0 ? threads : static_cast<int>(all));
   }
   if (mpi) {
@@ -377,7 +381,8 @@ CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<std::vector<cplx>
     rr_new = grid.sum(rr_new);
     out.iterations = it;
     out.residual = std::sqrt(rr_new) / bnorm;
-    if (progress && !progress(it, out.residual)) {
+    // A stop asked on any rank stops them all (they would wait on each other otherwise).
+    if (grid.sum(progress && !progress(it, out.residual) ? 1.0 : 0.0) > 0.0) {
       out.stopped = true;
       return out;
     }

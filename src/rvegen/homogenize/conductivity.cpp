@@ -29,9 +29,9 @@ class GradientProjection {
   size_t size() const { return grid_.size(); }
   void apply(const double* in, double* out) {
     const size_t n = grid_.size();
-    for (int a = 0; a < 3; ++a) grid_.forward(in + a * n, spectrum_[a].data());
+    for (int a = 0; a < 3; ++a) grid_.forward(in + a * n, spectrum_[a]);
     spectral::parallel_blocks(grid_.frequencies(), [&](size_t lo, size_t hi) { project(lo, hi); });
-    for (int a = 0; a < 3; ++a) grid_.inverse(spectrum_[a].data(), out + a * n);
+    for (int a = 0; a < 3; ++a) grid_.inverse(spectrum_[a], out + a * n);
   }
   /// P on the spectra at frequencies [lo, hi).
   void project(size_t lo, size_t hi) {
@@ -42,11 +42,11 @@ class GradientProjection {
     });
   }
   spectral::Grid& grid() { return grid_; }
-  std::vector<std::vector<cplx>>& spectra() { return spectrum_; }
+  std::vector<spectral::Spectrum>& spectra() { return spectrum_; }
 
  private:
   spectral::Grid grid_;
-  std::vector<std::vector<cplx>> spectrum_;
+  std::vector<spectral::Spectrum> spectrum_;
 };
 
 }  // namespace
@@ -107,11 +107,16 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
   GradientProjection project(dims, box_size, opt.scheme, opt.threads, opt.comm);
   const spectral::Grid& grid = project.grid();
   ConductivityResult res;
-  // x and, for conjugate gradients, the solver's three fields (products computed in place:
-  // the projection reads every component before it writes one); the fixed-point scheme's
-  // tmp, e and r.
-  std::vector<double> x(3 * n), tmp, e, r;
-  if (opt.solver == LinearSolver::kFixedPoint) tmp.resize(3 * n), e.resize(3 * n), r.resize(3 * n);
+  // For conjugate gradients, the solver's residual and direction (products computed in place:
+  // the projection reads every component before it writes one), and x only for the local
+  // fields; for the fixed-point scheme x, tmp, e and r.
+  const bool fixed_point = opt.solver == LinearSolver::kFixedPoint;
+  std::vector<double> x(fixed_point || opt.field ? 3 * n : 0), tmp, e, r;
+  if (fixed_point) tmp.resize(3 * n), e.resize(3 * n), r.resize(3 * n);
+  // The mean of the tensors: the mean flux of a uniform gradient.
+  Mat3 mean_tensor = medium.sum();
+  sum_over_ranks(mean_tensor.data(), 9, opt.comm);
+  mean_tensor /= static_cast<double>(whole);
   // k times a 3-component field, and (k - k0) times one.
   auto times = [&](const std::vector<double>& f, std::vector<double>* out, double shift) {
     spectral::parallel_blocks(n, [&](size_t lo, size_t hi) {
@@ -143,16 +148,21 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
     if (opt.solver == LinearSolver::kConjugateGradient) {
       spectral::GalerkinOperator op;
       op.components = 3;
-      op.flux = [&](int c, const double* p, double* o, size_t lo, size_t hi) {
-        for (size_t i = lo; i < hi; ++i) {
-          const Mat3& t = medium.at(i);
-          o[i] = t(c, 0) * p[i] + t(c, 1) * p[n + i] + t(c, 2) * p[2 * n + i];
+      op.flux = [&](const double* p, double* const* o, size_t lo, size_t hi, size_t at) {
+        for (size_t i = lo, j = at; i < hi; ++i, ++j) {
+          const Vec3 q = medium.at(i) * Vec3(p[i], p[n + i], p[2 * n + i]);
+          o[0][j] = q[0];
+          o[1][j] = q[1];
+          o[2][j] = q[2];
         }
       };
       op.project = [&](size_t lo, size_t hi) { project.project(lo, hi); };
+      std::vector<double> flux;
       out = spectral::conjugate_gradients_galerkin(project.grid(), project.spectra(), op,
-                                                   std::move(b), &x, opt.tolerance,
-                                                   opt.max_iterations, progress);
+                                                   std::move(b), opt.field ? &x : nullptr, &flux,
+                                                   opt.tolerance, opt.max_iterations, progress);
+      // The mean flux: that of E plus the mean of k x, summed as the solver went.
+      res.tensor.col(load) = mean_tensor.col(load) + Vec3(flux[0], flux[1], flux[2]);
     } else if (bnorm > 0.0) {
       // Basic scheme with the reference k0 = (kmin + kmax) / 2: x <- -P[(k - k0)(E + x)] / k0;
       // the residual is the gradient part of the flux of the new iterate.
@@ -176,18 +186,23 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
       }
     } else {
       std::fill(x.begin(), x.end(), 0.0);
+      res.tensor.col(load) = mean_tensor.col(load);
     }
     if (out.stopped) throw Cancelled();
     res.iterations[load] = out.iterations;
     res.residual[load] = out.residual;
     if (bnorm > 0.0 && !(out.residual < opt.tolerance)) res.converged = false;
-    // The local gradient E + x (x is reset by the next solve) and its mean flux, voxel by
-    // voxel in order.
-    for (size_t i = 0; i < n; ++i) x[load * n + i] += 1.0;
-    Vec3 sum = Vec3::Zero();
-    for (size_t i = 0; i < n; ++i) sum += medium.at(i) * Vec3(x[i], x[n + i], x[2 * n + i]);
-    sum_over_ranks(sum.data(), 3, opt.comm);
-    res.tensor.col(load) = sum / static_cast<double>(whole);
+    // The local gradient E + x (x is reset by the next solve).
+    if (!x.empty()) {
+      for (size_t i = 0; i < n; ++i) x[load * n + i] += 1.0;
+    }
+    if (fixed_point && bnorm > 0.0) {
+      // The fixed-point scheme's mean flux, voxel by voxel in order.
+      Vec3 sum = Vec3::Zero();
+      for (size_t i = 0; i < n; ++i) sum += medium.at(i) * Vec3(x[i], x[n + i], x[2 * n + i]);
+      sum_over_ranks(sum.data(), 3, opt.comm);
+      res.tensor.col(load) = sum / static_cast<double>(whole);
+    }
     if (opt.field) opt.field(load, x);
   }
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

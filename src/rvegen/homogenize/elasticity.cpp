@@ -32,16 +32,16 @@ class StrainProjection {
   }
   void apply(const double* in, double* out) {
     const size_t n = grid_.size();
-    for (int c = 0; c < 6; ++c) grid_.forward(in + c * n, spectrum_[c].data());
+    for (int c = 0; c < 6; ++c) grid_.forward(in + c * n, spectrum_[c]);
     spectral::parallel_blocks(grid_.frequencies(), [&](size_t lo, size_t hi) { project(lo, hi); });
-    for (int c = 0; c < 6; ++c) grid_.inverse(spectrum_[c].data(), out + c * n);
+    for (int c = 0; c < 6; ++c) grid_.inverse(spectrum_[c], out + c * n);
   }
   /// P on the spectra at frequencies [lo, hi).
   void project(size_t lo, size_t hi) {
     grid_.for_each_unit_k(lo, hi, [&](size_t at, const cplx* k) { project_at(at, k); });
   }
   spectral::Grid& grid() { return grid_; }
-  std::vector<std::vector<cplx>>& spectra() { return spectrum_; }
+  std::vector<spectral::Spectrum>& spectra() { return spectrum_; }
 
  private:
   void project_at(size_t at, const cplx* k) {
@@ -67,7 +67,7 @@ class StrainProjection {
   }
 
   spectral::Grid grid_;
-  std::vector<std::vector<cplx>> spectrum_;
+  std::vector<spectral::Spectrum> spectrum_;
 };
 
 }  // namespace
@@ -157,18 +157,23 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
   };
   StrainProjection project(dims, box_size, opt.scheme, opt.threads, opt.comm);
   ElasticityResult res;
-  // At peak: x and the solver's residual and direction (three 6-component fields), the six
-  // spectra and the grid's real field; the right-hand side's stress and its projection are
-  // computed in place (the projection reads every component before it writes one).
-  std::vector<double> x(6 * n);
+  // At peak: the solver's residual and direction (two 6-component fields, and x only for the
+  // local fields) and the six spectra (the flux is formed in them and transformed in place);
+  // the right-hand side's stress and its projection are computed in place (the projection
+  // reads every component before it writes one).
+  std::vector<double> x(opt.field ? 6 * n : 0);
+  // The mean of the stiffnesses: the mean stress of a uniform strain.
+  Mat6 mean_tensor = medium.sum();
+  sum_over_ranks(mean_tensor.data(), 36, opt.comm);
+  mean_tensor /= static_cast<double>(whole);
   spectral::GalerkinOperator op;
   op.components = 6;
-  op.flux = [&](int c, const double* p, double* out, size_t lo, size_t hi) {
-    for (size_t i = lo; i < hi; ++i) {
-      const Mat6& t = medium.at(i);
-      double s = 0.0;
-      for (int k = 0; k < 6; ++k) s += t(c, k) * p[k * n + i];
-      out[i] = s;
+  op.flux = [&](const double* p, double* const* out, size_t lo, size_t hi, size_t at) {
+    Vec6 v;
+    for (size_t i = lo, j = at; i < hi; ++i, ++j) {
+      for (int k = 0; k < 6; ++k) v[k] = p[k * n + i];
+      const Vec6 t = medium.at(i) * v;
+      for (int c = 0; c < 6; ++c) out[c][j] = t[c];
     }
   };
   op.project = [&](size_t lo, size_t hi) { project.project(lo, hi); };
@@ -179,25 +184,22 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
     stress(b, &b);
     project.apply(b.data(), b.data());
     for (double& v : b) v = -v;
+    std::vector<double> flux;
     const spectral::CgOutcome out = spectral::conjugate_gradients_galerkin(
-        project.grid(), project.spectra(), op, std::move(b), &x, opt.tolerance, opt.max_iterations,
+        project.grid(), project.spectra(), op, std::move(b), opt.field ? &x : nullptr, &flux,
+        opt.tolerance, opt.max_iterations,
         [&](int it, double rel) { return !opt.progress || opt.progress(load, it, rel); });
     if (out.stopped) throw Cancelled();
     res.iterations[load] = out.iterations;
     res.residual[load] = out.residual;
     if (out.iterations > 0 && !(out.residual < opt.tolerance)) res.converged = false;
-    // The local strain (the unit strain plus the fluctuation; x is reset by the next solve),
-    // and its mean stress, voxel by voxel in order.
-    for (size_t i = 0; i < n; ++i) x[load * n + i] += 1.0;
-    Vec6 sum = Vec6::Zero();
-    for (size_t i = 0; i < n; ++i) {
-      Vec6 v;
-      for (int c = 0; c < 6; ++c) v[c] = x[c * n + i];
-      sum += medium.at(i) * v;
+    // The mean stress: that of the unit strain plus the mean of C x, summed as the solver went.
+    res.stiffness.col(load) = mean_tensor.col(load) + Eigen::Map<const Vec6>(flux.data());
+    if (opt.field) {
+      // The local strain: the unit strain plus the fluctuation (x is reset by the next solve).
+      for (size_t i = 0; i < n; ++i) x[load * n + i] += 1.0;
+      opt.field(load, x);
     }
-    sum_over_ranks(sum.data(), 6, opt.comm);
-    res.stiffness.col(load) = sum / static_cast<double>(whole);
-    if (opt.field) opt.field(load, x);
   }
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;

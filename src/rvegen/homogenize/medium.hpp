@@ -35,6 +35,15 @@ struct TensorMedium {
   std::vector<uint32_t> index;
   std::vector<Tensor> tensors;
   const Tensor& at(size_t voxel) const { return tensors[index[voxel]]; }
+  /// The sum of the voxels' tensors (by how many voxels use each row: exact counts, so the
+  /// same bits however the voxels are visited).
+  Tensor sum() const {
+    std::vector<double> count(tensors.size(), 0.0);
+    for (uint32_t i : index) count[i] += 1.0;
+    Tensor s = Tensor::Zero();
+    for (size_t r = 0; r < tensors.size(); ++r) s += count[r] * tensors[r];
+    return s;
+  }
 };
 using ConductivityMedium = TensorMedium<3>;
 using StiffnessMedium = TensorMedium<6>;

@@ -158,16 +158,17 @@ Grid::Grid(const std::array<int, 3>& dims, const Vec3& box, GradientScheme schem
   std::lock_guard<std::mutex> lock(planner_mutex());
   prepare_fftw(threads, comm_.set);
   // x fastest: FFTW's last (fastest) dimension is x. FFTW_ESTIMATE: the same plan, hence the
-  // same bytes, on every run. The spectrum is for planning only (FFTW_ESTIMATE does not touch
-  // the arrays): the transforms run on the callers' spectra.
+  // same bytes, on every run. In place: the real values in padded rows of the callers'
+  // buffers, transformed where they lie. The buffer here is for planning only (FFTW_ESTIMATE
+  // does not touch it).
   if (!comm_.set) {
     n_ = total_;
     nc_ = alloc_ = static_cast<size_t>(hx) * dims[1] * dims[2];
     slab_ = {0, dims[2]};
-    real_ = field_ = fftw_alloc_real(n_);
     auto* spec = fftw_alloc_complex(alloc_);
-    forward_ = fftw_plan_dft_r2c_3d(dims[2], dims[1], dims[0], real_, spec, FFTW_ESTIMATE);
-    inverse_ = fftw_plan_dft_c2r_3d(dims[2], dims[1], dims[0], spec, real_, FFTW_ESTIMATE);
+    auto* real = reinterpret_cast<double*>(spec);
+    forward_ = fftw_plan_dft_r2c_3d(dims[2], dims[1], dims[0], real, spec, FFTW_ESTIMATE);
+    inverse_ = fftw_plan_dft_c2r_3d(dims[2], dims[1], dims[0], spec, real, FFTW_ESTIMATE);
     fftw_free(spec);
   } else {
     // Planes of z here; after the forward transform, planes of y (FFTW_MPI_TRANSPOSED_OUT
@@ -180,13 +181,12 @@ Grid::Grid(const std::array<int, 3>& dims, const Vec3& box, GradientScheme schem
     mid_ = 2;
     slow_ = 1;
     slow_start_ = static_cast<size_t>(y0);
-    real_ = fftw_alloc_real(2 * alloc_);
-    field_ = fftw_alloc_real(std::max<size_t>(n_, 1));
     auto* spec = fftw_alloc_complex(alloc_);
+    auto* real = reinterpret_cast<double*>(spec);
     const MPI_Comm c = mpi_comm(comm_);
-    forward_ = fftw_mpi_plan_dft_r2c_3d(dims[2], dims[1], dims[0], real_, spec, c,
+    forward_ = fftw_mpi_plan_dft_r2c_3d(dims[2], dims[1], dims[0], real, spec, c,
                                         FFTW_ESTIMATE | FFTW_MPI_TRANSPOSED_OUT);
-    inverse_ = fftw_mpi_plan_dft_c2r_3d(dims[2], dims[1], dims[0], spec, real_, c,
+    inverse_ = fftw_mpi_plan_dft_c2r_3d(dims[2], dims[1], dims[0], spec, real, c,
                                         FFTW_ESTIMATE | FFTW_MPI_TRANSPOSED_IN);
     fftw_free(spec);
   }
@@ -242,8 +242,6 @@ Grid::~Grid() {
     fftw_destroy_plan(static_cast<fftw_plan>(forward_));
     fftw_destroy_plan(static_cast<fftw_plan>(inverse_));
   }
-  if (field_ != real_) fftw_free(field_);
-  fftw_free(real_);
 }
 
 double Grid::sum(double local) const {
@@ -255,130 +253,155 @@ double Grid::dot(const std::vector<double>& a, const std::vector<double>& b) con
   return sum(spectral::dot(a, b));
 }
 
-void Grid::pad_from(const double* field) {
-  const size_t nx = static_cast<size_t>(dims_[0]), row = 2 * (nx / 2 + 1);
-  for (size_t r = 0, rows = n_ / std::max<size_t>(nx, 1); r < rows; ++r) {
-    std::copy(field + r * nx, field + (r + 1) * nx, real_ + r * row);
-  }
-}
-
-void Grid::unpad_to(double* field, double scale) const {
-  const size_t nx = static_cast<size_t>(dims_[0]), row = 2 * (nx / 2 + 1);
-  for (size_t r = 0, rows = n_ / std::max<size_t>(nx, 1); r < rows; ++r) {
-    for (size_t i = 0; i < nx; ++i) field[r * nx + i] = real_[r * row + i] * scale;
-  }
-}
-
-namespace {
-
-void execute_forward(void* plan, double* in, cplx* out, bool mpi) {
-  auto* o = reinterpret_cast<fftw_complex*>(out);
-  if (mpi) {
-    fftw_mpi_execute_dft_r2c(static_cast<fftw_plan>(plan), in, o);
-  } else {
-    fftw_execute_dft_r2c(static_cast<fftw_plan>(plan), in, o);
-  }
-}
-
-void execute_inverse(void* plan, cplx* in, double* out, bool mpi) {
-  auto* i = reinterpret_cast<fftw_complex*>(in);
-  if (mpi) {
-    fftw_mpi_execute_dft_c2r(static_cast<fftw_plan>(plan), i, out);
-  } else {
-    fftw_execute_dft_c2r(static_cast<fftw_plan>(plan), i, out);
-  }
-}
-
-}  // namespace
-
-void Grid::forward(const double* field, cplx* out) {
+void Grid::forward_in_place(Spectrum& buffer) {
+  auto* b = reinterpret_cast<fftw_complex*>(buffer.data());
+  auto* real = reinterpret_cast<double*>(buffer.data());
   if (comm_.set) {
-    pad_from(field);
+    fftw_mpi_execute_dft_r2c(static_cast<fftw_plan>(forward_), real, b);
   } else {
-    std::copy(field, field + n_, real_);
+    fftw_execute_dft_r2c(static_cast<fftw_plan>(forward_), real, b);
   }
-  execute_forward(forward_, real_, out, comm_.set);
 }
 
-void Grid::forward_scratch(cplx* out) {
-  if (comm_.set) pad_from(field_);
-  execute_forward(forward_, real_, out, comm_.set);
+void Grid::inverse_in_place(Spectrum& buffer) {
+  auto* b = reinterpret_cast<fftw_complex*>(buffer.data());
+  auto* real = reinterpret_cast<double*>(buffer.data());
+  if (comm_.set) {
+    fftw_mpi_execute_dft_c2r(static_cast<fftw_plan>(inverse_), b, real);
+  } else {
+    fftw_execute_dft_c2r(static_cast<fftw_plan>(inverse_), b, real);
+  }
 }
 
-void Grid::inverse_to_scratch(cplx* in) {
-  execute_inverse(inverse_, in, real_, comm_.set);
-  if (comm_.set) unpad_to(field_, 1.0);
+void Grid::forward(const double* field, Spectrum& out) {
+  auto* real = reinterpret_cast<double*>(out.data());
+  const size_t nx = row(), stride = row_stride();
+  for (size_t r = 0; r < rows(); ++r)
+    std::copy(field + r * nx, field + (r + 1) * nx, real + r * stride);
+  forward_in_place(out);
 }
 
-void Grid::inverse(cplx* in, double* field) {
-  execute_inverse(inverse_, in, real_, comm_.set);
+void Grid::inverse(Spectrum& in, double* field) {
+  inverse_in_place(in);
+  const double* real = reinterpret_cast<const double*>(in.data());
   const double inv_n = 1.0 / static_cast<double>(total_);
-  if (comm_.set) {
-    unpad_to(field, inv_n);
-  } else {
-    for (size_t i = 0; i < n_; ++i) field[i] = real_[i] * inv_n;
+  const size_t nx = row(), stride = row_stride();
+  for (size_t r = 0; r < rows(); ++r) {
+    for (size_t i = 0; i < nx; ++i) field[r * nx + i] = real[r * stride + i] * inv_n;
   }
 }
 
-CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<std::vector<cplx>>& spectra,
+void* aligned_bytes(size_t bytes) {
+  void* p = fftw_malloc(std::max<size_t>(bytes, 1));
+  if (!p) throw std::bad_alloc();
+  return p;
+}
+
+void free_aligned(void* p) {
+  fftw_free(p);
+}
+
+std::vector<double> parallel_rows(const Grid& grid, int slots,
+                                  const std::function<void(size_t, size_t, double*)>& f) {
+  // Blocks of about kBlock voxels, fixed by the grid alone.
+  const size_t rows = grid.rows(), per = std::max<size_t>(1, kBlock / grid.row());
+  const size_t blocks = (rows + per - 1) / per, k = static_cast<size_t>(slots);
+  std::vector<double> part(blocks * k, 0.0);
+  tbb::parallel_for(
+      tbb::blocked_range<size_t>(0, blocks, 1),
+      [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t b = r.begin(); b != r.end(); ++b) {
+          f(b * per, std::min(rows, (b + 1) * per), part.data() + b * k);
+        }
+      },
+      tbb::simple_partitioner());
+  std::vector<double> total(k, 0.0);
+  for (size_t b = 0; b < blocks; ++b) {
+    for (size_t j = 0; j < k; ++j) total[j] += part[b * k + j];
+  }
+  sum_over_ranks(total.data(), slots, grid.communicator());
+  return total;
+}
+
+CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectra,
                                        const GalerkinOperator& op, std::vector<double> b,
-                                       std::vector<double>* x, double tolerance, int max_iterations,
+                                       std::vector<double>* x, std::vector<double>* mean_flux,
+                                       double tolerance, int max_iterations,
                                        const std::function<bool(int, double)>& progress) {
   CgOutcome out;
-  std::fill(x->begin(), x->end(), 0.0);
+  const int d = op.components;
+  if (x) std::fill(x->begin(), x->end(), 0.0);
+  mean_flux->assign(d, 0.0);
   const double bnorm = std::sqrt(grid.dot(b, b));
   if (!(bnorm > 0.0)) return out;
-  const size_t n = grid.size(), blocks = (n + kBlock - 1) / kBlock;
-  const int d = op.components;
+  const size_t n = grid.size(), nx = grid.row(), stride = grid.row_stride();
   std::vector<double> r = std::move(b), p = r;
-  std::vector<double> part(blocks);
-  double* scratch = grid.scratch();
+  std::vector<double*> buffer(d);
+  for (int c = 0; c < d; ++c) buffer[c] = reinterpret_cast<double*>(spectra[c].data());
   const double inv_n = 1.0 / static_cast<double>(grid.voxels());
-  // Sums of per-block parts in block order: the same bits whatever the number of threads.
-  auto total = [&] {
-    double s = 0.0;
-    for (double v : part) s += v;
-    return s;
+  // x += alpha p for the last direction, when x is wanted and not yet updated.
+  auto catch_up = [&](double alpha) {
+    parallel_blocks(d * n, [&](size_t lo, size_t hi) {
+      for (size_t i = lo; i < hi; ++i) (*x)[i] += alpha * p[i];
+    });
   };
-  double rr = bnorm * bnorm;
+  double rr = bnorm * bnorm, alpha = 0.0, beta = 0.0;
+  bool x_behind = false;  // x lacks alpha p for the current direction
   out.residual = 1.0;
   for (int it = 1; it <= max_iterations; ++it) {
-    // p . C p while the flux is formed, component by component, each transformed in place.
-    double pap = 0.0;
-    for (int c = 0; c < d; ++c) {
-      const double* pc = p.data() + c * n;
-      parallel_blocks(n, [&](size_t lo, size_t hi) {
-        op.flux(c, p.data(), scratch, lo, hi);
-        double s = 0.0;
-        for (size_t i = lo; i < hi; ++i) s += pc[i] * scratch[i];
-        part[lo / kBlock] = s;
-      });
-      pap += total();
-      grid.forward_scratch(spectra[c].data());
-    }
-    pap = grid.sum(pap);
+    // One pass, row by row while the row is in cache: x += alpha p and p = r + beta p (from
+    // the second iteration), C p into the buffers' padded rows, p . C p and the sums of C p.
+    const bool step = it > 1, with_x = x && x_behind;
+    const std::vector<double> sums =
+        parallel_rows(grid, d + 1, [&](size_t first, size_t last, double* sum) {
+          for (size_t row = first; row < last; ++row) {
+            const size_t lo = row * nx, hi = lo + nx, at = row * stride;
+            for (int c = 0; c < d && step; ++c) {
+              double* pc = p.data() + c * n;
+              const double* rc = r.data() + c * n;
+              if (with_x) {
+                double* xc = x->data() + c * n;
+                for (size_t i = lo; i < hi; ++i) xc[i] += alpha * pc[i];
+              }
+              for (size_t i = lo; i < hi; ++i) pc[i] = rc[i] + beta * pc[i];
+            }
+            op.flux(p.data(), buffer.data(), lo, hi, at);
+            for (int c = 0; c < d; ++c) {
+              const double* pc = p.data() + c * n;
+              const double* q = buffer[c] + at - lo;
+              double s = 0.0, m = 0.0;
+              for (size_t i = lo; i < hi; ++i) s += pc[i] * q[i], m += q[i];
+              sum[0] += s;
+              sum[1 + c] += m;
+            }
+          }
+        });
+    x_behind = false;
+    const double pap = sums[0];
     if (!(pap > 0.0)) break;  // nothing left to reduce (round-off)
+    alpha = rr / pap;
+    x_behind = true;
+    for (int c = 0; c < d; ++c) (*mean_flux)[c] += alpha * sums[1 + c] * inv_n;
+    for (int c = 0; c < d; ++c) grid.forward_in_place(spectra[c]);
     parallel_blocks(grid.frequencies(), op.project);
-    const double alpha = rr / pap;
-    double rr_new = 0.0;
-    for (int c = 0; c < d; ++c) {
-      grid.inverse_to_scratch(spectra[c].data());
-      double* xc = x->data() + c * n;
-      double* rc = r.data() + c * n;
-      const double* pc = p.data() + c * n;
-      const double a = alpha * inv_n;
-      parallel_blocks(n, [&](size_t lo, size_t hi) {
-        double s = 0.0;
-        for (size_t i = lo; i < hi; ++i) {
-          xc[i] += alpha * pc[i];
-          rc[i] -= a * scratch[i];
-          s += rc[i] * rc[i];
+    for (int c = 0; c < d; ++c) grid.inverse_in_place(spectra[c]);
+    // One pass: r -= alpha P C p, |r|^2.
+    const double a = alpha * inv_n;
+    const double rr_new = parallel_rows(grid, 1, [&](size_t first, size_t last, double* sum) {
+      double s = 0.0;
+      for (int c = 0; c < d; ++c) {
+        double* rc = r.data() + c * n;
+        for (size_t row = first; row < last; ++row) {
+          const size_t lo = row * nx, hi = lo + nx;
+          const double* q = buffer[c] + row * stride - lo;
+          for (size_t i = lo; i < hi; ++i) {
+            rc[i] -= a * q[i];
+            s += rc[i] * rc[i];
+          }
         }
-        part[lo / kBlock] = s;
-      });
-      rr_new += total();
-    }
-    rr_new = grid.sum(rr_new);
+      }
+      *sum = s;
+    })[0];
     out.iterations = it;
     out.residual = std::sqrt(rr_new) / bnorm;
     // A stop asked on any rank stops them all (they would wait on each other otherwise).
@@ -387,12 +410,10 @@ CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<std::vector<cplx>
       return out;
     }
     if (out.residual < tolerance) break;
-    const double beta = rr_new / rr;
+    beta = rr_new / rr;
     rr = rr_new;
-    parallel_blocks(d * n, [&](size_t lo, size_t hi) {
-      for (size_t i = lo; i < hi; ++i) p[i] = r[i] + beta * p[i];
-    });
   }
+  if (x && x_behind) catch_up(alpha);
   return out;
 }
 

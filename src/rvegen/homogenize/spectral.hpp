@@ -42,9 +42,29 @@ std::array<int, 2> fft_slab(const std::array<int, 3>& dims, const Communicator& 
 /// Voxels of that slab.
 size_t slab_voxels(const std::array<int, 3>& dims, const Communicator& comm);
 
-/// The grid of dims voxels over a box, with r2c/c2r FFTs of one real field at a time (x
-/// fastest) and, per stored frequency, the unit gradient multiplier k(xi) / |k(xi)| of the
-/// scheme (zero where k vanishes: the mean, and the rotated scheme's checkerboard modes).
+/// Memory aligned as FFTW's planner wants it (the transforms run on the callers' buffers).
+void* aligned_bytes(size_t bytes);
+void free_aligned(void* p);
+template <class T>
+struct AlignedAllocator {
+  using value_type = T;
+  AlignedAllocator() = default;
+  template <class U>
+  AlignedAllocator(const AlignedAllocator<U>&) {}
+  T* allocate(size_t n) { return static_cast<T*>(aligned_bytes(n * sizeof(T))); }
+  void deallocate(T* p, size_t) { free_aligned(p); }
+  bool operator==(const AlignedAllocator&) const { return true; }
+  bool operator!=(const AlignedAllocator&) const { return false; }
+};
+/// A field's buffer: its spectrum after a transform, and before one its real values in padded
+/// rows (see Grid::padded).
+using Spectrum = std::vector<cplx, AlignedAllocator<cplx>>;
+
+/// The grid of dims voxels over a box, with in-place r2c/c2r FFTs of one field at a time and,
+/// per stored frequency, the unit gradient multiplier k(xi) / |k(xi)| of the scheme (zero where
+/// k vanishes: the mean, and the rotated scheme's checkerboard modes). Real fields are x
+/// fastest; in a Spectrum buffer (spectrum_size() values) the real values lie in padded rows
+/// of row_stride() doubles, voxel i at padded(i), which FFTW transforms where they lie.
 ///
 /// With a communicator, this process holds the z planes fft_slab() gives it (real fields of
 /// size() values, x fastest) and, after a transform, the spectra of a slab of y frequencies
@@ -85,46 +105,47 @@ class Grid {
     q[mid_] = (lo / hx) % nm;
     q[slow_] = lo / hx / nm + slow_start_;
     size_t &kx = q[0], &km = q[mid_], &ks = q[slow_];
+    // Along a row of kx the factors of y and z are fixed: k = (diff_x a, avg_x b, avg_x c).
+    cplx a = avg_[1][q[1]] * avg_[2][q[2]], b = diff_[1][q[1]] * avg_[2][q[2]],
+         c = diff_[2][q[2]] * avg_[1][q[1]];
     for (size_t at = lo; at < hi; ++at) {
-      cplx k[3] = {diff_[0][q[0]] * (avg_[1][q[1]] * avg_[2][q[2]]),
-                   diff_[1][q[1]] * (avg_[0][q[0]] * avg_[2][q[2]]),
-                   diff_[2][q[2]] * (avg_[0][q[0]] * avg_[1][q[1]])};
       const double s = inv_norm_[at];
-      for (cplx& v : k) v *= s;
+      const cplx k[3] = {diff_[0][kx] * a * s, avg_[0][kx] * b * s, avg_[0][kx] * c * s};
       f(at, k);
       if (++kx == hx) {
         kx = 0;
         if (++km == nm) km = 0, ++ks;
+        if (at + 1 < hi && ks < static_cast<size_t>(dims_[slow_])) {
+          a = avg_[1][q[1]] * avg_[2][q[2]];
+          b = diff_[1][q[1]] * avg_[2][q[2]];
+          c = diff_[2][q[2]] * avg_[1][q[1]];
+        }
       }
     }
   }
-  /// Spectrum of a real field (n values) into `out` (frequencies() values).
-  void forward(const double* field, cplx* out);
+  /// Voxels per row (along x), rows held here, and doubles per padded row.
+  size_t row() const { return static_cast<size_t>(dims_[0]); }
+  size_t rows() const { return n_ / row(); }
+  size_t row_stride() const { return 2 * (row() / 2 + 1); }
+  /// Where voxel i's value lies in a buffer's padded rows.
+  size_t padded(size_t i) const { return i + (i / row()) * (row_stride() - row()); }
+  /// The spectrum of the real values in `buffer`'s padded rows, in place.
+  void forward_in_place(Spectrum& buffer);
+  /// voxels() times the real field of the spectrum in `buffer`, in padded rows, in place.
+  void inverse_in_place(Spectrum& buffer);
+  /// Spectrum of a real field (size() values) into `out`.
+  void forward(const double* field, Spectrum& out);
   /// Real field of a spectrum, divided by voxels() (so inverse(forward(f)) = f); `in` is
   /// destroyed.
-  void inverse(cplx* in, double* field);
-  /// The grid's own real field (size() values): forward_scratch transforms it,
-  /// inverse_to_scratch leaves voxels() times the field of a spectrum in it (in one process
-  /// where it is, without copies).
-  double* scratch() { return field_; }
-  void forward_scratch(cplx* out);
-  void inverse_to_scratch(cplx* in);
+  void inverse(Spectrum& in, double* field);
 
  private:
-  // Rows of x between the caller's fields and FFTW's padded real array (MPI transforms only).
-  void pad_from(const double* field);
-  void unpad_to(double* field, double scale) const;
-
   size_t n_, nc_, alloc_, total_;
   Communicator comm_;
   std::array<int, 2> slab_ = {0, 0};
   // The stored layout's middle and slowest axes, and the first index along the slowest.
   int mid_ = 1, slow_ = 2;
   size_t slow_start_ = 0;
-  // FFTW's real array (padded rows of 2 (nx / 2 + 1) values for the MPI transforms) and the
-  // scratch field (the real array itself in one process).
-  double* real_;
-  double* field_;
   void* forward_;
   void* inverse_;
   std::array<int, 3> dims_;
@@ -141,6 +162,11 @@ size_t checked_voxels(const std::array<int, 3>& dims, const Vec3& box);
 
 /// Runs f(begin, end) over [0, n) in fixed blocks on all cores.
 void parallel_blocks(size_t n, const std::function<void(size_t, size_t)>& f);
+/// Runs f(first, last, sums) over the grid's rows held here, in fixed blocks of rows on all
+/// cores, each block with `slots` sums of its own (zeroed); returns the slots' totals, added in
+/// block order (the same bits whatever the number of threads) and then over the ranks.
+std::vector<double> parallel_rows(const Grid& grid, int slots,
+                                  const std::function<void(size_t, size_t, double*)>& f);
 /// Sum of a[i] b[i] over this process's values, added in fixed blocks and then in block order:
 /// the same bits whatever the number of threads.
 double dot(const std::vector<double>& a, const std::vector<double>& b);
@@ -155,22 +181,28 @@ struct CgOutcome {
 };
 /// The Galerkin operator A = P C of the Lippmann-Schwinger solvers, given by parts so that
 /// conjugate_gradients_galerkin can keep three fields: `components` fields of n values
-/// (component-major); `flux(c, p, out, lo, hi)` writes component c of C p at voxels [lo, hi)
-/// into out[lo, hi); `project(lo, hi)` applies P to the spectra at frequencies [lo, hi).
+/// (component-major); `flux(p, out, lo, hi, at)` writes C p at the voxels [lo, hi) of one row,
+/// component c of voxel i to out[c][at + i - lo]; `project(lo, hi)` applies P to the spectra at
+/// frequencies [lo, hi).
 struct GalerkinOperator {
   int components = 0;
-  std::function<void(int, const double*, double*, size_t, size_t)> flux;
+  std::function<void(const double*, double* const*, size_t, size_t, size_t)> flux;
   std::function<void(size_t, size_t)> project;
 };
-/// Conjugate gradients for P C x = b with x, the residual and the direction only (x starts at
-/// 0; `spectra` holds one spectrum per component). The direction stays in the range of the
-/// orthogonal projection P, so p . P C p = p . C p, summed before the transforms; the product's
-/// spectra are then turned back one component at a time straight into the updates of x and the
-/// residual, never stored as a field. Stops when |r| / |b| < tolerance, after max_iterations, or
-/// when progress returns false. `b` is taken by value: it becomes the residual.
-CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<std::vector<cplx>>& spectra,
+/// Conjugate gradients for P C x = b with the residual and the direction only (x starts at
+/// 0; `spectra` holds one buffer per component). Each iteration makes one pass over the voxels
+/// before the transforms (x's and the direction's updates, C p written into the buffers'
+/// padded rows, p . C p and the means of C p) and one after (the residual's update, |r|^2).
+/// The direction stays in the range of the orthogonal projection P, so p . P C p = p . C p;
+/// the product is never stored as a field of its own. `mean_flux` (components values) gets the
+/// mean of C x over the grid, summed from the directions' means as they pass; x itself is
+/// formed only when `x` is given (it costs a field and its traffic). Stops when |r| / |b| <
+/// tolerance, after max_iterations, or when progress returns false. `b` is taken by value: it
+/// becomes the residual.
+CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectra,
                                        const GalerkinOperator& op, std::vector<double> b,
-                                       std::vector<double>* x, double tolerance, int max_iterations,
+                                       std::vector<double>* x, std::vector<double>* mean_flux,
+                                       double tolerance, int max_iterations,
                                        const std::function<bool(int, double)>& progress);
 
 }  // namespace spectral

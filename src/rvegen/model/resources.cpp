@@ -217,16 +217,17 @@ ResourceEstimate estimate_resources(const Scene& scene) {
   e.voxels = static_cast<double>(scene.resolution[0]) * scene.resolution[1] * scene.resolution[2];
   e.voxel_bytes = e.voxels * (scene.partial_volume ? 9.0 : 5.0) * 1.1;
   e.levelset_bytes = e.band_voxels * kBytesPerBandVoxel;
-  // The FFT solver per voxel: the unknown and conjugate gradients' residual and direction (3
-  // or 6 components of doubles), the spectra of one field, the grid's real field and unit
+  // The FFT solver per voxel: conjugate gradients' residual and direction (3 or 6 components
+  // of doubles), the spectra of one field (the flux formed and transformed in them), the unit
   // multipliers, the medium's index, plus the composite voxels' tensors (a margin); the
-  // fixed-point scheme keeps five 3-component fields; the local fields, when kept, as floats
-  // for every load case (conductivity: 3 x 2 x 3, elasticity: 6 x 2 x 6).
+  // fixed-point scheme keeps five 3-component fields; with the local fields, the unknown
+  // (doubles) and the fields as floats for every load case (conductivity: 3 x 2 x 3,
+  // elasticity: 6 x 2 x 6).
   const HomogenizationSpec& h = scene.homogenization;
   double solver = 0.0, fields = 0.0;
-  if (h.conductivity) solver = h.solver == "fixed_point" ? 180.0 : 135.0;
-  if (h.conductivity && h.fields) fields += 72.0;
-  if (h.elasticity) solver = 230.0, fields += h.fields ? 288.0 : 0.0;
+  if (h.conductivity) solver = h.solver == "fixed_point" ? 180.0 : 100.0;
+  if (h.conductivity && h.fields) fields += 24.0 + 72.0;
+  if (h.elasticity) solver = 175.0, fields += h.fields ? 48.0 + 288.0 : 0.0;
   e.homogenization_bytes = e.voxels * (1.15 * solver + fields);
   return e;
 }

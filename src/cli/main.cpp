@@ -67,7 +67,8 @@ const char* kGenerateUsage =
     "    levelsets   levelsets.vdb, when inclusions are wavy, deformed or coated\n"
     "    h5          rve.h5 + rve.xdmf (voxels, inclusion table, scene, report)\n"
     "    amitex      material.vtk, zoneID.vtk and the amitex_*.xml and amitex_run.sh files that\n"
-    "                run AMITEX_FFTP on them (materials from the scene)\n"
+    "                run AMITEX_FFTP on them (materials from the scene; with conductivities,\n"
+    "                also its stationary diffusion)\n"
     "    mesh        surfaces.vtp of every inclusion (otherwise of the modified ones only)\n"
     "    mesh_voxel  mesh_voxel.inp, .msh, .vtu (a hexahedron per voxel; periodic node sets\n"
     "                and equations or Gmsh's $Periodic) and, with\n"
@@ -419,7 +420,14 @@ int cmd_generate(const std::vector<std::string>& args) {
         out.write("amitex_materials.xml", rvegen::amitex_materials_xml(scene, result.set, image));
         out.write("amitex_loading.xml", rvegen::amitex_loading_xml());
         out.write("amitex_algorithm.xml", rvegen::amitex_algorithm_xml());
-        out.write("amitex_run.sh", rvegen::amitex_run_sh());
+        if (rvegen::amitex_conductivity_wanted(scene)) {
+          out.write("amitex_conductivity_materials.xml",
+                    rvegen::amitex_conductivity_materials_xml(scene, image));
+          out.write("amitex_conductivity_loading.xml", rvegen::amitex_conductivity_loading_xml());
+          out.write("amitex_conductivity_algorithm.xml",
+                    rvegen::amitex_conductivity_algorithm_xml());
+        }
+        out.write("amitex_run.sh", rvegen::amitex_run_sh(scene));
       });
     }
     if (want.mesh_voxel) {

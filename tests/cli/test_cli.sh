@@ -573,6 +573,53 @@ with h5py.File(os.path.join(d, "rve.h5"), "r") as h:
 run = open(os.path.join(d, "amitex_run.sh")).read()
 for f in ("material.vtk", "zoneID.vtk", "amitex_materials.xml", "amitex_loading.xml", "amitex_algorithm.xml"):
     assert f in run, f
+# The fibres conduct transversely isotropically: no AMITEX law is written for them.
+root = ET.parse(os.path.join(d, "amitex_conductivity_materials.xml")).getroot()
+k = {m.get("numM"): m.find("CoeffK").get("Value") for m in root.findall("Material")}
+assert k == {"1": "1", "2": "FILL_IN"}, k
+PY
+# AMITEX's diffusion files for isotropic conductivities: one Fourier_iso material per number of
+# material.vtk with the phase's conductivity (matrix, beads, their coating), the reference the
+# mean of the extremes, three unit gradients; the run script runs both problems. A scene with
+# conductivities only runs diffusion alone.
+MAT_K='"matrix":{"conductivity":1,"young":3,"poisson":0.35},"beads":{"conductivity":10,"young":70,"poisson":0.2},"beads.coating":{"conductivity":3,"young":10,"poisson":0.3}'
+BEADS='"families":[{"name":"beads","shape":"sphere","radius":0.1,"count":12,"coating":{"thickness":0.02}}],"voxels":{"resolution":24}'
+echo "{$BOX,\"seed\":2,$BEADS,\"materials\":{$MAT_K}}" >"$WORK/beads_k.json"
+expect_rc 0 "$RVEGEN" generate -q "$WORK/beads_k.json" --outputs inclusions,h5,amitex -o "$WORK/beads_amitex"
+echo "{$BOX,\"seed\":2,$BEADS,\"materials\":{\"matrix\":{\"conductivity\":1},\"beads\":{\"conductivity\":10},\"beads.coating\":{\"conductivity\":3}}}" >"$WORK/beads_konly.json"
+expect_rc 0 "$RVEGEN" generate -q "$WORK/beads_konly.json" --outputs amitex -o "$WORK/beads_konly"
+$py - "$WORK/beads_amitex" "$WORK/beads_konly" <<'PY' || fail "AMITEX diffusion files"
+import os, sys
+import xml.etree.ElementTree as ET
+import numpy as np, h5py
+d, only = sys.argv[1:3]
+raw = open(os.path.join(d, "material.vtk"), "rb").read().split(b"\n", 10)
+mat = np.frombuffer(raw[10], dtype=">u2").astype(int)
+with h5py.File(os.path.join(d, "rve.h5"), "r") as h:
+    phase = h["voxels/phase"][...].ravel()
+# The conductivity of each phase label (0 matrix, 1 beads, 2 their coating), through
+# material.vtk's numbering.
+want = {0: 1.0, 1: 10.0, 2: 3.0}
+root = ET.parse(os.path.join(d, "amitex_conductivity_materials.xml")).getroot()
+assert float(root.find("Reference_MaterialD").get("K0")) == 5.5
+mats = {int(m.get("numM")): m for m in root.findall("Material")}
+assert sorted(mats) == sorted(set(mat.tolist())), sorted(mats)
+for num, m in mats.items():
+    assert m.get("LawK") == "Fourier_iso", m.attrib
+    labels = set(phase[mat == num].tolist())
+    assert len(labels) == 1, (num, labels)
+    assert float(m.find("CoeffK").get("Value")) == want[labels.pop()], num
+loads = ET.parse(os.path.join(d, "amitex_conductivity_loading.xml")).getroot().findall("Loading")
+assert len(loads) == 3
+for n, l in enumerate(loads):
+    assert [l.find(c).get("Driving") for c in ("x0", "y0", "z0")] == ["GradD"] * 3
+    assert [float(l.find(c).get("Value")) for c in ("x0", "y0", "z0")] == [float(j == n) for j in range(3)]
+algo = ET.parse(os.path.join(d, "amitex_conductivity_algorithm.xml")).getroot()
+assert algo.find("Diffusion/Stationary").get("Value") == "true"
+run = open(os.path.join(d, "amitex_run.sh")).read()
+assert "-m amitex_materials.xml" in run and "-m amitex_conductivity_materials.xml" in run, run
+run = open(os.path.join(only, "amitex_run.sh")).read()
+assert "-m amitex_materials.xml" not in run and "-m amitex_conductivity_materials.xml" in run, run
 PY
 # Local fields in rve.h5 ("fields": true): per load case, the mean strain is the unit strain,
 # the mean stress the report's stiffness column (the mean flux its conductivity column), and

@@ -175,16 +175,113 @@ std::string amitex_algorithm_xml() {
          "</Algorithm_Parameters>\n";
 }
 
-std::string amitex_run_sh() {
-  return "#!/bin/sh\n"
-         "# AMITEX_FFTP on this RVE: sh amitex_run.sh (MPIRUN=\"mpirun -np 4\" to choose the\n"
-         "# launcher). Mean stresses per loading end up in amitex_out/rve.std.\n"
-         "set -e\n"
-         "cd \"$(dirname \"$0\")\"\n"
-         "mkdir -p amitex_out\n"
-         "${MPIRUN:-mpirun -np 2} amitex_fftp -nm material.vtk -nz zoneID.vtk "
+bool amitex_conductivity_wanted(const Scene& scene) {
+  for (const auto& [key, m] : scene.materials) {
+    if (m.conducts()) return true;
+  }
+  return false;
+}
+
+std::string amitex_conductivity_materials_xml(const Scene& scene, const VoxelImage& image) {
+  const std::vector<uint16_t> id = amitex_material_ids(image);
+  std::ostringstream x;
+  x.precision(17);
+  // The reference conductivity: the mean of the extremes, as for the elastic reference.
+  double kmin = 1e300, kmax = 0.0;
+  for (const Phase& p : image.phases) {
+    const Material* m = id[p.label] ? scene.material(material_key(scene, p)) : nullptr;
+    if (p.kind == PhaseKind::kVoid || !m || m->conductivity < 0.0) continue;
+    kmin = std::min(kmin, m->conductivity), kmax = std::max(kmax, m->conductivity);
+  }
+  x << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<!-- Written by rvegen for material.vtk; "
+       "AMITEX's stationary diffusion, run with amitex_run.sh. -->\n<Materials>\n";
+  if (kmax > 0.0) {
+    x << "  <Reference_MaterialD K0=\"" << 0.5 * (kmin + kmax) << "\"/>\n";
+  } else {
+    x << "  <Reference_MaterialD K0=\"FILL_IN\"/>\n";
+  }
+  for (const Phase& p : image.phases) {
+    if (!id[p.label]) continue;
+    const std::string key = material_key(scene, p);
+    const Material* m = scene.material(key);
+    x << "  <!-- " << p.name << " (materials." << key << ") -->\n";
+    x << "  <Material numM=\"" << id[p.label] << "\" LibK=\"\" LawK=\"Fourier_iso\">\n";
+    if (p.kind == PhaseKind::kVoid) {
+      x << "    <!-- a debonding void: no conduction -->\n";
+      x << "    <CoeffK Index=\"1\" Type=\"Constant\" Value=\"0\"/>\n";
+    } else if (m && m->conductivity >= 0.0) {
+      x << "    <CoeffK Index=\"1\" Type=\"Constant\" Value=\"" << m->conductivity << "\"/>\n";
+    } else {
+      x << "    <!-- "
+        << (m && m->transverse_conduction()
+                ? "transversely isotropic: give an anisotropic Fourier law by hand"
+                : "no conductivity for \"" + key + "\" in the scene's materials")
+        << " -->\n";
+      x << "    <CoeffK Index=\"1\" Type=\"Constant\" Value=\"FILL_IN\"/>\n";
+    }
+    x << "  </Material>\n";
+  }
+  x << "</Materials>\n";
+  return x.str();
+}
+
+std::string amitex_conductivity_loading_xml() {
+  std::ostringstream x;
+  x << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+       "<!-- Three unit mean gradients, one increment each: column k of the conductivity is "
+       "the mean flux at the end of loading k (its sign as AMITEX writes Fourier's law). -->\n"
+       "<Loading_Output>\n  <Output>\n    <vtk_FluxDGradD FluxD=\"0\" GradD=\"0\"/>\n"
+       "  </Output>\n";
+  const char* comp[3] = {"x0", "y0", "z0"};
+  for (int load = 0; load < 3; ++load) {
+    x << "  <Loading Tag=\"" << load + 1 << "\">\n";
+    x << "    <Time_Discretization Discretization=\"Linear\" Nincr=\"1\" Tfinal=\"" << load + 1
+      << "\"/>\n";
+    for (int c = 0; c < 3; ++c) {
+      x << "    <" << comp[c] << " Driving=\"GradD\" Evolution=\"Linear\" Value=\""
+        << (c == load ? "1" : "0") << "\"/>\n";
+    }
+    x << "  </Loading>\n";
+  }
+  x << "</Loading_Output>\n";
+  return x.str();
+}
+
+std::string amitex_conductivity_algorithm_xml() {
+  return "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+         "<Algorithm_Parameters>\n"
+         "  <Algorithm Type=\"Basic_Scheme\">\n"
+         "    <Convergence_Criterion Value=\"Default\"/>\n"
+         "    <Convergence_Acceleration Value=\"true\"/>\n"
+         "  </Algorithm>\n"
+         "  <Diffusion>\n"
+         "    <Filter Type=\"Default\"/>\n"
+         "    <Stationary Value=\"true\"/>\n"
+         "  </Diffusion>\n"
+         "</Algorithm_Parameters>\n";
+}
+
+std::string amitex_run_sh(const Scene& scene) {
+  bool elastic = scene.materials.empty();
+  for (const auto& [key, m] : scene.materials) elastic = elastic || m.elastic();
+  std::string s =
+      "#!/bin/sh\n"
+      "# AMITEX_FFTP on this RVE: sh amitex_run.sh (MPIRUN=\"mpirun -np 4\" to choose the\n"
+      "# launcher). Mean stresses per loading end up in amitex_out/rve.std";
+  s += amitex_conductivity_wanted(scene) ? ", mean fluxes in\n# amitex_out/conductivity.std.\n"
+                                         : ".\n";
+  s += "set -e\ncd \"$(dirname \"$0\")\"\nmkdir -p amitex_out\n";
+  if (elastic) {
+    s += "${MPIRUN:-mpirun -np 2} amitex_fftp -nm material.vtk -nz zoneID.vtk "
          "-m amitex_materials.xml -c amitex_loading.xml -a amitex_algorithm.xml "
          "-s amitex_out/rve\n";
+  }
+  if (amitex_conductivity_wanted(scene)) {
+    s += "${MPIRUN:-mpirun -np 2} amitex_fftp -nm material.vtk "
+         "-m amitex_conductivity_materials.xml -c amitex_conductivity_loading.xml "
+         "-a amitex_conductivity_algorithm.xml -s amitex_out/conductivity\n";
+  }
+  return s;
 }
 
 }  // namespace rvegen

@@ -138,27 +138,39 @@ std::string amitex_materials_xml(const Scene& scene, const InclusionSet& set,
   return x.str();
 }
 
-std::string amitex_loading_xml() {
+namespace {
+
+// Loadings of one increment each, component `load` of the mean driving quantity going to
+// `unit` in loading `load`, the others back to 0; `output` the vtk output element.
+std::string unit_loadings_xml(const char* comment, const char* output,
+                              const std::vector<const char*>& comp, const char* driving,
+                              const char* unit) {
   std::ostringstream x;
-  x << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
-       "<!-- Six unit mean strains (1e-3; shear in Voigt form, xy = 2 eps_xy), one increment "
-       "each: column k of the stiffness is the mean stress at the end of loading k over 1e-3 "
-       "(rvegen reports it in Mandel form: shear rows and columns times sqrt 2). -->\n"
-       "<Loading_Output>\n  <Output>\n    <vtk_StressStrain Strain=\"0\" Stress=\"0\"/>\n"
-       "  </Output>\n";
-  const char* comp[6] = {"xx", "yy", "zz", "xy", "xz", "yz"};
-  for (int load = 0; load < 6; ++load) {
+  x << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<!-- " << comment
+    << " -->\n<Loading_Output>\n  <Output>\n    " << output << "\n  </Output>\n";
+  for (size_t load = 0; load < comp.size(); ++load) {
     x << "  <Loading Tag=\"" << load + 1 << "\">\n";
     x << "    <Time_Discretization Discretization=\"Linear\" Nincr=\"1\" Tfinal=\"" << load + 1
       << "\"/>\n";
-    for (int c = 0; c < 6; ++c) {
-      x << "    <" << comp[c] << " Driving=\"Strain\" Evolution=\"Linear\" Value=\""
-        << (c == load ? "1e-3" : "0") << "\"/>\n";
+    for (size_t c = 0; c < comp.size(); ++c) {
+      x << "    <" << comp[c] << " Driving=\"" << driving << "\" Evolution=\"Linear\" Value=\""
+        << (c == load ? unit : "0") << "\"/>\n";
     }
     x << "  </Loading>\n";
   }
   x << "</Loading_Output>\n";
   return x.str();
+}
+
+}  // namespace
+
+std::string amitex_loading_xml() {
+  return unit_loadings_xml(
+      "Six unit mean strains (1e-3; shear in Voigt form, xy = 2 eps_xy), one increment each: "
+      "column k of the stiffness is the mean stress at the end of loading k over 1e-3 (rvegen "
+      "reports it in Mandel form: shear rows and columns times sqrt 2).",
+      "<vtk_StressStrain Strain=\"0\" Stress=\"0\"/>", {"xx", "yy", "zz", "xy", "xz", "yz"},
+      "Strain", "1e-3");
 }
 
 std::string amitex_algorithm_xml() {
@@ -226,25 +238,10 @@ std::string amitex_conductivity_materials_xml(const Scene& scene, const VoxelIma
 }
 
 std::string amitex_conductivity_loading_xml() {
-  std::ostringstream x;
-  x << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
-       "<!-- Three unit mean gradients, one increment each: column k of the conductivity is "
-       "the mean flux at the end of loading k (its sign as AMITEX writes Fourier's law). -->\n"
-       "<Loading_Output>\n  <Output>\n    <vtk_FluxDGradD FluxD=\"0\" GradD=\"0\"/>\n"
-       "  </Output>\n";
-  const char* comp[3] = {"x0", "y0", "z0"};
-  for (int load = 0; load < 3; ++load) {
-    x << "  <Loading Tag=\"" << load + 1 << "\">\n";
-    x << "    <Time_Discretization Discretization=\"Linear\" Nincr=\"1\" Tfinal=\"" << load + 1
-      << "\"/>\n";
-    for (int c = 0; c < 3; ++c) {
-      x << "    <" << comp[c] << " Driving=\"GradD\" Evolution=\"Linear\" Value=\""
-        << (c == load ? "1" : "0") << "\"/>\n";
-    }
-    x << "  </Loading>\n";
-  }
-  x << "</Loading_Output>\n";
-  return x.str();
+  return unit_loadings_xml(
+      "Three unit mean gradients, one increment each: column k of the conductivity is the mean "
+      "flux at the end of loading k (its sign as AMITEX writes Fourier's law).",
+      "<vtk_FluxDGradD FluxD=\"0\" GradD=\"0\"/>", {"x0", "y0", "z0"}, "GradD", "1");
 }
 
 std::string amitex_conductivity_algorithm_xml() {

@@ -75,7 +75,9 @@ TensorMedium<D> build_medium(const InclusionSet& set, const VoxelImage& image, c
     v.voxel = c.voxel;
     v.inside = own[c.inclusion] >= 0 ? static_cast<uint32_t>(own[c.inclusion]) : c.inside;
     v.outside = c.outside;
+    v.middle = c.middle;
     v.fraction = c.fraction;
+    v.middle_fraction = c.middle_fraction;
     v.normal = c.normal;
     composites.push_back(v);
   }

@@ -41,41 +41,43 @@ bool carries_nothing(const Eigen::Matrix<double, D, D>& c) {
   return c.cwiseAbs().maxCoeff() == 0.0;
 }
 
-// (f A^-1 + (1 - f) B^-1)^-1, with a material that is singular in some direction (a void)
-// giving zero there: both are shifted by a tiny multiple of their scale.
+// (sum w_i C_i^-1)^-1, with a material that is singular in some direction (a void) giving
+// zero there: every layer is shifted by a tiny multiple of their scale.
 template <int D>
-Eigen::Matrix<double, D, D> harmonic_mean(const Eigen::Matrix<double, D, D>& a,
-                                          const Eigen::Matrix<double, D, D>& b, double f) {
+Eigen::Matrix<double, D, D> harmonic_mean(const std::vector<Eigen::Matrix<double, D, D>>& c,
+                                          const std::vector<double>& w) {
   using M = Eigen::Matrix<double, D, D>;
-  const double scale = std::max(a.cwiseAbs().maxCoeff(), b.cwiseAbs().maxCoeff());
+  double scale = 0.0;
+  for (const M& m : c) scale = std::max(scale, m.cwiseAbs().maxCoeff());
   if (scale == 0.0) return M::Zero();
   const M eps = kMixRegularization * scale * M::Identity();
-  const M s = f * (a + eps).inverse() + (1.0 - f) * (b + eps).inverse();
+  M s = M::Zero();
+  for (size_t i = 0; i < c.size(); ++i) {
+    if (w[i] > 0.0) s += w[i] * (c[i] + eps).inverse();
+  }
   M r = s.inverse() - eps;
   return 0.5 * (r + r.transpose());
 }
 
 template <int D, int J>
-Eigen::Matrix<double, D, D> laminate(const Eigen::Matrix<double, D, D>& a,
-                                     const Eigen::Matrix<double, D, D>& b, double f,
+Eigen::Matrix<double, D, D> laminate(const std::vector<Eigen::Matrix<double, D, D>>& c,
+                                     const std::vector<double>& w,
                                      const Eigen::Matrix<double, D, J>& jump) {
   using M = Eigen::Matrix<double, D, D>;
   using K = Eigen::Matrix<double, J, J>;
-  const M* c[2] = {&a, &b};
-  const double w[2] = {f, 1.0 - f};
   M mean = M::Zero(), second = M::Zero();
   Eigen::Matrix<double, D, J> ck = Eigen::Matrix<double, D, J>::Zero();
   K kinv = K::Zero();
   bool void_present = false;
-  for (int s = 0; s < 2; ++s) {
+  for (size_t s = 0; s < c.size(); ++s) {
     if (w[s] <= 0.0) continue;
-    if (carries_nothing(*c[s])) {
+    if (carries_nothing(c[s])) {
       void_present = true;
       continue;
     }
-    const Eigen::Matrix<double, D, J> cn = (*c[s]) * jump;
+    const Eigen::Matrix<double, D, J> cn = c[s] * jump;
     const K ki = (jump.transpose() * cn).inverse();
-    mean += w[s] * (*c[s]);
+    mean += w[s] * c[s];
     second += w[s] * cn * ki * cn.transpose();
     ck += w[s] * cn * ki;
     kinv += w[s] * ki;
@@ -86,22 +88,33 @@ Eigen::Matrix<double, D, D> laminate(const Eigen::Matrix<double, D, D>& a,
 }
 
 template <int D, int J>
-Eigen::Matrix<double, D, D> mix(const Eigen::Matrix<double, D, D>& a,
-                                const Eigen::Matrix<double, D, D>& b, double f, VoxelRule rule,
+Eigen::Matrix<double, D, D> mix(const std::vector<Eigen::Matrix<double, D, D>>& c,
+                                const std::vector<double>& w, VoxelRule rule,
                                 const Eigen::Matrix<double, D, J>& jump) {
-  if (f >= 1.0) return a;
-  if (f <= 0.0) return b;
+  using M = Eigen::Matrix<double, D, D>;
+  if (c.size() != w.size() || c.empty()) {
+    throw InputError("homogenization: a composite voxel needs one share per layer");
+  }
+  // The layer with the largest share (the first of equal ones).
+  size_t most = 0;
+  for (size_t i = 1; i < w.size(); ++i) {
+    if (w[i] > w[most]) most = i;
+  }
+  if (w[most] >= 1.0) return c[most];
   switch (rule) {
     case VoxelRule::kPlain:
-      return f >= 0.5 ? a : b;
-    case VoxelRule::kVoigt:
-      return f * a + (1.0 - f) * b;
+      return c[most];
+    case VoxelRule::kVoigt: {
+      M m = M::Zero();
+      for (size_t i = 0; i < c.size(); ++i) m += w[i] * c[i];
+      return m;
+    }
     case VoxelRule::kReuss:
-      return harmonic_mean<D>(a, b, f);
+      return harmonic_mean<D>(c, w);
     case VoxelRule::kLaminate:
-      return laminate<D, J>(a, b, f, jump);
+      return laminate<D, J>(c, w, jump);
   }
-  return a;
+  return c[most];
 }
 
 template <int D>
@@ -144,12 +157,22 @@ const char* voxel_rule_name(VoxelRule rule) {
   return "?";
 }
 
+Mat3 mix_conductivity(const std::vector<Mat3>& layers, const std::vector<double>& shares,
+                      const Vec3& n, VoxelRule rule) {
+  return mix<3, 1>(layers, shares, rule, jump_map3(n));
+}
+
+Mat6 mix_stiffness(const std::vector<Mat6>& layers, const std::vector<double>& shares,
+                   const Vec3& n, VoxelRule rule) {
+  return mix<6, 3>(layers, shares, rule, jump_map6(n));
+}
+
 Mat3 mix_conductivity(const Mat3& a, const Mat3& b, double f, const Vec3& n, VoxelRule rule) {
-  return mix<3, 1>(a, b, f, rule, jump_map3(n));
+  return mix_conductivity({a, b}, {f, 1.0 - f}, n, rule);
 }
 
 Mat6 mix_stiffness(const Mat6& a, const Mat6& b, double f, const Vec3& n, VoxelRule rule) {
-  return mix<6, 3>(a, b, f, rule, jump_map6(n));
+  return mix_stiffness({a, b}, {f, 1.0 - f}, n, rule);
 }
 
 template <int D>
@@ -170,22 +193,25 @@ TensorMedium<D> compose_medium(const std::vector<uint32_t>& material,
   m.tensors.reserve(materials.size() + composites.size());
   for (const CompositeVoxel& c : composites) {
     if (c.voxel >= m.index.size() || c.inside >= materials.size() ||
-        c.outside >= materials.size()) {
+        c.outside >= materials.size() || c.middle >= materials.size()) {
       throw InputError("homogenization: a composite voxel refers to no voxel or no material");
     }
-    if (!(c.fraction >= 0.0 && c.fraction <= 1.0) || !c.normal.allFinite() ||
-        std::abs(c.normal.norm() - 1.0) > kNormalTolerance) {
+    const double outer = 1.0 - c.fraction - c.middle_fraction;
+    if (!(c.fraction >= 0.0 && c.middle_fraction >= 0.0 && outer >= -kNormalTolerance) ||
+        !c.normal.allFinite() || std::abs(c.normal.norm() - 1.0) > kNormalTolerance) {
       throw InputError(
-          "homogenization: a composite voxel's share must lie in [0, 1] and its "
-          "normal be a unit vector");
+          "homogenization: a composite voxel's shares must lie in [0, 1] and add up to 1 at "
+          "most, and its normal be a unit vector");
     }
     m.index[c.voxel] = static_cast<uint32_t>(m.tensors.size());
+    // Layers along the normal: inside, middle (a coating's shell), outside.
+    const std::vector<Eigen::Matrix<double, D, D>> layers = {
+        materials[c.inside], materials[c.middle], materials[c.outside]};
+    const std::vector<double> shares = {c.fraction, c.middle_fraction, std::max(0.0, outer)};
     if constexpr (D == 3) {
-      m.tensors.push_back(
-          mix_conductivity(materials[c.inside], materials[c.outside], c.fraction, c.normal, rule));
+      m.tensors.push_back(mix_conductivity(layers, shares, c.normal, rule));
     } else {
-      m.tensors.push_back(
-          mix_stiffness(materials[c.inside], materials[c.outside], c.fraction, c.normal, rule));
+      m.tensors.push_back(mix_stiffness(layers, shares, c.normal, rule));
     }
   }
   return m;

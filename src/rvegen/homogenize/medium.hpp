@@ -15,6 +15,8 @@
 //      C = <C> - <C N K^-1 N^T C> + <C N K^-1> <K^-1>^-1 <K^-1 N^T C>  (<.>: mean by share);
 //    where a material carries nothing (a void, C = 0) the last term drops (zero traction).
 //    A laminate of layers normal to n is then exact whatever the voxel size.
+// A voxel cut by a coated inclusion holds up to three layers, core, shell and matrix, along
+// the same normal (the shell's surfaces are parallel); the means above run over the three.
 #pragma once
 
 #include <Eigen/Dense>
@@ -53,12 +55,15 @@ enum class VoxelRule { kPlain, kVoigt, kReuss, kLaminate };
 VoxelRule voxel_rule_from_name(const std::string& name);
 const char* voxel_rule_name(VoxelRule rule);
 
-/// A voxel cut by one interface.
+/// A voxel cut by one interface, or by two parallel ones (a coating's shell between a core and
+/// the matrix): layers inside, middle and outside along the normal.
 struct CompositeVoxel {
   size_t voxel = 0;
   uint32_t inside = 0, outside = 0;  // materials (rows of the material table)
-  double fraction = 0.0;             // share of the voxel on the inside, in (0, 1)
-  Vec3 normal = Vec3::UnitX();       // unit normal of the interface
+  uint32_t middle = 0;               // the middle layer's material (with middle_fraction > 0)
+  double fraction = 0.0;             // share of the voxel on the inside
+  double middle_fraction = 0.0;      // share in the middle layer; the outside has the rest
+  Vec3 normal = Vec3::UnitX();       // unit normal of the interfaces
 };
 
 /// The medium of an image: voxel v has material `material[v]` (a row of `materials`), except
@@ -73,6 +78,12 @@ TensorMedium<D> compose_medium(const std::vector<uint32_t>& material,
 /// The rule's tensor for shares f of A and 1 - f of B with interface normal n.
 Mat3 mix_conductivity(const Mat3& a, const Mat3& b, double f, const Vec3& n, VoxelRule rule);
 Mat6 mix_stiffness(const Mat6& a, const Mat6& b, double f, const Vec3& n, VoxelRule rule);
+/// The same for any number of layers normal to n with the given shares (adding up to 1); the
+/// plain rule takes the layer with the largest share.
+Mat3 mix_conductivity(const std::vector<Mat3>& layers, const std::vector<double>& shares,
+                      const Vec3& n, VoxelRule rule);
+Mat6 mix_stiffness(const std::vector<Mat6>& layers, const std::vector<double>& shares,
+                   const Vec3& n, VoxelRule rule);
 
 /// Transversely isotropic conductivity about the unit axis a: k_t I + (k_a - k_t) a a^T.
 Mat3 transverse_conductivity(double axial, double transverse, const Vec3& axis);

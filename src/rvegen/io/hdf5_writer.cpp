@@ -174,14 +174,15 @@ void write_hdf5(const std::string& path, const VoxelImage& im, const InclusionSe
     text_attribute(tab, "shape_codes", std::string("0 sphere, 1 cylinder, 2 ellipsoid"));
     H5Gclose(tab);
 
-    // Voxels cut by one core surface, for solvers that take composite (laminate) voxels.
+    // Voxels cut by the surfaces of one inclusion, for solvers that take composite (laminate)
+    // voxels.
     const CutVoxels cut = cut_voxels(set, im);
     const hid_t cv = H5Gcreate2(file, "composite_voxels", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
     const size_t m = cut.voxels.size();
     std::vector<uint64_t> voxel(m);
     std::vector<int32_t> owner(m);
-    std::vector<uint8_t> inside(m), outside(m);
-    std::vector<double> share(m), normal(3 * m);
+    std::vector<uint8_t> inside(m), outside(m), middle(m);
+    std::vector<double> share(m), middle_share(m), normal(3 * m);
     for (size_t i = 0; i < m; ++i) {
       const CutVoxel& c = cut.voxels[i];
       voxel[i] = c.voxel;
@@ -189,6 +190,8 @@ void write_hdf5(const std::string& path, const VoxelImage& im, const InclusionSe
       inside[i] = c.inside;
       outside[i] = c.outside;
       share[i] = c.fraction;
+      middle[i] = c.middle;
+      middle_share[i] = c.middle_fraction;
       for (int a = 0; a < 3; ++a) normal[3 * i + a] = c.normal[a];
     }
     dataset(cv, "voxel", H5T_NATIVE_UINT64, {m}, voxel.data());
@@ -196,11 +199,16 @@ void write_hdf5(const std::string& path, const VoxelImage& im, const InclusionSe
     dataset(cv, "inside_phase", H5T_NATIVE_UINT8, {m}, inside.data());
     dataset(cv, "outside_phase", H5T_NATIVE_UINT8, {m}, outside.data());
     dataset(cv, "fraction", H5T_NATIVE_DOUBLE, {m}, share.data());
+    dataset(cv, "middle_phase", H5T_NATIVE_UINT8, {m}, middle.data());
+    dataset(cv, "middle_fraction", H5T_NATIVE_DOUBLE, {m}, middle_share.data());
     dataset(cv, "normal", H5T_NATIVE_DOUBLE, {m, 3}, normal.data());
-    text_attribute(cv, "description",
-                   std::string("voxels cut by one core surface: voxel = index x fastest (i + nx "
-                               "(j + ny k)), the share of the voxel inside the core (fraction), "
-                               "the core's outward unit normal, the phase labels on each side"));
+    text_attribute(
+        cv, "description",
+        std::string("voxels cut by the surfaces of one inclusion: voxel = index x fastest (i + "
+                    "nx (j + ny k)), the share of the voxel inside the core (fraction), for a "
+                    "coated inclusion the shell's label and share (middle_phase, "
+                    "middle_fraction; 0 otherwise), the outside phase the rest, the core's "
+                    "outward unit normal (the shell's surfaces are parallel to it)"));
     attribute(cv, "voxels_cut_by_two_cores", {static_cast<double>(cut.shared)});
     H5Gclose(cv);
 

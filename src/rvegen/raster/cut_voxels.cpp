@@ -19,6 +19,20 @@ int wrap(int i, int n) {
   return i < 0 ? i + n : i;
 }
 
+// Share of the voxel with centre x and sides h in the region r, on ss^3 points.
+double sampled_share(const BodyQuery& body, const Vec3& x, const Vec3& h, int ss, Region r) {
+  int inside = 0;
+  for (int c = 0; c < ss; ++c) {
+    for (int b = 0; b < ss; ++b) {
+      for (int a = 0; a < ss; ++a) {
+        const Vec3 d((a + 0.5) / ss - 0.5, (b + 0.5) / ss - 0.5, (c + 0.5) / ss - 0.5);
+        inside += body.region(x + d.cwiseProduct(h)) == r;
+      }
+    }
+  }
+  return static_cast<double>(inside) / (ss * ss * ss);
+}
+
 // Share of the voxel with centre x and sides h inside the core.
 double core_share(const BodyQuery& body, const Vec3& x, const Vec3& h, int ss) {
   if (body.straight_core()) {
@@ -35,16 +49,7 @@ double core_share(const BodyQuery& body, const Vec3& x, const Vec3& h, int ss) {
     }
     return inside / (h[0] * ss * ss);
   }
-  int inside = 0;
-  for (int c = 0; c < ss; ++c) {
-    for (int b = 0; b < ss; ++b) {
-      for (int a = 0; a < ss; ++a) {
-        const Vec3 d((a + 0.5) / ss - 0.5, (b + 0.5) / ss - 0.5, (c + 0.5) / ss - 0.5);
-        inside += body.region(x + d.cwiseProduct(h)) == Region::kCore;
-      }
-    }
-  }
-  return static_cast<double>(inside) / (ss * ss * ss);
+  return sampled_share(body, x, h, ss, Region::kCore);
 }
 
 }  // namespace
@@ -65,6 +70,10 @@ CutVoxels cut_voxels(const InclusionSet& set, const VoxelImage& img, int subsamp
   tbb::parallel_for(size_t(0), incs.size(), [&](size_t m) {
     const Inclusion& inc = incs[m];
     const BodyQuery body(inc);
+    // Core, shell and matrix in layers (a debonded coated inclusion, whose void lies between
+    // core and shell, keeps the two-phase rule at its core).
+    const bool coated =
+        inc.mod.coating > 0.0 && !inc.mod.debonded() && shell_label[inc.family] != 0;
     Vec3 lo, hi;
     outer_bound(inc).aabb(&lo, &hi);
     int flo[3], fhi[3];
@@ -88,12 +97,22 @@ CutVoxels cut_voxels(const InclusionSet& set, const VoxelImage& img, int subsamp
           const Vec3 x = img.origin + Vec3(i + 0.5, j + 0.5, k + 0.5).cwiseProduct(img.spacing);
           if (body.clearance(x) >= half_diagonal) continue;  // one region holds the voxel
           const double share = core_share(body, x, img.spacing, ss);
-          if (!(share > 0.0 && share < 1.0)) continue;
+          // A coated inclusion's shell: its share, never more than the core leaves.
+          const double shell =
+              coated
+                  ? std::min(1.0 - share, sampled_share(body, x, img.spacing, ss, Region::kShell))
+                  : 0.0;
+          if (!(share < 1.0 && shell < 1.0 && share + shell > 0.0)) continue;  // one layer
+          if (!coated && !(share > 0.0)) continue;
           CutVoxel v;
           v.voxel = img.index(ii, jj, kk);
           v.inclusion = static_cast<int>(m);
           v.inside = static_cast<uint8_t>(inc.family + 1);
           v.fraction = share;
+          if (coated) {
+            v.middle = shell_label[inc.family];
+            v.middle_fraction = shell;
+          }
           // The distance's gradient by central differences.
           const double e = kGradientStep * img.spacing.maxCoeff();
           Vec3 g;
@@ -102,9 +121,10 @@ CutVoxels cut_voxels(const InclusionSet& set, const VoxelImage& img, int subsamp
             g[a] = body.core_distance(x + d) - body.core_distance(x - d);
           }
           if (g.norm() > 0.0 && g.allFinite()) v.normal = g.normalized();
-          // The phase just beyond the surface point nearest the centre.
+          // The phase just beyond the core's surface point nearest the centre (beyond the
+          // shell for a coated inclusion: the matrix).
           const Vec3 beyond = x - body.core_distance(x) * v.normal + step * v.normal;
-          const Region r = body.region(beyond);
+          const Region r = coated ? Region::kOutside : body.region(beyond);
           v.outside = r == Region::kShell  ? shell_label[inc.family]
                       : r == Region::kVoid ? void_label[inc.family]
                                            : uint8_t{0};

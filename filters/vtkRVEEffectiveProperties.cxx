@@ -26,11 +26,11 @@
 vtkStandardNewMacro(vtkRVEEffectiveProperties);
 
 vtkRVEEffectiveProperties::vtkRVEEffectiveProperties()
-    : Materials(R"({"matrix": {"conductivity": 1, "young": 3, "poisson": 0.35},)"
-                R"( "spheres": {"conductivity": 10, "young": 70, "poisson": 0.2},)"
-                R"( "fibres": {"axial_conductivity": 50, "transverse_conductivity": 5,)"
-                R"( "axial_young": 230, "transverse_young": 15, "axial_shear": 27,)"
-                R"( "axial_poisson": 0.2, "transverse_poisson": 0.4},)"
+    : Materials(R"({"matrix": {"conductivity": 1, "young": 3, "poisson": 0.35},)" "\n"
+                R"( "spheres": {"conductivity": 10, "young": 70, "poisson": 0.2},)" "\n"
+                R"( "fibres": {"axial_conductivity": 50, "transverse_conductivity": 5,)" "\n"
+                R"(            "axial_young": 230, "transverse_young": 15, "axial_shear": 27,)" "\n"
+                R"(            "axial_poisson": 0.2, "transverse_poisson": 0.4},)" "\n"
                 R"( "grains": {"conductivity": 10, "young": 70, "poisson": 0.2}})") {}
 
 int vtkRVEEffectiveProperties::FillInputPortInformation(int, vtkInformation* info) {

@@ -6,8 +6,8 @@
  * generate (both carry the inclusion list in field data "rvegen_inclusions"). Output: a
  * vtkUnstructuredGrid of tetrahedra following every interface, with opposite box faces meshed
  * alike (cell data phase and inclusion_id; field data phase_names, and merged_nodes, the nodes
- * the mesher left at one position and rvegen merged). Plain spheres and cylinders; other
- * inclusions give an error naming the family. The sizes are those of a scene's "mesh_tet"
+ * the mesher left at one position and rvegen merged). Spheres, cylinders and ellipsoids,
+ * coated spheres and cylinders; other inclusions give an error naming the family. The sizes are those of a scene's "mesh_tet"
  * object (0: the default). Progress follows the mesher's stages; Abort stops it (within a
  * stage it first finishes with coarse elements) and leaves the output empty.
  */

@@ -673,7 +673,8 @@ TEST(CompositeVoxels, ANeutralCoatedSphereLeavesTheMatrixConductivity) {
   // (relative errors, three layers / core and shell / plain): shell of 1 voxel at 24^3,
   // 3.3e-3 / 1.7e-2 / 3.9e-2; of 1.1 voxels at 16^3, 3.5e-3 / 1.1e-2 / 3.6e-2.
   const double a = 0.25, kc = 10.0, ks = 0.5;
-  for (const auto& [t, res] : {std::pair<double, int>{0.04, 24}, {0.07, 16}}) {
+  for (const auto& [t, side] : {std::pair<double, int>{0.04, 24}, {0.07, 16}}) {
+    const int res = side;  // (lambdas may not capture structured bindings in C++17)
     const double phi = std::pow(a / (a + t), 3);
     const double km = ks * (2 * ks + kc + 2 * (kc - ks) * phi) / (2 * ks + kc - (kc - ks) * phi);
     InclusionSet set;

@@ -147,15 +147,7 @@ int cubic(int res, double f, double contrast) {
     std::vector<uint32_t> material(img.phase.begin(), img.phase.end());
     std::vector<rvegen::CompositeVoxel> comp;
     for (const rvegen::CutVoxel& c : cut.voxels) {
-      rvegen::CompositeVoxel v;
-      v.voxel = c.voxel;
-      v.inside = c.inside;
-      v.outside = c.outside;
-      v.middle = c.middle;
-      v.fraction = c.fraction;
-      v.middle_fraction = c.middle_fraction;
-      v.normal = c.normal;
-      comp.push_back(v);
+      comp.push_back(rvegen::composite_of(c));
     }
     const std::vector<Mat3> mats = {Mat3::Identity(), contrast * Mat3::Identity()};
     rvegen::ConductivityOptions opt;

@@ -692,19 +692,12 @@ TEST(CompositeVoxels, ANeutralCoatedSphereLeavesTheMatrixConductivity) {
     auto solve = [&](VoxelRule rule, bool outer_layer) {
       std::vector<CompositeVoxel> comp;
       for (const CutVoxel& c : cut.voxels) {
-        CompositeVoxel v;
-        v.voxel = c.voxel;
-        v.inside = c.inside;
-        v.normal = c.normal;
-        v.fraction = c.fraction;
-        if (outer_layer) {
-          v.middle = c.middle;
-          v.middle_fraction = c.middle_fraction;
-          v.outside = c.outside;
-        } else {
+        CompositeVoxel v = composite_of(c);
+        if (!outer_layer) {
           // The core against the shell, the shell's outer surface plain.
           if (!(c.fraction > 0.0)) continue;
           v.outside = c.middle;
+          v.middle_fraction = 0.0;
         }
         comp.push_back(v);
       }

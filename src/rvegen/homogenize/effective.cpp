@@ -71,14 +71,8 @@ TensorMedium<D> build_medium(const InclusionSet& set, const VoxelImage& image, c
   std::vector<CompositeVoxel> composites;
   composites.reserve(cut.voxels.size());
   for (const CutVoxel& c : cut.voxels) {
-    CompositeVoxel v;
-    v.voxel = c.voxel;
-    v.inside = own[c.inclusion] >= 0 ? static_cast<uint32_t>(own[c.inclusion]) : c.inside;
-    v.outside = c.outside;
-    v.middle = c.middle;
-    v.fraction = c.fraction;
-    v.middle_fraction = c.middle_fraction;
-    v.normal = c.normal;
+    CompositeVoxel v = composite_of(c);
+    if (own[c.inclusion] >= 0) v.inside = static_cast<uint32_t>(own[c.inclusion]);
     composites.push_back(v);
   }
   return compose_medium<D>(material, rows, composites, rule);

@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "rvegen/geometry/shapes.hpp"
+#include "rvegen/raster/cut_voxels.hpp"
 
 namespace rvegen {
 
@@ -65,6 +66,20 @@ struct CompositeVoxel {
   double middle_fraction = 0.0;      // share in the middle layer; the outside has the rest
   Vec3 normal = Vec3::UnitX();       // unit normal of the interfaces
 };
+
+/// A cut voxel as a composite voxel whose materials are the cut voxel's phase labels (rows of
+/// a table that starts with a row per phase label).
+inline CompositeVoxel composite_of(const CutVoxel& c) {
+  CompositeVoxel v;
+  v.voxel = c.voxel;
+  v.inside = c.inside;
+  v.outside = c.outside;
+  v.middle = c.middle;
+  v.fraction = c.fraction;
+  v.middle_fraction = c.middle_fraction;
+  v.normal = c.normal;
+  return v;
+}
 
 /// The medium of an image: voxel v has material `material[v]` (a row of `materials`), except
 /// the composite voxels, which get the rule's tensor (each its own row). Throws InputError when

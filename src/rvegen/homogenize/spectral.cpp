@@ -164,7 +164,6 @@ Grid::Grid(const std::array<int, 3>& dims, const Vec3& box, GradientScheme schem
   if (!comm_.set) {
     n_ = total_;
     nc_ = alloc_ = static_cast<size_t>(hx) * dims[1] * dims[2];
-    slab_ = {0, dims[2]};
     auto* spec = fftw_alloc_complex(alloc_);
     auto* real = reinterpret_cast<double*>(spec);
     forward_ = fftw_plan_dft_r2c_3d(dims[2], dims[1], dims[0], real, spec, FFTW_ESTIMATE);
@@ -177,7 +176,6 @@ Grid::Grid(const std::array<int, 3>& dims, const Vec3& box, GradientScheme schem
     alloc_ = mpi_layout(dims, comm_, &n0, &z0, &n1, &y0);
     n_ = static_cast<size_t>(n0) * dims[1] * dims[0];
     nc_ = static_cast<size_t>(n1) * dims[2] * hx;
-    slab_ = {static_cast<int>(z0), static_cast<int>(z0 + n0)};
     mid_ = 2;
     slow_ = 1;
     slow_start_ = static_cast<size_t>(y0);

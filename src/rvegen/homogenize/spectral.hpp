@@ -85,8 +85,6 @@ class Grid {
   size_t spectrum_size() const { return alloc_; }
   /// Voxels of the whole grid (over every rank).
   size_t voxels() const { return total_; }
-  /// The planes [lo, hi) along z held here.
-  std::array<int, 2> slab() const { return slab_; }
   const Communicator& communicator() const { return comm_; }
   /// A sum of per-rank values over the ranks, and sum_i a[i] b[i] over the whole grid (the
   /// same bits whatever the number of threads).
@@ -142,7 +140,6 @@ class Grid {
  private:
   size_t n_, nc_, alloc_, total_;
   Communicator comm_;
-  std::array<int, 2> slab_ = {0, 0};
   // The stored layout's middle and slowest axes, and the first index along the slowest.
   int mid_ = 1, slow_ = 2;
   size_t slow_start_ = 0;

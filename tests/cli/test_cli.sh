@@ -277,8 +277,8 @@ grep -q "notes.txt" "$WORK/last.err" || fail "foreign file not named: $(cat "$WO
 
 # A bend radius of 1e300 is a straight fibre (it overflowed R^2 and exhausted memory): packed
 # like one, the bend kept in the inclusion list, no overlap.
-echo "{$BOX,\"seed\":2,\"families\":[{\"shape\":\"cylinder\",\"radius\":0.02,\"aspect_ratio\":5,\"volume_fraction\":0.2,\"curvature\":{\"radius\":1e300}}],\"voxels\":{\"resolution\":16}}" >"$WORK/huge_bend.json"
-expect_rc 0 "$RVEGEN" generate -q "$WORK/huge_bend.json" -o "$WORK/huge_bend"
+echo "{\"box\":{\"size\":[0.4,0.4,0.4]},\"seed\":2,\"families\":[{\"shape\":\"cylinder\",\"radius\":0.02,\"aspect_ratio\":5,\"volume_fraction\":0.2,\"curvature\":{\"radius\":1e300}}],\"voxels\":{\"resolution\":16}}" >"$WORK/huge_bend.json"
+expect_rc 0 "$RVEGEN" generate -q --outputs inclusions "$WORK/huge_bend.json" -o "$WORK/huge_bend"
 expect_rc 0 "$RVEGEN" check "$WORK/huge_bend/inclusions.json"
 grep -q '"bend_radius": 1e+300' "$WORK/huge_bend/inclusions.json" || fail "huge bend radius not kept"
 # Fibres entangled from the start (waves ten radii wide, 0.1 of the box): not one finds a valid
@@ -299,9 +299,11 @@ grep -q "levelsets.vdb (not a regular file)" "$WORK/last.err" || fail "directory
 [ "$(cat "$WORK/with_dir/levelsets.vdb/mine.txt")" = precious ] || fail "a user's directory in DIR was deleted"
 # DIR as a symbolic link: the directory it points to gets the new set, the link stays a link;
 # a link to a directory holding the user's files is refused like the directory itself.
+# (A small scene with a level set: what is tested is where the files go.)
+echo '{"box":{"size":[0.3,0.3,0.3]},"seed":3,"families":[{"shape":"sphere","radius":0.05,"volume_fraction":0.1,"coating":{"thickness":0.01}}],"voxels":{"resolution":16},"levelsets":{"voxel_size":0.015}}' >"$WORK/small_ls.json"
 expect_rc 0 "$RVEGEN" generate -q "$WORK/closed.json" -o "$WORK/link_target"
 ln -s "$WORK/link_target" "$WORK/link_dir"
-expect_rc 0 "$RVEGEN" generate -q "$WORK/modified.json" -o "$WORK/link_dir"
+expect_rc 0 "$RVEGEN" generate -q "$WORK/small_ls.json" -o "$WORK/link_dir"
 [ -L "$WORK/link_dir" ] || fail "the link DIR was replaced by a directory"
 [ -e "$WORK/link_target/levelsets.vdb" ] || fail "the link's target did not get the new set"
 ln -s "$WORK/mine" "$WORK/link_mine"
@@ -309,8 +311,8 @@ expect_rc 1 "$RVEGEN" generate -q "$WORK/closed.json" -o "$WORK/link_mine"
 [ "$(cat "$WORK/mine/notes.txt")" = notes ] || fail "foreign file behind a link touched"
 
 # A set without level sets replaces one with them: no stale levelsets.vdb.
-expect_rc 0 "$RVEGEN" generate -q "$WORK/modified.json" -o "$WORK/swap"
-[ -e "$WORK/swap/levelsets.vdb" ] || fail "modified scene wrote no levelsets.vdb"
+expect_rc 0 "$RVEGEN" generate -q "$WORK/small_ls.json" -o "$WORK/swap"
+[ -e "$WORK/swap/levelsets.vdb" ] || fail "coated scene wrote no levelsets.vdb"
 expect_rc 0 "$RVEGEN" generate -q "$WORK/closed.json" -o "$WORK/swap"
 [ -e "$WORK/swap/levelsets.vdb" ] && fail "stale levelsets.vdb survived a new set"
 

@@ -2,7 +2,8 @@
 # Installs what is needed, builds and runs every test (GoogleTest suites including the
 # million-pair property test, the command-line tests, and the pvpython plugin test with its
 # image comparison under xvfb-run), then the sanitizer build's tests and a minute of fuzzing
-# (.ci/sanitize.sh). Exits non-zero when any test fails.
+# (.ci/sanitize.sh), then the packing's tests under ThreadSanitizer (.ci/tsan.sh). Exits non-zero
+# when any test fails.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash .ci/install-deps.sh
@@ -10,3 +11,4 @@ cmake -S . -B build -DCMAKE_BUILD_TYPE=Release
 cmake --build build -j"$(nproc)"
 ctest --test-dir build --output-on-failure -j"$(nproc)"
 bash .ci/sanitize.sh
+bash .ci/tsan.sh

@@ -1,10 +1,10 @@
 #include "rvegen/model/neighbours.hpp"
 
-#include <tbb/parallel_for.h>
-
 #include <algorithm>
 #include <cmath>
 #include <thread>
+
+#include "rvegen/model/parallel.hpp"
 
 namespace rvegen {
 
@@ -245,7 +245,7 @@ void sphere_pairs(const Box& box, const std::vector<Vec3>& c, const std::vector<
   std::vector<std::vector<SpherePair>> found(nb), reaching(nb);
   const bool large = search.large_count() > 0;
   const auto caller = std::this_thread::get_id();
-  tbb::parallel_for(size_t(0), nb, [&](size_t b) {
+  rvegen::parallel_for(size_t(0), nb, [&](size_t b) {
     if (tick && std::this_thread::get_id() == caller) tick();
     const size_t end = std::min(search.small_count(), (b + 1) * kBlock);
     for (size_t t = b * kBlock; t < end; ++t) {

@@ -1,8 +1,5 @@
 #include "rvegen/model/orientation.hpp"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <atomic>
@@ -10,6 +7,7 @@
 #include <stdexcept>
 
 #include "rvegen/geometry/tolerances.hpp"
+#include "rvegen/model/parallel.hpp"
 
 namespace rvegen {
 
@@ -158,10 +156,38 @@ bool match_orientation_tensor(std::vector<Vec3>* dirs, const Mat3& target, doubl
     const double l = std::max(0.0, et.eigenvalues()[k]);
     half += std::sqrt(l) * et.eigenvectors().col(k) * et.eigenvectors().col(k).transpose();
   }
+  // The directions in fixed blocks, each block's sum of v v^T kept and the blocks' sums added
+  // in block order: the same bits on any number of threads, and the sum (every iteration's
+  // serial part before) runs on all cores, fused with the map of the directions.
+  constexpr size_t kBlock = 1024;
+  const size_t blocks = (p.size() + kBlock - 1) / kBlock;
+  std::vector<Mat3> partial(blocks);
   std::vector<Vec3> q = p;
+  std::atomic<bool> lost{false};
+  // Maps block b's directions by t (unless t is null) and keeps their sum of v v^T.
+  const auto map_and_sum = [&](const Mat3* t) {
+    rvegen::parallel_for(size_t(0), blocks, [&](size_t b) {
+      Mat3 sum = Mat3::Zero();
+      const size_t end = std::min(q.size(), (b + 1) * kBlock);
+      for (size_t i = b * kBlock; i < end; ++i) {
+        if (t) {
+          const Vec3 w = *t * q[i];
+          const double n = w.norm();
+          if (!(n > kNoDirection)) {
+            lost = true;
+            return;
+          }
+          q[i] = w / n;
+        }
+        sum += q[i] * q[i].transpose();
+      }
+      partial[b] = sum;
+    });
+  };
+  map_and_sum(nullptr);
   for (int it = 0; it < 200; ++it) {
     Mat3 s = Mat3::Zero();
-    for (const Vec3& v : q) s += v * v.transpose();
+    for (const Mat3& m : partial) s += m;
     s /= static_cast<double>(q.size());
     if ((s - target).cwiseAbs().maxCoeff() <= tol) {
       p = q;
@@ -177,20 +203,7 @@ bool match_orientation_tensor(std::vector<Vec3>* dirs, const Mat3& target, doubl
       inv_half += es.eigenvectors().col(k) * es.eigenvectors().col(k).transpose() / std::sqrt(l);
     }
     const Mat3 t = half * inv_half;
-    // Each direction on its own (all cores for large families).
-    std::atomic<bool> lost{false};
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, q.size(), 1024),
-                      [&](const tbb::blocked_range<size_t>& r) {
-                        for (size_t i = r.begin(); i != r.end(); ++i) {
-                          const Vec3 w = t * q[i];
-                          const double n = w.norm();
-                          if (!(n > kNoDirection)) {
-                            lost = true;
-                            return;
-                          }
-                          q[i] = w / n;
-                        }
-                      });
+    map_and_sum(&t);
     if (lost) return false;
   }
   return false;

@@ -1,7 +1,5 @@
 #include "rvegen/packing/audit.hpp"
 
-#include <tbb/parallel_for.h>
-
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -11,6 +9,7 @@
 #include "rvegen/model/body.hpp"
 #include "rvegen/model/deformed_support.hpp"
 #include "rvegen/model/neighbours.hpp"
+#include "rvegen/model/parallel.hpp"
 #include "rvegen/packing/body_contacts.hpp"
 
 namespace rvegen {
@@ -20,7 +19,8 @@ namespace {
 // The support tables of the deformed spheres (null for the others), built in parallel.
 void tables_of(const std::vector<Inclusion>& inc,
                std::vector<std::shared_ptr<const DeformedSupport>>* table) {
-  tbb::parallel_for(size_t(0), inc.size(), [&](size_t i) { (*table)[i] = support_table(inc[i]); });
+  rvegen::parallel_for(size_t(0), inc.size(),
+                       [&](size_t i) { (*table)[i] = support_table(inc[i]); });
 }
 
 // Spheres of which one at least is deformed, b shifted by `shift`: by their support functions

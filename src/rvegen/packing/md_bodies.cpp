@@ -1,7 +1,5 @@
 #include "rvegen/packing/md_bodies.hpp"
 
-#include <tbb/parallel_for.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -9,6 +7,7 @@
 
 #include "rvegen/geometry/tolerances.hpp"
 #include "rvegen/model/body.hpp"
+#include "rvegen/model/parallel.hpp"
 
 namespace rvegen::md {
 
@@ -210,7 +209,7 @@ Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, R
     for (int a = 0; a < 3; ++a) b.shape.center[a] = box.origin[a] + box.size[a] * rng.uniform();
   }
   // Deformed spheres are kept apart by their support functions (tables built in parallel).
-  tbb::parallel_for(size_t(0), pop.size(), [&](size_t i) {
+  rvegen::parallel_for(size_t(0), pop.size(), [&](size_t i) {
     if (auto table = support_table(pop[i])) {
       const Modifiers& m = pop[i].mod;
       Body& b = bodies[i];

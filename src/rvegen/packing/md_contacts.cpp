@@ -2,7 +2,6 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
-#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <atomic>
@@ -11,6 +10,7 @@
 
 #include "rvegen/geometry/convex.hpp"
 #include "rvegen/model/body.hpp"
+#include "rvegen/model/parallel.hpp"
 #include "rvegen/packing/body_contacts.hpp"
 
 namespace rvegen::md {
@@ -357,7 +357,7 @@ double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& ori
   const auto caller = std::this_thread::get_id();
   for (size_t w0 = 0; w0 < nb; w0 += kWindow) {
     const size_t w1 = std::min(nb, w0 + kWindow);
-    tbb::parallel_for(w0, w1, [&](size_t k) {
+    rvegen::parallel_for(w0, w1, [&](size_t k) {
       if (tick && std::this_thread::get_id() == caller) tick();
       Block& out = blocks[k - w0];
       out.adds.clear();
@@ -405,17 +405,17 @@ double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& ori
       }
       std::atomic<bool> hit{false};
       std::atomic<size_t> hit_at{first};
-      tbb::parallel_for(tbb::blocked_range<size_t>(0, chain_pairs.size(), 16),
-                        [&](const tbb::blocked_range<size_t>& r) {
-                          Scratch& sc = scratch.local();
-                          for (size_t i = r.begin(); i != r.end() && !hit; ++i) {
-                            if (chain_overlaps(bodies, axis, &sc.pieces, *chain_pairs[i], s, 0.0,
-                                               true, &sc.near, nullptr)) {
-                              hit = true;
-                              hit_at = i;
-                            }
-                          }
-                        });
+      rvegen::parallel_for_range(tbb::blocked_range<size_t>(0, chain_pairs.size(), 16),
+                                 [&](const tbb::blocked_range<size_t>& r) {
+                                   Scratch& sc = scratch.local();
+                                   for (size_t i = r.begin(); i != r.end() && !hit; ++i) {
+                                     if (chain_overlaps(bodies, axis, &sc.pieces, *chain_pairs[i],
+                                                        s, 0.0, true, &sc.near, nullptr)) {
+                                       hit = true;
+                                       hit_at = i;
+                                     }
+                                   }
+                                 });
       first = hit_at;
       return !hit;
     };

@@ -1,12 +1,12 @@
 #include "rvegen/packing/md_integrator.hpp"
 
 #include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 
 #include <Eigen/Geometry>
 #include <cmath>
 
 #include "rvegen/model/orientation.hpp"
+#include "rvegen/model/parallel.hpp"
 
 namespace rvegen::md {
 
@@ -22,11 +22,11 @@ Integrator::Integrator(size_t bodies) : vel_(bodies, Vec3::Zero()), omega_(bodie
 
 void Integrator::step(const ContactSums& sums, std::vector<Body>* bodies, VerletList* list) {
   // Each body on its own (all cores).
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, bodies->size(), 512),
-                    [&](const tbb::blocked_range<size_t>& r) {
-                      for (size_t i = r.begin(); i != r.end(); ++i)
-                        move_body(sums, i, bodies, list);
-                    });
+  rvegen::parallel_for_range(tbb::blocked_range<size_t>(0, bodies->size(), 512),
+                             [&](const tbb::blocked_range<size_t>& r) {
+                               for (size_t i = r.begin(); i != r.end(); ++i)
+                                 move_body(sums, i, bodies, list);
+                             });
 }
 
 void Integrator::move_body(const ContactSums& sums, size_t i, std::vector<Body>* bodies,
@@ -56,7 +56,7 @@ void hold_tensors(const PackingSpec& spec, const std::map<int, std::vector<int>>
     const std::vector<int>& members = held_family.second;
     std::vector<Vec3> dirs(members.size());
     const tbb::blocked_range<size_t> all(0, members.size(), 1024);
-    tbb::parallel_for(all, [&](const tbb::blocked_range<size_t>& r) {
+    rvegen::parallel_for_range(all, [&](const tbb::blocked_range<size_t>& r) {
       for (size_t k = r.begin(); k != r.end(); ++k) dirs[k] = law_axis((*bodies)[members[k]].shape);
     });
     if (!match_orientation_tensor(&dirs, spec.families[family].orientation.tensor(),
@@ -64,7 +64,7 @@ void hold_tensors(const PackingSpec& spec, const std::map<int, std::vector<int>>
       continue;
     }
     // Each body turns on its own (members are distinct bodies).
-    tbb::parallel_for(all, [&](const tbb::blocked_range<size_t>& r) {
+    rvegen::parallel_for_range(all, [&](const tbb::blocked_range<size_t>& r) {
       for (size_t k = r.begin(); k != r.end(); ++k) {
         list->turned(members[k], set_law_axis(&(*bodies)[members[k]].shape, dirs[k]));
       }

@@ -2,8 +2,6 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
-#include <tbb/parallel_for.h>
-#include <tbb/parallel_sort.h>
 
 #include <algorithm>
 #include <array>
@@ -12,6 +10,7 @@
 
 #include "rvegen/geometry/convex.hpp"
 #include "rvegen/model/neighbours.hpp"
+#include "rvegen/model/parallel.hpp"
 
 namespace rvegen::md {
 
@@ -29,10 +28,10 @@ using Key = std::array<int, 5>;
 // f(i) for i in [0, n) on all cores, in chunks of about `grain`.
 template <class F>
 void each_index(size_t n, size_t grain, const F& f) {
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, grain),
-                    [&](const tbb::blocked_range<size_t>& r) {
-                      for (size_t i = r.begin(); i != r.end(); ++i) f(i);
-                    });
+  rvegen::parallel_for_range(tbb::blocked_range<size_t>(0, n, grain),
+                             [&](const tbb::blocked_range<size_t>& r) {
+                               for (size_t i = r.begin(); i != r.end(); ++i) f(i);
+                             });
 }
 
 // Canonical key of a candidate pair: a <= b, b taken at its centre + k * box (k in box sizes);
@@ -133,7 +132,7 @@ void VerletList::build(std::vector<Body>* all, const Box& box, double s_out,
     keys.push_back(make_key(a, b, sp.k[0], sp.k[1], sp.k[2]));
   }
   if (tick) tick();
-  tbb::parallel_sort(keys.begin(), keys.end());  // equal keys are equal: one order
+  rvegen::parallel_sort(keys.begin(), keys.end());  // equal keys are equal: one order
   keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
   if (tick) tick();
   // The capsules' test on all cores, the list made in key order.

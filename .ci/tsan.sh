@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The ThreadSanitizer run of the packing's tests (run by .ci/test.sh after .ci/sanitize.sh):
 # clang with -fsanitize=thread (RVEGEN_TSAN), the packing's test binary alone, its tests on all
-# cores; any report is an error. Under ThreadSanitizer the core's parallel loops run on plain
+# cores; any report is an error. Under ThreadSanitizer the packing's parallel loops run on plain
 # threads it can follow (src/rvegen/model/parallel.hpp): Debian's libtbb is not built for it.
 set -euo pipefail
 cd "$(dirname "$0")/.."

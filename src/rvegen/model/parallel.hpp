@@ -1,5 +1,7 @@
 #pragma once
-// The core's parallel loops: tbb::parallel_for, or, under ThreadSanitizer, plain threads.
+// The parallel loops of the model and the packing: tbb::parallel_for, or, under
+// ThreadSanitizer, plain threads. (The voxels, level sets, FFT and writers call TBB directly:
+// the ThreadSanitizer run covers the packing.)
 //
 // Debian's libtbb is not built with ThreadSanitizer, so the waits that end a parallel_for run in
 // code it cannot see, and it reports TBB's own bookkeeping and the calling thread's next use of

@@ -8,11 +8,13 @@
 // The image: spheres packed at 0.3 (radius 0.12 of a unit box, seed 7), labels at voxel centres.
 // usage: rvegen_bench_homogenize RES [conductivity|elasticity] [THREADS] [CONTRAST ...]
 #include <sys/resource.h>
+#include <tbb/global_control.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -50,6 +52,13 @@ int main(int argc, char** argv) {
   std::vector<double> contrasts;
   for (int i = 4; i < argc; ++i) contrasts.push_back(std::atof(argv[i]));
   if (contrasts.empty()) contrasts = {10.0, 100.0, 1000.0};
+  // THREADS limits every parallel loop (TBB's passes over the voxels as well as FFTW's threads),
+  // as `rvegen --threads` does.
+  std::unique_ptr<tbb::global_control> limit;
+  if (threads > 0) {
+    limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                  static_cast<size_t>(threads));
+  }
 
   rvegen::Scene s;
   s.box.size = rvegen::Vec3(1, 1, 1);

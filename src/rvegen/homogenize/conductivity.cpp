@@ -17,7 +17,8 @@ constexpr double kTensorRounding = 1e-12;
 
 using spectral::cplx;
 
-// The orthogonal projection onto discrete gradient fields, k k^H / |k|^2 at each frequency,
+// The orthogonal projection onto discrete gradient fields, k k^H / |k|^2 = xi xi^T at each
+// frequency (xi the real unit direction of k),
 // applied to 3-component voxel fields (component-major: 3 blocks of n values).
 class GradientProjection {
  public:
@@ -35,10 +36,14 @@ class GradientProjection {
   }
   /// P on the spectra at frequencies [lo, hi).
   void project(size_t lo, size_t hi) {
-    grid_.for_each_unit_k(lo, hi, [&](size_t at, const cplx* k) {
-      const cplx s = std::conj(k[0]) * spectrum_[0][at] + std::conj(k[1]) * spectrum_[1][at] +
-                     std::conj(k[2]) * spectrum_[2][at];
-      for (int a = 0; a < 3; ++a) spectrum_[a][at] = k[a] * s;
+    grid_.for_each_unit_direction(lo, hi, [&](size_t at, const double* xi) {
+      // Real coefficients: the real and the imaginary parts apart, as plain doubles.
+      double* v[3];
+      for (int a = 0; a < 3; ++a) v[a] = reinterpret_cast<double*>(spectrum_[a].data() + at);
+      for (int part = 0; part < 2; ++part) {
+        const double s = xi[0] * v[0][part] + xi[1] * v[1][part] + xi[2] * v[2][part];
+        for (int a = 0; a < 3; ++a) v[a][part] = xi[a] * s;
+      }
     });
   }
   spectral::Grid& grid() { return grid_; }
@@ -150,7 +155,7 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
       op.components = 3;
       op.flux = [&](const double* p, double* const* o, size_t lo, size_t hi, size_t at) {
         for (size_t i = lo, j = at; i < hi; ++i, ++j) {
-          const Vec3 q = medium.at(i) * Vec3(p[i], p[n + i], p[2 * n + i]);
+          const Vec3 q = medium.at(i) * Vec3(p[3 * i], p[3 * i + 1], p[3 * i + 2]);
           o[0][j] = q[0];
           o[1][j] = q[1];
           o[2][j] = q[2];

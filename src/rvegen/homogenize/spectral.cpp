@@ -1,5 +1,8 @@
 #include "rvegen/homogenize/spectral.hpp"
 
+#include <chrono>
+#include <cstdio>
+
 // MPI's C interface only (Open MPI and MPICH would otherwise pull in their C++ bindings).
 #define OMPI_SKIP_MPICXX 1
 #define MPICH_SKIP_MPICXX 1
@@ -12,7 +15,9 @@
 #include <tbb/partitioner.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <cstring>
 #include <mutex>
 #include <stdexcept>
 #include <thread>
@@ -99,6 +104,31 @@ size_t mpi_layout(const std::array<int, 3>& dims, const Communicator& comm, ptrd
   return static_cast<size_t>(std::max<ptrdiff_t>(alloc, 1));
 }
 
+// sum_i a[i] b[i] over [lo, hi) in four interleaved partial sums (a fixed order; four chains of
+// additions instead of one, which would wait on each addition's latency).
+inline double lane_dot(const double* a, const double* b, size_t lo, size_t hi) {
+  double l[4] = {0.0, 0.0, 0.0, 0.0};
+  size_t i = lo;
+  for (; i + 4 <= hi; i += 4) {
+    for (int k = 0; k < 4; ++k) l[k] += a[i + k] * b[i + k];
+  }
+  for (; i < hi; ++i) l[0] += a[i] * b[i];
+  return (l[0] + l[1]) + (l[2] + l[3]);
+}
+
+// The same for sum_i a[i * step] b[i] and sum_i b[i] over [0, count) at once.
+inline void lane_dot_and_sum(const double* a, size_t step, const double* b, size_t count,
+                             double* dot, double* sum) {
+  double l[4] = {0.0, 0.0, 0.0, 0.0}, m[4] = {0.0, 0.0, 0.0, 0.0};
+  size_t i = 0;
+  for (; i + 4 <= count; i += 4) {
+    for (size_t k = 0; k < 4; ++k) l[k] += a[(i + k) * step] * b[i + k], m[k] += b[i + k];
+  }
+  for (; i < count; ++i) l[0] += a[i * step] * b[i], m[0] += b[i];
+  *dot += (l[0] + l[1]) + (l[2] + l[3]);
+  *sum += (m[0] + m[1]) + (m[2] + m[3]);
+}
+
 }  // namespace
 
 std::array<int, 2> fft_slab(const std::array<int, 3>& dims, const Communicator& comm) {
@@ -141,11 +171,8 @@ void parallel_blocks(size_t n, const std::function<void(size_t, size_t)>& f) {
 double dot(const std::vector<double>& a, const std::vector<double>& b) {
   const size_t n = a.size(), blocks = (n + kBlock - 1) / kBlock;
   std::vector<double> part(blocks, 0.0);
-  parallel_blocks(n, [&](size_t lo, size_t hi) {
-    double s = 0.0;
-    for (size_t i = lo; i < hi; ++i) s += a[i] * b[i];
-    part[lo / kBlock] = s;
-  });
+  parallel_blocks(
+      n, [&](size_t lo, size_t hi) { part[lo / kBlock] = lane_dot(a.data(), b.data(), lo, hi); });
   double s = 0.0;
   for (double v : part) s += v;
   return s;
@@ -196,16 +223,19 @@ Grid::Grid(const std::array<int, 3>& dims, const Vec3& box, GradientScheme schem
     avg_[a].resize(na);
     for (int idx = 0; idx < na; ++idx) {
       const int xi = idx <= na / 2 ? idx : idx - na;
-      const double t = 2.0 * M_PI * xi / na;
       if (scheme == GradientScheme::kMoulinecSuquet) {
-        // The continuous gradient; Nyquist frequencies (even N) carry no gradient.
+        // The continuous gradient i 2 pi xi / L; Nyquist frequencies (even N) carry none.
         const bool nyquist = na % 2 == 0 && 2 * std::abs(xi) == na;
-        diff_[a][idx] = nyquist ? cplx(0.0) : cplx(0.0, 2.0 * M_PI * xi / box[a]);
+        diff_[a][idx] = nyquist ? 0.0 : 2.0 * M_PI * xi / box[a];
         avg_[a][idx] = 1.0;
       } else {
-        // Willot's rotated scheme: a difference along a, averages along the other axes.
-        diff_[a][idx] = (std::polar(1.0, t) - 1.0) * (na / box[a]);
-        avg_[a][idx] = 0.5 * (1.0 + std::polar(1.0, t));
+        // Willot's rotated scheme: the difference (exp(i t) - 1) N / L along a, the averages
+        // (1 + exp(i t)) / 2 along the other axes, t = 2 pi xi / N; that is
+        // 2 i sin(t / 2) exp(i t / 2) N / L and cos(t / 2) exp(i t / 2). The phases
+        // exp(i t / 2) of the three axes make the common factor of the three components.
+        const double half = M_PI * xi / na;
+        diff_[a][idx] = 2.0 * std::sin(half) * (na / box[a]);
+        avg_[a][idx] = std::cos(half);
       }
     }
   }
@@ -220,10 +250,10 @@ Grid::Grid(const std::array<int, 3>& dims, const Vec3& box, GradientScheme schem
     q[slow_] = s + slow_start_;
     for (q[mid_] = 0; q[mid_] < static_cast<size_t>(dims[mid_]); ++q[mid_]) {
       for (q[0] = 0; q[0] < static_cast<size_t>(hx); ++q[0], ++at) {
-        const cplx k[3] = {diff_[0][q[0]] * (avg_[1][q[1]] * avg_[2][q[2]]),
-                           diff_[1][q[1]] * (avg_[0][q[0]] * avg_[2][q[2]]),
-                           diff_[2][q[2]] * (avg_[0][q[0]] * avg_[1][q[1]])};
-        inv_norm_[at] = std::norm(k[0]) + std::norm(k[1]) + std::norm(k[2]);
+        const double k[3] = {diff_[0][q[0]] * (avg_[1][q[1]] * avg_[2][q[2]]),
+                             diff_[1][q[1]] * (avg_[0][q[0]] * avg_[2][q[2]]),
+                             diff_[2][q[2]] * (avg_[0][q[0]] * avg_[1][q[1]])};
+        inv_norm_[at] = k[0] * k[0] + k[1] * k[1] + k[2] * k[2];
         largest = std::max(largest, inv_norm_[at]);
       }
     }
@@ -290,13 +320,25 @@ void Grid::inverse(Spectrum& in, double* field) {
 }
 
 void* aligned_bytes(size_t bytes) {
-  void* p = fftw_malloc(std::max<size_t>(bytes, 1));
-  if (!p) throw std::bad_alloc();
+  // Buffers of fields that one pass reads side by side start at different offsets within a
+  // page: large blocks all start at the same offset, so that the same element of each maps
+  // to the same cache set, and a store to one looks, to the processor, as if it might feed a
+  // load from another (4 KiB aliasing). Offsets in cache lines, taken in turn.
+  static std::atomic<unsigned> turn{0};
+  constexpr size_t kLine = 64, kHeader = kLine, kSpread = 4096;
+  const size_t offset = kHeader + (turn.fetch_add(1, std::memory_order_relaxed) % 7) * 9 * kLine;
+  void* raw = fftw_malloc(bytes + kHeader + kSpread);
+  if (!raw) throw std::bad_alloc();
+  char* p = static_cast<char*>(raw) + offset;
+  std::memcpy(p - sizeof(void*), &raw, sizeof(void*));
   return p;
 }
 
 void free_aligned(void* p) {
-  fftw_free(p);
+  if (!p) return;
+  void* raw = nullptr;
+  std::memcpy(&raw, static_cast<char*>(p) - sizeof(void*), sizeof(void*));
+  fftw_free(raw);
 }
 
 std::vector<double> parallel_rows(const Grid& grid, int slots,
@@ -328,20 +370,32 @@ CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectr
                                        const std::function<bool(int, double)>& progress) {
   CgOutcome out;
   const int d = op.components;
+  const size_t dd = static_cast<size_t>(d);
   if (x) std::fill(x->begin(), x->end(), 0.0);
   mean_flux->assign(d, 0.0);
   const double bnorm = std::sqrt(grid.dot(b, b));
   if (!(bnorm > 0.0)) return out;
   const size_t n = grid.size(), nx = grid.row(), stride = grid.row_stride();
-  std::vector<double> r = std::move(b), p = r;
+  // The residual and the direction voxel by voxel (the d components of a voxel side by side):
+  // the passes then stream two fields instead of 2 d, which is what bounds them. b's storage
+  // becomes the direction.
+  std::vector<double> r(dd * n);
+  parallel_blocks(n, [&](size_t lo, size_t hi) {
+    for (size_t i = lo; i < hi; ++i) {
+      for (size_t c = 0; c < dd; ++c) r[i * dd + c] = b[c * n + i];
+    }
+  });
+  std::vector<double> p = std::move(b);
+  std::copy(r.begin(), r.end(), p.begin());
   std::vector<double*> buffer(d);
   for (int c = 0; c < d; ++c) buffer[c] = reinterpret_cast<double*>(spectra[c].data());
   const double inv_n = 1.0 / static_cast<double>(grid.voxels());
-  // x += alpha p for the last direction, when x is wanted and not yet updated.
-  auto catch_up = [&](double alpha) {
-    parallel_blocks(d * n, [&](size_t lo, size_t hi) {
-      for (size_t i = lo; i < hi; ++i) (*x)[i] += alpha * p[i];
-    });
+  // x (component-major) += alpha p at the voxels [lo, hi).
+  auto add_direction = [&](double alpha, size_t lo, size_t hi) {
+    for (size_t c = 0; c < dd; ++c) {
+      double* xc = x->data() + c * n;
+      for (size_t i = lo; i < hi; ++i) xc[i] += alpha * p[i * dd + c];
+    }
   };
   double rr = bnorm * bnorm, alpha = 0.0, beta = 0.0;
   bool x_behind = false;  // x lacks alpha p for the current direction
@@ -354,23 +408,16 @@ CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectr
         parallel_rows(grid, d + 1, [&](size_t first, size_t last, double* sum) {
           for (size_t row = first; row < last; ++row) {
             const size_t lo = row * nx, hi = lo + nx, at = row * stride;
-            for (int c = 0; c < d && step; ++c) {
-              double* pc = p.data() + c * n;
-              const double* rc = r.data() + c * n;
-              if (with_x) {
-                double* xc = x->data() + c * n;
-                for (size_t i = lo; i < hi; ++i) xc[i] += alpha * pc[i];
-              }
-              for (size_t i = lo; i < hi; ++i) pc[i] = rc[i] + beta * pc[i];
+            if (with_x) add_direction(alpha, lo, hi);
+            if (step) {
+              double* pr = p.data() + lo * dd;
+              const double* rr_row = r.data() + lo * dd;
+              for (size_t i = 0; i < nx * dd; ++i) pr[i] = rr_row[i] + beta * pr[i];
             }
             op.flux(p.data(), buffer.data(), lo, hi, at);
             for (int c = 0; c < d; ++c) {
-              const double* pc = p.data() + c * n;
-              const double* q = buffer[c] + at - lo;
-              double s = 0.0, m = 0.0;
-              for (size_t i = lo; i < hi; ++i) s += pc[i] * q[i], m += q[i];
-              sum[0] += s;
-              sum[1 + c] += m;
+              lane_dot_and_sum(p.data() + lo * dd + c, dd, buffer[c] + at, nx, &sum[0],
+                               &sum[1 + c]);
             }
           }
         });
@@ -386,19 +433,21 @@ CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectr
     // One pass: r -= alpha P C p, |r|^2.
     const double a = alpha * inv_n;
     const double rr_new = parallel_rows(grid, 1, [&](size_t first, size_t last, double* sum) {
-      double s = 0.0;
-      for (int c = 0; c < d; ++c) {
-        double* rc = r.data() + c * n;
-        for (size_t row = first; row < last; ++row) {
-          const size_t lo = row * nx, hi = lo + nx;
-          const double* q = buffer[c] + row * stride - lo;
-          for (size_t i = lo; i < hi; ++i) {
-            rc[i] -= a * q[i];
-            s += rc[i] * rc[i];
-          }
+      double l[4] = {0.0, 0.0, 0.0, 0.0};
+      for (size_t row = first; row < last; ++row) {
+        double* rr_row = r.data() + row * nx * dd;
+        const size_t at = row * stride;
+        for (size_t i = 0; i < nx; ++i) {
+          for (size_t c = 0; c < dd; ++c) rr_row[i * dd + c] -= a * buffer[c][at + i];
         }
+        // |r|^2 of the row in four interleaved partial sums (a fixed order).
+        size_t i = 0;
+        for (; i + 4 <= nx * dd; i += 4) {
+          for (int k = 0; k < 4; ++k) l[k] += rr_row[i + k] * rr_row[i + k];
+        }
+        for (; i < nx * dd; ++i) l[0] += rr_row[i] * rr_row[i];
       }
-      *sum = s;
+      *sum = (l[0] + l[1]) + (l[2] + l[3]);
     })[0];
     out.iterations = it;
     out.residual = std::sqrt(rr_new) / bnorm;
@@ -411,7 +460,9 @@ CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectr
     beta = rr_new / rr;
     rr = rr_new;
   }
-  if (x && x_behind) catch_up(alpha);
+  if (x && x_behind) {
+    parallel_blocks(n, [&](size_t lo, size_t hi) { add_direction(alpha, lo, hi); });
+  }
   return out;
 }
 

@@ -61,8 +61,8 @@ struct AlignedAllocator {
 using Spectrum = std::vector<cplx, AlignedAllocator<cplx>>;
 
 /// The grid of dims voxels over a box, with in-place r2c/c2r FFTs of one field at a time and,
-/// per stored frequency, the unit gradient multiplier k(xi) / |k(xi)| of the scheme (zero where
-/// k vanishes: the mean, and the rotated scheme's checkerboard modes). Real fields are x
+/// per stored frequency, the direction of the scheme's gradient multiplier (zero where k
+/// vanishes: the mean, and the rotated scheme's checkerboard modes). Real fields are x
 /// fastest; in a Spectrum buffer (spectrum_size() values) the real values lie in padded rows
 /// of row_stride() doubles, voxel i at padded(i), which FFTW transforms where they lie.
 ///
@@ -90,11 +90,15 @@ class Grid {
   /// same bits whatever the number of threads).
   double sum(double local) const;
   double dot(const std::vector<double>& a, const std::vector<double>& b) const;
-  /// f(at, k) for the stored frequencies at in [lo, hi), k the unit multiplier there (3
-  /// values), formed from per-axis factors and the stored 1 / |k| as it is needed (a stored
-  /// table of k would cost 48 bytes a frequency, a sixth of the elasticity solver's memory).
+  /// f(at, xi) for the stored frequencies at in [lo, hi), xi the real unit direction there (3
+  /// values). Both schemes' multipliers are k = c xi with |c| = 1 and c the same for the three
+  /// components (i for Moulinec-Suquet; i exp(i (t_x + t_y + t_z) / 2), t the phase of a
+  /// frequency along each axis, for the rotated scheme), so the projections k k^H / |k|^2 and
+  /// their elastic counterpart, in which c meets its conjugate, take xi alone: real multipliers
+  /// of the complex spectra. xi is formed from per-axis factors and the stored 1 / |k| as it is
+  /// needed (a stored table would cost 24 bytes a frequency).
   template <class F>
-  void for_each_unit_k(size_t lo, size_t hi, F&& f) const {
+  void for_each_unit_direction(size_t lo, size_t hi, F&& f) const {
     // Indices along x, then the middle and the slowest axis of the stored layout.
     const size_t hx = static_cast<size_t>(dims_[0] / 2 + 1);
     const size_t nm = static_cast<size_t>(dims_[mid_]);
@@ -103,13 +107,13 @@ class Grid {
     q[mid_] = (lo / hx) % nm;
     q[slow_] = lo / hx / nm + slow_start_;
     size_t &kx = q[0], &km = q[mid_], &ks = q[slow_];
-    // Along a row of kx the factors of y and z are fixed: k = (diff_x a, avg_x b, avg_x c).
-    cplx a = avg_[1][q[1]] * avg_[2][q[2]], b = diff_[1][q[1]] * avg_[2][q[2]],
-         c = diff_[2][q[2]] * avg_[1][q[1]];
+    // Along a row of kx the factors of y and z are fixed: xi = (diff_x a, avg_x b, avg_x c).
+    double a = avg_[1][q[1]] * avg_[2][q[2]], b = diff_[1][q[1]] * avg_[2][q[2]],
+           c = diff_[2][q[2]] * avg_[1][q[1]];
     for (size_t at = lo; at < hi; ++at) {
       const double s = inv_norm_[at];
-      const cplx k[3] = {diff_[0][kx] * a * s, avg_[0][kx] * b * s, avg_[0][kx] * c * s};
-      f(at, k);
+      const double xi[3] = {diff_[0][kx] * a * s, avg_[0][kx] * b * s, avg_[0][kx] * c * s};
+      f(at, xi);
       if (++kx == hx) {
         kx = 0;
         if (++km == nm) km = 0, ++ks;
@@ -146,10 +150,11 @@ class Grid {
   void* forward_;
   void* inverse_;
   std::array<int, 3> dims_;
-  // Per axis and index along it: the scheme's difference factor and the averages of the other
-  // axes' (rotated scheme; 1 for Moulinec-Suquet); per frequency 1 / |k| (0 where k carries no
-  // gradient).
-  std::array<std::vector<cplx>, 3> diff_, avg_;
+  // Per axis and index along it, the real parts of the multiplier k = c xi (see
+  // for_each_unit_direction): the scheme's difference factor, and the average that the other
+  // axes' components take (rotated scheme; 1 for Moulinec-Suquet); per frequency 1 / |k| (0
+  // where k carries no gradient).
+  std::array<std::vector<double>, 3> diff_, avg_;
   std::vector<double> inv_norm_;
 };
 
@@ -177,17 +182,18 @@ struct CgOutcome {
   bool stopped = false;
 };
 /// The Galerkin operator A = P C of the Lippmann-Schwinger solvers, given by parts so that
-/// conjugate_gradients_galerkin can keep three fields: `components` fields of n values
-/// (component-major); `flux(p, out, lo, hi, at)` writes C p at the voxels [lo, hi) of one row,
-/// component c of voxel i to out[c][at + i - lo]; `project(lo, hi)` applies P to the spectra at
-/// frequencies [lo, hi).
+/// conjugate_gradients_galerkin can keep three fields. `flux(p, out, lo, hi, at)` writes C p at
+/// the voxels [lo, hi) of one row, component c of voxel i to out[c][at + i - lo], from p held
+/// voxel by voxel (voxel i's `components` values at p + components i); `project(lo, hi)` applies P
+/// to the spectra at frequencies [lo, hi).
 struct GalerkinOperator {
   int components = 0;
   std::function<void(const double*, double* const*, size_t, size_t, size_t)> flux;
   std::function<void(size_t, size_t)> project;
 };
 /// Conjugate gradients for P C x = b with the residual and the direction only (x starts at
-/// 0; `spectra` holds one buffer per component). Each iteration makes one pass over the voxels
+/// 0; `spectra` holds one buffer per component; b and x are component-major: `components`
+/// blocks of n values). Each iteration makes one pass over the voxels
 /// before the transforms (x's and the direction's updates, C p written into the buffers'
 /// padded rows, p . C p and the means of C p) and one after (the residual's update, |r|^2).
 /// The direction stays in the range of the orthogonal projection P, so p . P C p = p . C p;

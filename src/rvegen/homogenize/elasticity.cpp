@@ -35,36 +35,36 @@ class StrainProjection {
   }
   /// P on the spectra at frequencies [lo, hi).
   void project(size_t lo, size_t hi) {
-    grid_.for_each_unit_direction(lo, hi, [&](size_t at, const double* xi) { project_at(at, xi); });
+    double* base[6];
+    for (int c = 0; c < 6; ++c) base[c] = reinterpret_cast<double*>(spectrum_[c].data());
+    grid_.for_each_unit_direction(lo, hi, [&](size_t at, const double* xi) {
+      // The projection has real coefficients: the real and the imaginary parts go through it
+      // apart (as plain doubles, which compilers keep in registers).
+      for (size_t part = 2 * at; part < 2 * at + 2; ++part) project_part(base, part, xi);
+    });
   }
   spectral::Grid& grid() { return grid_; }
   std::vector<spectral::Spectrum>& spectra() { return spectrum_; }
 
  private:
-  void project_at(size_t at, const double* xi) {
-    // The projection has real coefficients: the real and the imaginary parts go through it
-    // apart (as plain doubles, which compilers keep in registers).
-    double* v[6];
-    for (int c = 0; c < 6; ++c) v[c] = reinterpret_cast<double*>(spectrum_[c].data() + at);
-    for (int part = 0; part < 2; ++part) {
-      // The tensor from its Mandel components, T xi, and xi . T xi.
-      const double t00 = v[0][part], t11 = v[1][part], t22 = v[2][part];
-      const double t12 = v[3][part] * kInvSqrt2, t02 = v[4][part] * kInvSqrt2,
-                   t01 = v[5][part] * kInvSqrt2;
-      const double d0 = t00 * xi[0] + t01 * xi[1] + t02 * xi[2];
-      const double d1 = t01 * xi[0] + t11 * xi[1] + t12 * xi[2];
-      const double d2 = t02 * xi[0] + t12 * xi[1] + t22 * xi[2];
-      const double kd = xi[0] * d0 + xi[1] * d1 + xi[2] * d2;
-      const double u0 = 2.0 * d0 - xi[0] * kd, u1 = 2.0 * d1 - xi[1] * kd,
-                   u2 = 2.0 * d2 - xi[2] * kd;
-      v[0][part] = xi[0] * u0;
-      v[1][part] = xi[1] * u1;
-      v[2][part] = xi[2] * u2;
-      // Mandel shear components: sqrt 2 (xi_i u_j + xi_j u_i) / 2.
-      v[3][part] = (xi[1] * u2 + xi[2] * u1) * kInvSqrt2;
-      v[4][part] = (xi[0] * u2 + xi[2] * u0) * kInvSqrt2;
-      v[5][part] = (xi[0] * u1 + xi[1] * u0) * kInvSqrt2;
-    }
+  // P on one real number of each component's spectrum (the real or the imaginary part of a
+  // frequency's value, at v[c][i]).
+  static inline void project_part(double* const* v, size_t i, const double* xi) {
+    // The tensor from its Mandel components, T xi, and xi . T xi.
+    const double t00 = v[0][i], t11 = v[1][i], t22 = v[2][i];
+    const double t12 = v[3][i] * kInvSqrt2, t02 = v[4][i] * kInvSqrt2, t01 = v[5][i] * kInvSqrt2;
+    const double d0 = t00 * xi[0] + t01 * xi[1] + t02 * xi[2];
+    const double d1 = t01 * xi[0] + t11 * xi[1] + t12 * xi[2];
+    const double d2 = t02 * xi[0] + t12 * xi[1] + t22 * xi[2];
+    const double kd = xi[0] * d0 + xi[1] * d1 + xi[2] * d2;
+    const double u0 = 2.0 * d0 - xi[0] * kd, u1 = 2.0 * d1 - xi[1] * kd, u2 = 2.0 * d2 - xi[2] * kd;
+    v[0][i] = xi[0] * u0;
+    v[1][i] = xi[1] * u1;
+    v[2][i] = xi[2] * u2;
+    // Mandel shear components: sqrt 2 (xi_i u_j + xi_j u_i) / 2.
+    v[3][i] = (xi[1] * u2 + xi[2] * u1) * kInvSqrt2;
+    v[4][i] = (xi[0] * u2 + xi[2] * u0) * kInvSqrt2;
+    v[5][i] = (xi[0] * u1 + xi[1] * u0) * kInvSqrt2;
   }
 
   spectral::Grid grid_;

@@ -320,25 +320,13 @@ void Grid::inverse(Spectrum& in, double* field) {
 }
 
 void* aligned_bytes(size_t bytes) {
-  // Buffers of fields that one pass reads side by side start at different offsets within a
-  // page: large blocks all start at the same offset, so that the same element of each maps
-  // to the same cache set, and a store to one looks, to the processor, as if it might feed a
-  // load from another (4 KiB aliasing). Offsets in cache lines, taken in turn.
-  static std::atomic<unsigned> turn{0};
-  constexpr size_t kLine = 64, kHeader = kLine, kSpread = 4096;
-  const size_t offset = kHeader + (turn.fetch_add(1, std::memory_order_relaxed) % 7) * 9 * kLine;
-  void* raw = fftw_malloc(bytes + kHeader + kSpread);
-  if (!raw) throw std::bad_alloc();
-  char* p = static_cast<char*>(raw) + offset;
-  std::memcpy(p - sizeof(void*), &raw, sizeof(void*));
+  void* p = fftw_malloc(std::max<size_t>(bytes, 1));
+  if (!p) throw std::bad_alloc();
   return p;
 }
 
 void free_aligned(void* p) {
-  if (!p) return;
-  void* raw = nullptr;
-  std::memcpy(&raw, static_cast<char*>(p) - sizeof(void*), sizeof(void*));
-  fftw_free(raw);
+  fftw_free(p);
 }
 
 std::vector<double> parallel_rows(const Grid& grid, int slots,

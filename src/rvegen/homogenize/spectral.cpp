@@ -1,8 +1,5 @@
 #include "rvegen/homogenize/spectral.hpp"
 
-#include <chrono>
-#include <cstdio>
-
 // MPI's C interface only (Open MPI and MPICH would otherwise pull in their C++ bindings).
 #define OMPI_SKIP_MPICXX 1
 #define MPICH_SKIP_MPICXX 1
@@ -15,9 +12,7 @@
 #include <tbb/partitioner.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
-#include <cstring>
 #include <mutex>
 #include <stdexcept>
 #include <thread>

@@ -1,6 +1,7 @@
 // Effective conductivity by FFT (rvegen/homogenize): exact laminates, Hashin-Shtrikman bounds,
 // symmetry, rotation, and agreement with an independent finite-volume solver written here.
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <algorithm>
 #include <cmath>
@@ -400,6 +401,40 @@ TEST(Elasticity, SpherePackingLiesWithinHashinShtrikmanBoundsAndIsSymmetric) {
   EXPECT_GT(gb, g_low);
   EXPECT_LT(gb, g_up);
   EXPECT_TRUE(r.converged);
+}
+
+// The solver's sums run in fixed blocks added in a fixed order, so the number of threads (TBB's
+// passes over the voxels, FFTW's transforms) changes no bit of the result.
+TEST(Elasticity, SameBitsOnOneAndTwoThreads) {
+  double f = 0.0;
+  const std::vector<double> young = sphere_image(20, 20.0, &f);
+  const std::vector<double> poisson(young.size(), 0.3);
+  const std::array<int, 3> d = {20, 20, 20};
+  std::vector<ElasticityResult> r;
+  std::vector<std::vector<double>> fields;
+  for (int threads : {1, 2}) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    ElasticityOptions opt;
+    opt.tolerance = 1e-8;
+    opt.threads = threads;
+    opt.field = [&](int load, const std::vector<double>& e) {
+      if (load == 4) fields.push_back(e);
+    };
+    r.push_back(effective_stiffness(d, Vec3(1, 1, 1), young, poisson, opt));
+  }
+  ASSERT_EQ(fields.size(), 2u);
+  EXPECT_EQ(r[0].iterations, r[1].iterations);
+  for (int i = 0; i < 6; ++i) {
+    for (int j = 0; j < 6; ++j) EXPECT_EQ(r[0].stiffness(i, j), r[1].stiffness(i, j));
+  }
+  EXPECT_TRUE(fields[0] == fields[1]);
+  // The local strain of load case 4 (the shear 13 in Mandel form): its mean is the unit strain.
+  const size_t n = young.size();
+  for (int c = 0; c < 6; ++c) {
+    double mean = 0.0;
+    for (size_t i = 0; i < n; ++i) mean += fields[0][c * n + i];
+    EXPECT_NEAR(mean / n, c == 4 ? 1.0 : 0.0, 1e-12) << "component " << c;
+  }
 }
 
 TEST(Elasticity, BadInputIsRefused) {

@@ -15,8 +15,6 @@ namespace {
 // Conductivity tensors are positive semi-definite to this share of their size.
 constexpr double kTensorRounding = 1e-12;
 
-using spectral::cplx;
-
 // The orthogonal projection onto discrete gradient fields, k k^H / |k|^2 = xi xi^T at each
 // frequency (xi the real unit direction of k),
 // applied to 3-component voxel fields (component-major: 3 blocks of n values).

@@ -12,7 +12,6 @@ namespace rvegen {
 
 namespace {
 
-using spectral::cplx;
 using Vec6 = Eigen::Matrix<double, 6, 1>;
 const double kInvSqrt2 = 1.0 / std::sqrt(2.0);
 

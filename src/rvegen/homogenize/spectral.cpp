@@ -416,21 +416,16 @@ CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectr
     // One pass: r -= alpha P C p, |r|^2.
     const double a = alpha * inv_n;
     const double rr_new = parallel_rows(grid, 1, [&](size_t first, size_t last, double* sum) {
-      double l[4] = {0.0, 0.0, 0.0, 0.0};
+      double s = 0.0;
       for (size_t row = first; row < last; ++row) {
         double* rr_row = r.data() + row * nx * dd;
         const size_t at = row * stride;
         for (size_t i = 0; i < nx; ++i) {
           for (size_t c = 0; c < dd; ++c) rr_row[i * dd + c] -= a * buffer[c][at + i];
         }
-        // |r|^2 of the row in four interleaved partial sums (a fixed order).
-        size_t i = 0;
-        for (; i + 4 <= nx * dd; i += 4) {
-          for (int k = 0; k < 4; ++k) l[k] += rr_row[i + k] * rr_row[i + k];
-        }
-        for (; i < nx * dd; ++i) l[0] += rr_row[i] * rr_row[i];
+        s += lane_dot(rr_row, rr_row, 0, nx * dd);  // while the row is in cache
       }
-      *sum = (l[0] + l[1]) + (l[2] + l[3]);
+      *sum = s;
     })[0];
     out.iterations = it;
     out.residual = std::sqrt(rr_new) / bnorm;

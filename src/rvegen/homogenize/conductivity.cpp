@@ -27,22 +27,25 @@ class GradientProjection {
   }
   size_t size() const { return grid_.size(); }
   void apply(const double* in, double* out) {
-    const size_t n = grid_.size();
-    for (int a = 0; a < 3; ++a) grid_.forward(in + a * n, spectrum_[a]);
-    spectral::parallel_blocks(grid_.frequencies(), [&](size_t lo, size_t hi) { project(lo, hi); });
-    for (int a = 0; a < 3; ++a) grid_.inverse(spectrum_[a], out + a * n);
+    grid_.load(in, spectrum_);
+    grid_.convolve(spectrum_, projector());
+    grid_.unload(spectrum_, out);
   }
-  /// P on the spectra at frequencies [lo, hi).
-  void project(size_t lo, size_t hi) {
-    grid_.for_each_unit_direction(lo, hi, [&](size_t at, const double* xi) {
-      // Real coefficients: the real and the imaginary parts apart, as plain doubles.
-      double* v[3];
-      for (int a = 0; a < 3; ++a) v[a] = reinterpret_cast<double*>(spectrum_[a].data() + at);
-      for (int part = 0; part < 2; ++part) {
-        const double s = xi[0] * v[0][part] + xi[1] * v[1][part] + xi[2] * v[2][part];
-        for (int a = 0; a < 3; ++a) v[a][part] = xi[a] * s;
-      }
+  /// P on the spectra at frequencies [lo, hi), whose values lie at v (Grid::Projector).
+  void project(size_t lo, size_t hi, double* const* v, const double* inv_norm) const {
+    grid_.for_each_unit_direction(lo, hi, inv_norm, [&](size_t at, const double* xi) {
+      // Real coefficients: the real and the imaginary parts as one pair.
+      const size_t i = 2 * (at - lo);
+      const spectral::Pair s = xi[0] * spectral::load_pair(v[0] + i) +
+                               xi[1] * spectral::load_pair(v[1] + i) +
+                               xi[2] * spectral::load_pair(v[2] + i);
+      for (int a = 0; a < 3; ++a) spectral::store_pair(v[a] + i, xi[a] * s);
     });
+  }
+  spectral::Grid::Projector projector() const {
+    return [this](size_t lo, size_t hi, double* const* v, const double* inv_norm) {
+      project(lo, hi, v, inv_norm);
+    };
   }
   spectral::Grid& grid() { return grid_; }
   std::vector<spectral::Spectrum>& spectra() { return spectrum_; }
@@ -133,10 +136,11 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
   auto times_k = [&](const std::vector<double>& f, std::vector<double>* out) {
     times(f, out, 0.0);
   };
+  std::vector<double> b, work;  // the right-hand side, and the solver's (kept over the loads)
   for (int load = 0; load < 3; ++load) {
     // Mean gradient E = unit vector along `load`; unknown: the fluctuation x (a gradient field
     // with zero mean); equilibrium: P[k (E + x)] = 0, i.e. P[k x] = -P[k E].
-    std::vector<double> b(3 * n, 0.0);
+    b.assign(3 * n, 0.0);
     std::fill(b.begin() + load * n, b.begin() + (load + 1) * n, 1.0);
     const std::vector<double> mean =
         opt.solver == LinearSolver::kFixedPoint ? b : std::vector<double>();
@@ -151,19 +155,29 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
     if (opt.solver == LinearSolver::kConjugateGradient) {
       spectral::GalerkinOperator op;
       op.components = 3;
-      op.flux = [&](const double* p, double* const* o, size_t lo, size_t hi, size_t at) {
-        for (size_t i = lo, j = at; i < hi; ++i, ++j) {
-          const Vec3 q = medium.at(i) * Vec3(p[3 * i], p[3 * i + 1], p[3 * i + 2]);
-          o[0][j] = q[0];
-          o[1][j] = q[1];
-          o[2][j] = q[2];
+      op.flux = [&](const double* p, double* const* out, size_t lo, size_t hi, size_t at,
+                    double* sums) {
+        double* o[3] = {out[0] + at, out[1] + at, out[2] + at};
+        double dot = 0.0, m[3] = {0.0, 0.0, 0.0};
+        for (size_t i = lo, j = 0; i < hi; ++i, ++j) {
+          const Vec3 v(p[3 * i], p[3 * i + 1], p[3 * i + 2]);
+          const Vec3 q = medium.at(i) * v;
+          double pq = 0.0;
+          for (int c = 0; c < 3; ++c) {
+            o[c][j] = q[c];
+            pq += v[c] * q[c];
+            m[c] += q[c];
+          }
+          dot += pq;
         }
+        sums[0] += dot;
+        for (int c = 0; c < 3; ++c) sums[1 + c] += m[c];
       };
-      op.project = [&](size_t lo, size_t hi) { project.project(lo, hi); };
+      op.project = project.projector();
       std::vector<double> flux;
-      out = spectral::conjugate_gradients_galerkin(project.grid(), project.spectra(), op,
-                                                   std::move(b), opt.field ? &x : nullptr, &flux,
-                                                   opt.tolerance, opt.max_iterations, progress);
+      out = spectral::conjugate_gradients_galerkin(project.grid(), project.spectra(), op, b, work,
+                                                   opt.field ? &x : nullptr, &flux, opt.tolerance,
+                                                   opt.max_iterations, progress);
       // The mean flux: that of E plus the mean of k x, summed as the solver went.
       res.tensor.col(load) = mean_tensor.col(load) + Vec3(flux[0], flux[1], flux[2]);
     } else if (bnorm > 0.0) {

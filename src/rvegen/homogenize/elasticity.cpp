@@ -27,43 +27,46 @@ class StrainProjection {
     for (auto& s : spectrum_) s.resize(grid_.spectrum_size());
   }
   void apply(const double* in, double* out) {
-    const size_t n = grid_.size();
-    for (int c = 0; c < 6; ++c) grid_.forward(in + c * n, spectrum_[c]);
-    spectral::parallel_blocks(grid_.frequencies(), [&](size_t lo, size_t hi) { project(lo, hi); });
-    for (int c = 0; c < 6; ++c) grid_.inverse(spectrum_[c], out + c * n);
+    grid_.load(in, spectrum_);
+    grid_.convolve(spectrum_, projector());
+    grid_.unload(spectrum_, out);
   }
-  /// P on the spectra at frequencies [lo, hi).
-  void project(size_t lo, size_t hi) {
-    double* base[6];
-    for (int c = 0; c < 6; ++c) base[c] = reinterpret_cast<double*>(spectrum_[c].data());
-    grid_.for_each_unit_direction(lo, hi, [&](size_t at, const double* xi) {
-      // The projection has real coefficients: the real and the imaginary parts go through it
-      // apart (as plain doubles, which compilers keep in registers).
-      for (size_t part = 2 * at; part < 2 * at + 2; ++part) project_part(base, part, xi);
-    });
+  /// P on the spectra at frequencies [lo, hi), whose values lie at v (Grid::Projector).
+  void project(size_t lo, size_t hi, double* const* v, const double* inv_norm) const {
+    grid_.for_each_unit_direction(
+        lo, hi, inv_norm, [&](size_t at, const double* xi) { project_pair(v, 2 * (at - lo), xi); });
+  }
+  spectral::Grid::Projector projector() const {
+    return [this](size_t lo, size_t hi, double* const* v, const double* inv_norm) {
+      project(lo, hi, v, inv_norm);
+    };
   }
   spectral::Grid& grid() { return grid_; }
   std::vector<spectral::Spectrum>& spectra() { return spectrum_; }
 
  private:
-  // P on one real number of each component's spectrum (the real or the imaginary part of a
-  // frequency's value, at v[c][i]).
-  static inline void project_part(double* const* v, size_t i, const double* xi) {
+  // P on one frequency of each component's spectrum (its real and imaginary parts at v[c][i]
+  // and v[c][i + 1], as one pair: the coefficients are real).
+  static inline void project_pair(double* const* v, size_t i, const double* xi) {
+    using spectral::Pair;
     // The tensor from its Mandel components, T xi, and xi . T xi.
-    const double t00 = v[0][i], t11 = v[1][i], t22 = v[2][i];
-    const double t12 = v[3][i] * kInvSqrt2, t02 = v[4][i] * kInvSqrt2, t01 = v[5][i] * kInvSqrt2;
-    const double d0 = t00 * xi[0] + t01 * xi[1] + t02 * xi[2];
-    const double d1 = t01 * xi[0] + t11 * xi[1] + t12 * xi[2];
-    const double d2 = t02 * xi[0] + t12 * xi[1] + t22 * xi[2];
-    const double kd = xi[0] * d0 + xi[1] * d1 + xi[2] * d2;
-    const double u0 = 2.0 * d0 - xi[0] * kd, u1 = 2.0 * d1 - xi[1] * kd, u2 = 2.0 * d2 - xi[2] * kd;
-    v[0][i] = xi[0] * u0;
-    v[1][i] = xi[1] * u1;
-    v[2][i] = xi[2] * u2;
+    const Pair t00 = spectral::load_pair(v[0] + i), t11 = spectral::load_pair(v[1] + i),
+               t22 = spectral::load_pair(v[2] + i);
+    const Pair t12 = spectral::load_pair(v[3] + i) * kInvSqrt2,
+               t02 = spectral::load_pair(v[4] + i) * kInvSqrt2,
+               t01 = spectral::load_pair(v[5] + i) * kInvSqrt2;
+    const Pair d0 = t00 * xi[0] + t01 * xi[1] + t02 * xi[2];
+    const Pair d1 = t01 * xi[0] + t11 * xi[1] + t12 * xi[2];
+    const Pair d2 = t02 * xi[0] + t12 * xi[1] + t22 * xi[2];
+    const Pair kd = xi[0] * d0 + xi[1] * d1 + xi[2] * d2;
+    const Pair u0 = 2.0 * d0 - xi[0] * kd, u1 = 2.0 * d1 - xi[1] * kd, u2 = 2.0 * d2 - xi[2] * kd;
+    spectral::store_pair(v[0] + i, xi[0] * u0);
+    spectral::store_pair(v[1] + i, xi[1] * u1);
+    spectral::store_pair(v[2] + i, xi[2] * u2);
     // Mandel shear components: sqrt 2 (xi_i u_j + xi_j u_i) / 2.
-    v[3][i] = (xi[1] * u2 + xi[2] * u1) * kInvSqrt2;
-    v[4][i] = (xi[0] * u2 + xi[2] * u0) * kInvSqrt2;
-    v[5][i] = (xi[0] * u1 + xi[1] * u0) * kInvSqrt2;
+    spectral::store_pair(v[3] + i, (xi[1] * u2 + xi[2] * u1) * kInvSqrt2);
+    spectral::store_pair(v[4] + i, (xi[0] * u2 + xi[2] * u0) * kInvSqrt2);
+    spectral::store_pair(v[5] + i, (xi[0] * u1 + xi[1] * u0) * kInvSqrt2);
   }
 
   spectral::Grid grid_;
@@ -196,32 +199,46 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
   // Isotropic stiffnesses (the phases; composite voxels have general ones) by their three
   // numbers: 7 products instead of 36.
   const std::vector<IsotropicPart> iso = isotropic_parts(medium.tensors);
-  op.flux = [&](const double* p, double* const* out, size_t lo, size_t hi, size_t at) {
-    Vec6 v;
-    for (size_t i = lo, j = at; i < hi; ++i, ++j) {
+  op.flux = [&](const double* p, double* const* out, size_t lo, size_t hi, size_t at,
+                double* sums) {
+    double* o[6];
+    for (int c = 0; c < 6; ++c) o[c] = out[c] + at;
+    double dot = 0.0, m[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+    Vec6 v, t;
+    for (size_t i = lo, j = 0; i < hi; ++i, ++j) {
       for (int k = 0; k < 6; ++k) v[k] = p[6 * i + k];
-      const uint32_t m = medium.index[i];
-      if (iso[m].isotropic) {
-        const double l = iso[m].lambda * (v[0] + v[1] + v[2]);
-        for (int c = 0; c < 3; ++c) out[c][j] = iso[m].normal * v[c] + l;
-        for (int c = 3; c < 6; ++c) out[c][j] = iso[m].two_mu * v[c];
+      const uint32_t id = medium.index[i];
+      const IsotropicPart& ip = iso[id];
+      if (ip.isotropic) {
+        const double l = ip.lambda * (v[0] + v[1] + v[2]);
+        for (int c = 0; c < 3; ++c) t[c] = ip.normal * v[c] + l;
+        for (int c = 3; c < 6; ++c) t[c] = ip.two_mu * v[c];
       } else {
-        const Vec6 t = medium.tensors[m] * v;
-        for (int c = 0; c < 6; ++c) out[c][j] = t[c];
+        t = medium.tensors[id] * v;
       }
+      double pt = 0.0;
+      for (int c = 0; c < 6; ++c) {
+        o[c][j] = t[c];
+        pt += v[c] * t[c];
+        m[c] += t[c];
+      }
+      dot += pt;
     }
+    sums[0] += dot;
+    for (int c = 0; c < 6; ++c) sums[1 + c] += m[c];
   };
-  op.project = [&](size_t lo, size_t hi) { project.project(lo, hi); };
+  op.project = project.projector();
+  std::vector<double> b, work;  // the right-hand side, and the solver's (kept over the loads)
   for (int load = 0; load < 6; ++load) {
     // Right-hand side: minus the projected stress of the uniform unit strain `load`.
-    std::vector<double> b(6 * n, 0.0);
+    b.assign(6 * n, 0.0);
     std::fill(b.begin() + load * n, b.begin() + (load + 1) * n, 1.0);
     stress(b, &b);
     project.apply(b.data(), b.data());
     for (double& v : b) v = -v;
     std::vector<double> flux;
     const spectral::CgOutcome out = spectral::conjugate_gradients_galerkin(
-        project.grid(), project.spectra(), op, std::move(b), opt.field ? &x : nullptr, &flux,
+        project.grid(), project.spectra(), op, b, work, opt.field ? &x : nullptr, &flux,
         opt.tolerance, opt.max_iterations,
         [&](int it, double rel) { return !opt.progress || opt.progress(load, it, rel); });
     if (out.stopped) throw Cancelled();

@@ -10,6 +10,7 @@
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 #include <tbb/partitioner.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <cmath>
@@ -111,19 +112,6 @@ inline double lane_dot(const double* a, const double* b, size_t lo, size_t hi) {
   return (l[0] + l[1]) + (l[2] + l[3]);
 }
 
-// The same for sum_i a[i * step] b[i] and sum_i b[i] over [0, count) at once.
-inline void lane_dot_and_sum(const double* a, size_t step, const double* b, size_t count,
-                             double* dot, double* sum) {
-  double l[4] = {0.0, 0.0, 0.0, 0.0}, m[4] = {0.0, 0.0, 0.0, 0.0};
-  size_t i = 0;
-  for (; i + 4 <= count; i += 4) {
-    for (size_t k = 0; k < 4; ++k) l[k] += a[(i + k) * step] * b[i + k], m[k] += b[i + k];
-  }
-  for (; i < count; ++i) l[0] += a[i * step] * b[i], m[0] += b[i];
-  *dot += (l[0] + l[1]) + (l[2] + l[3]);
-  *sum += (m[0] + m[1]) + (m[2] + m[3]);
-}
-
 }  // namespace
 
 std::array<int, 2> fft_slab(const std::array<int, 3>& dims, const Communicator& comm) {
@@ -190,7 +178,48 @@ Grid::Grid(const std::array<int, 3>& dims, const Vec3& box, GradientScheme schem
     auto* real = reinterpret_cast<double*>(spec);
     forward_ = fftw_plan_dft_r2c_3d(dims[2], dims[1], dims[0], real, spec, FFTW_ESTIMATE);
     inverse_ = fftw_plan_dft_c2r_3d(dims[2], dims[1], dims[0], spec, real, FFTW_ESTIMATE);
+    // The same transforms split in halves (Grid::sweep, Grid::middle): the 2D transforms of
+    // one z plane, run on the workers a plane at a time, and those along z of a block of
+    // neighbouring columns of frequencies, where they lie.
+    const int plane[2] = {dims[1], dims[0]}, complex_rows[2] = {dims[1], hx},
+              real_rows[2] = {dims[1], 2 * hx};
+    const int plane_values = dims[1] * hx;
+    const size_t nz = static_cast<size_t>(dims[2]), per_plane = static_cast<size_t>(plane_values);
+    // The workers run these plans one thread each. Planes start 64-byte aligned, as the first
+    // one that is planned, only when a plane's bytes are a multiple of 64.
+    fftw_plan_with_nthreads(1);
+    const unsigned align = per_plane % 4 == 0 ? 0u : static_cast<unsigned>(FFTW_UNALIGNED);
+    plane_forward_ = fftw_plan_many_dft_r2c(2, plane, 1, real, real_rows, 1, 2 * plane_values, spec,
+                                            complex_rows, 1, plane_values, FFTW_ESTIMATE | align);
+    plane_inverse_ = fftw_plan_many_dft_c2r(2, plane, 1, spec, complex_rows, 1, plane_values, real,
+                                            real_rows, 1, 2 * plane_values, FFTW_ESTIMATE | align);
+    // Columns per block: a block of six components stays within about 512 KiB (in L2), a
+    // power of two from 4 to 64 fixed by the grid alone. The z transforms run where the
+    // columns lie (a plane apart).
+    columns_ = 4;
+    while (columns_ < 64 && 2 * columns_ * nz * 6 * sizeof(cplx) <= (size_t(512) << 10)) {
+      columns_ *= 2;
+    }
+    columns_ = std::min(columns_, per_plane);
+    const size_t widths[2] = {columns_, per_plane % columns_};
+    // Blocks start 64-byte aligned, as the first one that is planned, when columns_ is a
+    // multiple of four.
+    const unsigned column_align = columns_ % 4 == 0 ? 0u : static_cast<unsigned>(FFTW_UNALIGNED);
+    bool planned = plane_forward_ && plane_inverse_;
+    for (int w = 0; w < 2; ++w) {
+      if (widths[w] == 0) continue;
+      const int howmany = static_cast<int>(widths[w]), n = dims[2];
+      const int step = static_cast<int>(per_plane);
+      for (int sign : {0, 1}) {
+        column_plan_[w][sign] = fftw_plan_many_dft(
+            1, &n, howmany, spec, nullptr, step, 1, spec, nullptr, step, 1,
+            sign == 0 ? FFTW_FORWARD : FFTW_BACKWARD, FFTW_ESTIMATE | column_align);
+        planned = planned && column_plan_[w][sign];
+      }
+    }
     fftw_free(spec);
+    prepare_fftw(threads, false);
+    if (!planned) throw std::runtime_error("homogenization: FFTW made no plan");
   } else {
     // Planes of z here; after the forward transform, planes of y (FFTW_MPI_TRANSPOSED_OUT
     // saves the transpose back; the inverse takes that layout in).
@@ -257,6 +286,20 @@ Grid::Grid(const std::array<int, 3>& dims, const Vec3& box, GradientScheme schem
     MPI_Allreduce(MPI_IN_PLACE, &largest, 1, MPI_DOUBLE, MPI_MAX, mpi_comm(comm_));
   }
   for (double& v : inv_norm_) v = v > kNoGradient * largest ? 1.0 / std::sqrt(v) : 0.0;
+  if (!comm_.set) {
+    std::vector<double> visited(nc_);
+    const size_t nz = static_cast<size_t>(dims[2]), per_plane = nc_ / nz;
+    size_t to = 0;
+    for (size_t first = 0; first < per_plane; first += columns_) {
+      const size_t width = std::min(columns_, per_plane - first);
+      for (size_t z = 0; z < nz; ++z) {
+        const double* from = inv_norm_.data() + z * per_plane + first;
+        std::copy(from, from + width, visited.data() + to);
+        to += width;
+      }
+    }
+    inv_norm_.swap(visited);
+  }
 }
 
 Grid::~Grid() {
@@ -264,6 +307,10 @@ Grid::~Grid() {
     std::lock_guard<std::mutex> lock(planner_mutex());
     fftw_destroy_plan(static_cast<fftw_plan>(forward_));
     fftw_destroy_plan(static_cast<fftw_plan>(inverse_));
+    for (void* p : {plane_forward_, plane_inverse_, column_plan_[0][0], column_plan_[0][1],
+                    column_plan_[1][0], column_plan_[1][1]}) {
+      if (p) fftw_destroy_plan(static_cast<fftw_plan>(p));
+    }
   }
 }
 
@@ -296,22 +343,118 @@ void Grid::inverse_in_place(Spectrum& buffer) {
   }
 }
 
-void Grid::forward(const double* field, Spectrum& out) {
-  auto* real = reinterpret_cast<double*>(out.data());
+void Grid::load(const double* fields, std::vector<Spectrum>& spectra) const {
   const size_t nx = row(), stride = row_stride();
-  for (size_t r = 0; r < rows(); ++r)
-    std::copy(field + r * nx, field + (r + 1) * nx, real + r * stride);
-  forward_in_place(out);
+  for (size_t c = 0; c < spectra.size(); ++c) {
+    const double* field = fields + c * n_;
+    double* real = reinterpret_cast<double*>(spectra[c].data());
+    for (size_t r = 0; r < rows(); ++r) {
+      std::copy(field + r * nx, field + (r + 1) * nx, real + r * stride);
+    }
+  }
 }
 
-void Grid::inverse(Spectrum& in, double* field) {
-  inverse_in_place(in);
-  const double* real = reinterpret_cast<const double*>(in.data());
+void Grid::unload(const std::vector<Spectrum>& spectra, double* fields) const {
   const double inv_n = 1.0 / static_cast<double>(total_);
   const size_t nx = row(), stride = row_stride();
-  for (size_t r = 0; r < rows(); ++r) {
-    for (size_t i = 0; i < nx; ++i) field[r * nx + i] = real[r * stride + i] * inv_n;
+  for (size_t c = 0; c < spectra.size(); ++c) {
+    double* field = fields + c * n_;
+    const double* real = reinterpret_cast<const double*>(spectra[c].data());
+    for (size_t r = 0; r < rows(); ++r) {
+      for (size_t i = 0; i < nx; ++i) field[r * nx + i] = real[r * stride + i] * inv_n;
+    }
   }
+}
+
+std::vector<double> Grid::sweep(std::vector<Spectrum>& spectra, bool finish, bool start, int slots,
+                                const RowPass& pass) {
+  if (spectra.size() > 6) throw std::logic_error("homogenization: at most six fields");
+  const size_t ny = static_cast<size_t>(dims_[1]), planes = rows() / ny;
+  const size_t per = std::max<size_t>(1, kBlock / (row() * ny));
+  const size_t blocks = (planes + per - 1) / per, k = static_cast<size_t>(std::max(slots, 0));
+  const size_t plane_values = ny * (row() / 2 + 1);
+  if (comm_.set && finish) {
+    for (auto& s : spectra) inverse_in_place(s);
+  }
+  std::vector<double> part(blocks * k, 0.0);
+  tbb::parallel_for(
+      tbb::blocked_range<size_t>(0, blocks, 1),
+      [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t b = r.begin(); b != r.end(); ++b) {
+          for (size_t z = b * per; z < std::min(planes, (b + 1) * per); ++z) {
+            if (!comm_.set && finish) {
+              for (auto& s : spectra) {
+                auto* at = reinterpret_cast<fftw_complex*>(s.data() + z * plane_values);
+                fftw_execute_dft_c2r(static_cast<fftw_plan>(plane_inverse_), at,
+                                     reinterpret_cast<double*>(at));
+              }
+            }
+            if (pass) pass(z * ny, (z + 1) * ny, part.data() + b * k);
+            if (!comm_.set && start) {
+              for (auto& s : spectra) {
+                auto* at = reinterpret_cast<fftw_complex*>(s.data() + z * plane_values);
+                fftw_execute_dft_r2c(static_cast<fftw_plan>(plane_forward_),
+                                     reinterpret_cast<double*>(at), at);
+              }
+            }
+          }
+        }
+      },
+      tbb::simple_partitioner());
+  if (comm_.set && start) {
+    for (auto& s : spectra) forward_in_place(s);
+  }
+  std::vector<double> total(k, 0.0);
+  for (size_t b = 0; b < blocks; ++b) {
+    for (size_t j = 0; j < k; ++j) total[j] += part[b * k + j];
+  }
+  sum_over_ranks(total.data(), slots, comm_);
+  return total;
+}
+
+void Grid::middle(std::vector<Spectrum>& spectra, const Projector& project) {
+  const size_t d = spectra.size();
+  if (d > 6) throw std::logic_error("homogenization: at most six fields");
+  if (comm_.set) {
+    parallel_blocks(nc_, [&](size_t lo, size_t hi) {
+      double* v[6];
+      for (size_t c = 0; c < d; ++c) v[c] = reinterpret_cast<double*>(spectra[c].data() + lo);
+      project(lo, hi, v, inv_norm_.data() + lo);
+    });
+    return;
+  }
+  const size_t nz = static_cast<size_t>(dims_[2]), per_plane = nc_ / nz;
+  const size_t blocks = (per_plane + columns_ - 1) / columns_;
+  tbb::parallel_for(
+      tbb::blocked_range<size_t>(0, blocks, 1),
+      [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t b = r.begin(); b != r.end(); ++b) {
+          const size_t first = b * columns_, width = std::min(columns_, per_plane - first);
+          const int w = width == columns_ ? 0 : 1;
+          for (size_t c = 0; c < d; ++c) {
+            auto* col = reinterpret_cast<fftw_complex*>(spectra[c].data() + first);
+            fftw_execute_dft(static_cast<fftw_plan>(column_plan_[w][0]), col, col);
+          }
+          double* v[6];
+          const double* inv_norm = inv_norm_.data() + first * nz;  // the blocks before are full
+          for (size_t z = 0; z < nz; ++z) {
+            const size_t at = z * per_plane + first;
+            for (size_t c = 0; c < d; ++c) v[c] = reinterpret_cast<double*>(spectra[c].data() + at);
+            project(at, at + width, v, inv_norm + z * width);
+          }
+          for (size_t c = 0; c < d; ++c) {
+            auto* col = reinterpret_cast<fftw_complex*>(spectra[c].data() + first);
+            fftw_execute_dft(static_cast<fftw_plan>(column_plan_[w][1]), col, col);
+          }
+        }
+      },
+      tbb::simple_partitioner());
+}
+
+void Grid::convolve(std::vector<Spectrum>& spectra, const Projector& project) {
+  sweep(spectra, false, true, 0, nullptr);
+  middle(spectra, project);
+  sweep(spectra, true, false, 0, nullptr);
 }
 
 void* aligned_bytes(size_t bytes) {
@@ -347,9 +490,10 @@ std::vector<double> parallel_rows(const Grid& grid, int slots,
 }
 
 CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectra,
-                                       const GalerkinOperator& op, std::vector<double> b,
-                                       std::vector<double>* x, std::vector<double>* mean_flux,
-                                       double tolerance, int max_iterations,
+                                       const GalerkinOperator& op, std::vector<double>& b,
+                                       std::vector<double>& work, std::vector<double>* x,
+                                       std::vector<double>* mean_flux, double tolerance,
+                                       int max_iterations,
                                        const std::function<bool(int, double)>& progress) {
   CgOutcome out;
   const int d = op.components;
@@ -362,13 +506,14 @@ CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectr
   // The residual and the direction voxel by voxel (the d components of a voxel side by side):
   // the passes then stream two fields instead of 2 d, which is what bounds them. b's storage
   // becomes the direction.
-  std::vector<double> r(dd * n);
+  std::vector<double>& r = work;
+  r.resize(dd * n);
   parallel_blocks(n, [&](size_t lo, size_t hi) {
     for (size_t i = lo; i < hi; ++i) {
       for (size_t c = 0; c < dd; ++c) r[i * dd + c] = b[c * n + i];
     }
   });
-  std::vector<double> p = std::move(b);
+  std::vector<double>& p = b;
   std::copy(r.begin(), r.end(), p.begin());
   std::vector<double*> buffer(d);
   for (int c = 0; c < d; ++c) buffer[c] = reinterpret_cast<double*>(spectra[c].data());
@@ -384,11 +529,12 @@ CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectr
   bool x_behind = false;  // x lacks alpha p for the current direction
   out.residual = 1.0;
   for (int it = 1; it <= max_iterations; ++it) {
-    // One pass, row by row while the row is in cache: x += alpha p and p = r + beta p (from
-    // the second iteration), C p into the buffers' padded rows, p . C p and the sums of C p.
+    // The first sweep, row by row while the row is in cache: x += alpha p and p = r + beta p
+    // (from the second iteration), C p into the buffers' padded rows, p . C p and the sums of
+    // C p; the transforms start plane by plane behind it.
     const bool step = it > 1, with_x = x && x_behind;
     const std::vector<double> sums =
-        parallel_rows(grid, d + 1, [&](size_t first, size_t last, double* sum) {
+        grid.sweep(spectra, false, true, d + 1, [&](size_t first, size_t last, double* sum) {
           for (size_t row = first; row < last; ++row) {
             const size_t lo = row * nx, hi = lo + nx, at = row * stride;
             if (with_x) add_direction(alpha, lo, hi);
@@ -397,11 +543,7 @@ CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectr
               const double* rr_row = r.data() + lo * dd;
               for (size_t i = 0; i < nx * dd; ++i) pr[i] = rr_row[i] + beta * pr[i];
             }
-            op.flux(p.data(), buffer.data(), lo, hi, at);
-            for (int c = 0; c < d; ++c) {
-              lane_dot_and_sum(p.data() + lo * dd + c, dd, buffer[c] + at, nx, &sum[0],
-                               &sum[1 + c]);
-            }
+            op.flux(p.data(), buffer.data(), lo, hi, at, sum);
           }
         });
     x_behind = false;
@@ -410,23 +552,26 @@ CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectr
     alpha = rr / pap;
     x_behind = true;
     for (int c = 0; c < d; ++c) (*mean_flux)[c] += alpha * sums[1 + c] * inv_n;
-    for (int c = 0; c < d; ++c) grid.forward_in_place(spectra[c]);
-    parallel_blocks(grid.frequencies(), op.project);
-    for (int c = 0; c < d; ++c) grid.inverse_in_place(spectra[c]);
-    // One pass: r -= alpha P C p, |r|^2.
+    grid.middle(spectra, op.project);
+    // The second sweep, the transforms ending plane by plane ahead of it: r -= alpha P C p,
+    // |r|^2.
     const double a = alpha * inv_n;
-    const double rr_new = parallel_rows(grid, 1, [&](size_t first, size_t last, double* sum) {
-      double s = 0.0;
-      for (size_t row = first; row < last; ++row) {
-        double* rr_row = r.data() + row * nx * dd;
-        const size_t at = row * stride;
-        for (size_t i = 0; i < nx; ++i) {
-          for (size_t c = 0; c < dd; ++c) rr_row[i * dd + c] -= a * buffer[c][at + i];
-        }
-        s += lane_dot(rr_row, rr_row, 0, nx * dd);  // while the row is in cache
-      }
-      *sum = s;
-    })[0];
+    const double rr_new =
+        grid.sweep(spectra, true, false, 1, [&](size_t first, size_t last, double* sum) {
+          double s = 0.0;
+          for (size_t row = first; row < last; ++row) {
+            double* rr_row = r.data() + row * nx * dd;
+            const size_t at = row * stride;
+            // A component at a time: the row's values stay in L1 across the components.
+            for (size_t c = 0; c < dd; ++c) {
+              const double* q = buffer[c] + at;
+              double* rc = rr_row + c;
+              for (size_t i = 0; i < nx; ++i) rc[i * dd] -= a * q[i];
+            }
+            s += lane_dot(rr_row, rr_row, 0, nx * dd);  // while the row is in cache
+          }
+          *sum += s;
+        })[0];
     out.iterations = it;
     out.residual = std::sqrt(rr_new) / bnorm;
     // A stop asked on any rank stops them all (they would wait on each other otherwise).

@@ -8,6 +8,7 @@
 #include <array>
 #include <cmath>
 #include <complex>
+#include <cstring>
 #include <functional>
 #include <vector>
 
@@ -35,6 +36,18 @@ double max_over_ranks(double value, const Communicator& comm);
 namespace spectral {
 
 using cplx = std::complex<double>;
+
+/// A frequency's real and imaginary parts as one SIMD value: the projections' coefficients are
+/// real, so both parts go through the same arithmetic, lane by lane (GCC and Clang vectors).
+using Pair = double __attribute__((vector_size(16)));
+inline Pair load_pair(const double* p) {
+  Pair v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+inline void store_pair(double* p, Pair v) {
+  std::memcpy(p, &v, sizeof v);
+}
 
 /// The planes [lo, hi) along z that FFTW's MPI transforms give this rank of `comm` for a grid of
 /// dims voxels (the whole [0, dims[2]) when the communicator is unset). A rank may get none.
@@ -91,14 +104,15 @@ class Grid {
   double sum(double local) const;
   double dot(const std::vector<double>& a, const std::vector<double>& b) const;
   /// f(at, xi) for the stored frequencies at in [lo, hi), xi the real unit direction there (3
-  /// values). Both schemes' multipliers are k = c xi with |c| = 1 and c the same for the three
-  /// components (i for Moulinec-Suquet; i exp(i (t_x + t_y + t_z) / 2), t the phase of a
-  /// frequency along each axis, for the rotated scheme), so the projections k k^H / |k|^2 and
-  /// their elastic counterpart, in which c meets its conjugate, take xi alone: real multipliers
-  /// of the complex spectra. xi is formed from per-axis factors and the stored 1 / |k| as it is
-  /// needed (a stored table would cost 24 bytes a frequency).
+  /// values), given `inv_norm`, the frequencies' 1 / |k| in that order (a Projector's). Both
+  /// schemes' multipliers are k = c xi with |c| = 1 and c the same for the three components (i for
+  /// Moulinec-Suquet; i exp(i (t_x + t_y + t_z) / 2), t the phase of a frequency along each axis,
+  /// for the rotated scheme), so the projections k k^H / |k|^2 and their elastic counterpart, in
+  /// which c meets its conjugate, take xi alone: real multipliers of the complex spectra. xi is
+  /// formed from per-axis factors and the stored 1 / |k| as it is needed (a stored table would cost
+  /// 24 bytes a frequency).
   template <class F>
-  void for_each_unit_direction(size_t lo, size_t hi, F&& f) const {
+  void for_each_unit_direction(size_t lo, size_t hi, const double* inv_norm, F&& f) const {
     // Indices along x, then the middle and the slowest axis of the stored layout.
     const size_t hx = static_cast<size_t>(dims_[0] / 2 + 1);
     const size_t nm = static_cast<size_t>(dims_[mid_]);
@@ -111,7 +125,7 @@ class Grid {
     double a = avg_[1][q[1]] * avg_[2][q[2]], b = diff_[1][q[1]] * avg_[2][q[2]],
            c = diff_[2][q[2]] * avg_[1][q[1]];
     for (size_t at = lo; at < hi; ++at) {
-      const double s = inv_norm_[at];
+      const double s = inv_norm[at - lo];
       const double xi[3] = {diff_[0][kx] * a * s, avg_[0][kx] * b * s, avg_[0][kx] * c * s};
       f(at, xi);
       if (++kx == hx) {
@@ -135,11 +149,37 @@ class Grid {
   void forward_in_place(Spectrum& buffer);
   /// voxels() times the real field of the spectrum in `buffer`, in padded rows, in place.
   void inverse_in_place(Spectrum& buffer);
-  /// Spectrum of a real field (size() values) into `out`.
-  void forward(const double* field, Spectrum& out);
-  /// Real field of a spectrum, divided by voxels() (so inverse(forward(f)) = f); `in` is
-  /// destroyed.
-  void inverse(Spectrum& in, double* field);
+  /// Component-major fields (spectra.size() blocks of size() values) into the buffers' padded
+  /// rows, and back out divided by voxels() (so unload after load, convolve with the identity
+  /// gives the fields back).
+  void load(const double* fields, std::vector<Spectrum>& spectra) const;
+  void unload(const std::vector<Spectrum>& spectra, double* fields) const;
+  /// A projection at the frequencies [lo, hi) held here, whose values lie at v[c] for component
+  /// c (frequency lo's real and imaginary parts at v[c][0] and v[c][1], then the next's), and
+  /// their 1 / |k| at inv_norm (0 where k carries no gradient), in the same order.
+  using Projector =
+      std::function<void(size_t lo, size_t hi, double* const* v, const double* inv_norm)>;
+  /// A pass over the rows [first, last) held here, adding to `sums` (slots of its own).
+  using RowPass = std::function<void(size_t first, size_t last, double* sums)>;
+  /// The transforms of the fields in the buffers (one each, at most six) split in two halves
+  /// around the projection, so that the passes over the voxels meet the values in cache. On
+  /// one process the first half is the 2D transforms of the z planes, the middle the transforms
+  /// along z with the projection between them, done a few columns of frequencies at a time
+  /// while they are in cache, and the second half the planes' inverse 2D transforms. With a
+  /// communicator FFTW's 3D transforms are the halves and the middle is the projection alone.
+  /// The same bits whatever the number of threads.
+  ///
+  /// sweep(): over blocks of whole z planes (fixed by the grid), plane by plane: when `finish`,
+  /// the second half of the transforms before it (the buffers' padded rows then hold voxels()
+  /// times the projected fields); `pass` over the plane's rows (when given); when `start`, the
+  /// first half of the next transforms of what the buffers' padded rows hold. Returns the
+  /// slots' totals, added in block order and then over the ranks.
+  std::vector<double> sweep(std::vector<Spectrum>& spectra, bool finish, bool start, int slots,
+                            const RowPass& pass);
+  /// The middle: `project` at every frequency held here.
+  void middle(std::vector<Spectrum>& spectra, const Projector& project);
+  /// All of it: voxels() times the projected fields, in the buffers' padded rows.
+  void convolve(std::vector<Spectrum>& spectra, const Projector& project);
 
  private:
   size_t n_, nc_, alloc_, total_;
@@ -149,11 +189,19 @@ class Grid {
   size_t slow_start_ = 0;
   void* forward_;
   void* inverse_;
+  // One process: the 2D transforms of one z plane, and the z transforms of a block of
+  // columns_ columns where they lie (and of the last, narrower block).
+  void* plane_forward_ = nullptr;
+  void* plane_inverse_ = nullptr;
+  size_t columns_ = 0;
+  void* column_plan_[2][2] = {{nullptr, nullptr}, {nullptr, nullptr}};
   std::array<int, 3> dims_;
   // Per axis and index along it, the real parts of the multiplier k = c xi (see
   // for_each_unit_direction): the scheme's difference factor, and the average that the other
   // axes' components take (rotated scheme; 1 for Moulinec-Suquet); per frequency 1 / |k| (0
-  // where k carries no gradient).
+  // where k carries no gradient), on one process in the order middle() visits the frequencies
+  // (block by block of columns, z by z: read in sequence, where the stored order would jump a
+  // plane between runs of a few values).
   std::array<std::vector<double>, 3> diff_, avg_;
   std::vector<double> inv_norm_;
 };
@@ -182,30 +230,35 @@ struct CgOutcome {
   bool stopped = false;
 };
 /// The Galerkin operator A = P C of the Lippmann-Schwinger solvers, given by parts so that
-/// conjugate_gradients_galerkin can keep three fields. `flux(p, out, lo, hi, at)` writes C p at
-/// the voxels [lo, hi) of one row, component c of voxel i to out[c][at + i - lo], from p held
-/// voxel by voxel (voxel i's `components` values at p + components i); `project(lo, hi)` applies P
-/// to the spectra at frequencies [lo, hi).
+/// conjugate_gradients_galerkin can keep three fields. `flux(p, out, lo, hi, at, sums)` writes
+/// C p at the voxels [lo, hi) of one row, component c of voxel i to out[c][at + i - lo], from p
+/// held voxel by voxel (voxel i's `components` values at p + components i), and adds
+/// p . C p over them to sums[0] and the sum of component c of C p to sums[1 + c], voxel by
+/// voxel in order, while the values are in registers; `project` applies P to the spectra
+/// (Grid::convolve).
 struct GalerkinOperator {
   int components = 0;
-  std::function<void(const double*, double* const*, size_t, size_t, size_t)> flux;
-  std::function<void(size_t, size_t)> project;
+  std::function<void(const double*, double* const*, size_t, size_t, size_t, double*)> flux;
+  Grid::Projector project;
 };
 /// Conjugate gradients for P C x = b with the residual and the direction only (x starts at
 /// 0; `spectra` holds one buffer per component; b and x are component-major: `components`
-/// blocks of n values). Each iteration makes one pass over the voxels
-/// before the transforms (x's and the direction's updates, C p written into the buffers'
-/// padded rows, p . C p and the means of C p) and one after (the residual's update, |r|^2).
+/// blocks of n values). Each iteration makes two sweeps over the voxels (Grid::sweep), the
+/// middle of the transforms between them: the first (x's and the direction's updates, C p
+/// written into the buffers' padded rows, p . C p and the means of C p) with the transforms
+/// starting behind it, the second (the residual's update, |r|^2) with them ending ahead of it.
 /// The direction stays in the range of the orthogonal projection P, so p . P C p = p . C p;
 /// the product is never stored as a field of its own. `mean_flux` (components values) gets the
 /// mean of C x over the grid, summed from the directions' means as they pass; x itself is
 /// formed only when `x` is given (it costs a field and its traffic). Stops when |r| / |b| <
-/// tolerance, after max_iterations, or when progress returns false. `b` is taken by value: it
-/// becomes the residual.
+/// tolerance, after max_iterations, or when progress returns false. `b` becomes the direction
+/// and `work` the residual: a caller that solves again passes the same two and their pages are
+/// not mapped again.
 CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectra,
-                                       const GalerkinOperator& op, std::vector<double> b,
-                                       std::vector<double>* x, std::vector<double>* mean_flux,
-                                       double tolerance, int max_iterations,
+                                       const GalerkinOperator& op, std::vector<double>& b,
+                                       std::vector<double>& work, std::vector<double>* x,
+                                       std::vector<double>* mean_flux, double tolerance,
+                                       int max_iterations,
                                        const std::function<bool(int, double)>& progress);
 
 }  // namespace spectral

@@ -10,7 +10,6 @@
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 #include <tbb/partitioner.h>
-#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <cmath>
@@ -465,28 +464,6 @@ void* aligned_bytes(size_t bytes) {
 
 void free_aligned(void* p) {
   fftw_free(p);
-}
-
-std::vector<double> parallel_rows(const Grid& grid, int slots,
-                                  const std::function<void(size_t, size_t, double*)>& f) {
-  // Blocks of about kBlock voxels, fixed by the grid alone.
-  const size_t rows = grid.rows(), per = std::max<size_t>(1, kBlock / grid.row());
-  const size_t blocks = (rows + per - 1) / per, k = static_cast<size_t>(slots);
-  std::vector<double> part(blocks * k, 0.0);
-  tbb::parallel_for(
-      tbb::blocked_range<size_t>(0, blocks, 1),
-      [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t b = r.begin(); b != r.end(); ++b) {
-          f(b * per, std::min(rows, (b + 1) * per), part.data() + b * k);
-        }
-      },
-      tbb::simple_partitioner());
-  std::vector<double> total(k, 0.0);
-  for (size_t b = 0; b < blocks; ++b) {
-    for (size_t j = 0; j < k; ++j) total[j] += part[b * k + j];
-  }
-  sum_over_ranks(total.data(), slots, grid.communicator());
-  return total;
 }
 
 CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectra,

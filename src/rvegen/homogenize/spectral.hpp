@@ -212,11 +212,6 @@ size_t checked_voxels(const std::array<int, 3>& dims, const Vec3& box);
 
 /// Runs f(begin, end) over [0, n) in fixed blocks on all cores.
 void parallel_blocks(size_t n, const std::function<void(size_t, size_t)>& f);
-/// Runs f(first, last, sums) over the grid's rows held here, in fixed blocks of rows on all
-/// cores, each block with `slots` sums of its own (zeroed); returns the slots' totals, added in
-/// block order (the same bits whatever the number of threads) and then over the ranks.
-std::vector<double> parallel_rows(const Grid& grid, int slots,
-                                  const std::function<void(size_t, size_t, double*)>& f);
 /// Sum of a[i] b[i] over this process's values, added in fixed blocks and then in block order:
 /// the same bits whatever the number of threads.
 double dot(const std::vector<double>& a, const std::vector<double>& b);

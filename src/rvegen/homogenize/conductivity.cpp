@@ -16,44 +16,18 @@ namespace {
 constexpr double kTensorRounding = 1e-12;
 
 // The orthogonal projection onto discrete gradient fields, k k^H / |k|^2 = xi xi^T at each
-// frequency (xi the real unit direction of k),
-// applied to 3-component voxel fields (component-major: 3 blocks of n values).
-class GradientProjection {
- public:
-  GradientProjection(const std::array<int, 3>& dims, const Vec3& box, GradientScheme scheme,
-                     int threads, const Communicator& comm)
-      : grid_(dims, box, scheme, threads, comm), spectrum_(3) {
-    for (auto& s : spectrum_) s.resize(grid_.spectrum_size());
+// frequency (xi the real unit direction of k), on 3-component fields.
+struct GradientKernel {
+  static constexpr int kComponents = 3;
+  // Real coefficients: the real and the imaginary parts as one pair.
+  static void project(double* const* v, size_t i, const double* xi) {
+    const spectral::Pair s = xi[0] * spectral::load_pair(v[0] + i) +
+                             xi[1] * spectral::load_pair(v[1] + i) +
+                             xi[2] * spectral::load_pair(v[2] + i);
+    for (int a = 0; a < 3; ++a) spectral::store_pair(v[a] + i, xi[a] * s);
   }
-  size_t size() const { return grid_.size(); }
-  void apply(const double* in, double* out) {
-    grid_.load(in, spectrum_);
-    grid_.convolve(spectrum_, projector());
-    grid_.unload(spectrum_, out);
-  }
-  /// P on the spectra at frequencies [lo, hi), whose values lie at v (Grid::Projector).
-  void project(size_t lo, size_t hi, double* const* v, const double* inv_norm) const {
-    grid_.for_each_unit_direction(lo, hi, inv_norm, [&](size_t at, const double* xi) {
-      // Real coefficients: the real and the imaginary parts as one pair.
-      const size_t i = 2 * (at - lo);
-      const spectral::Pair s = xi[0] * spectral::load_pair(v[0] + i) +
-                               xi[1] * spectral::load_pair(v[1] + i) +
-                               xi[2] * spectral::load_pair(v[2] + i);
-      for (int a = 0; a < 3; ++a) spectral::store_pair(v[a] + i, xi[a] * s);
-    });
-  }
-  spectral::Grid::Projector projector() const {
-    return [this](size_t lo, size_t hi, double* const* v, const double* inv_norm) {
-      project(lo, hi, v, inv_norm);
-    };
-  }
-  spectral::Grid& grid() { return grid_; }
-  std::vector<spectral::Spectrum>& spectra() { return spectrum_; }
-
- private:
-  spectral::Grid grid_;
-  std::vector<spectral::Spectrum> spectrum_;
 };
+using GradientProjection = spectral::Projection<GradientKernel>;
 
 }  // namespace
 

@@ -19,35 +19,11 @@ const double kInvSqrt2 = 1.0 / std::sqrt(2.0);
 // k = c xi (xi the real unit direction, |c| = 1), the strains sym(k (x) u); the projection of T
 // is sym(xi (x) u) with u = 2 T xi - xi (xi . T xi) (the normal equations (I + xi xi^T) / 2,
 // inverted by Sherman-Morrison with |xi| = 1; c meets its conjugate and drops out).
-class StrainProjection {
- public:
-  StrainProjection(const std::array<int, 3>& dims, const Vec3& box, GradientScheme scheme,
-                   int threads, const Communicator& comm)
-      : grid_(dims, box, scheme, threads, comm), spectrum_(6) {
-    for (auto& s : spectrum_) s.resize(grid_.spectrum_size());
-  }
-  void apply(const double* in, double* out) {
-    grid_.load(in, spectrum_);
-    grid_.convolve(spectrum_, projector());
-    grid_.unload(spectrum_, out);
-  }
-  /// P on the spectra at frequencies [lo, hi), whose values lie at v (Grid::Projector).
-  void project(size_t lo, size_t hi, double* const* v, const double* inv_norm) const {
-    grid_.for_each_unit_direction(
-        lo, hi, inv_norm, [&](size_t at, const double* xi) { project_pair(v, 2 * (at - lo), xi); });
-  }
-  spectral::Grid::Projector projector() const {
-    return [this](size_t lo, size_t hi, double* const* v, const double* inv_norm) {
-      project(lo, hi, v, inv_norm);
-    };
-  }
-  spectral::Grid& grid() { return grid_; }
-  std::vector<spectral::Spectrum>& spectra() { return spectrum_; }
-
- private:
+struct StrainKernel {
+  static constexpr int kComponents = 6;
   // P on one frequency of each component's spectrum (its real and imaginary parts at v[c][i]
   // and v[c][i + 1], as one pair: the coefficients are real).
-  static inline void project_pair(double* const* v, size_t i, const double* xi) {
+  static void project(double* const* v, size_t i, const double* xi) {
     using spectral::Pair;
     // The tensor from its Mandel components, T xi, and xi . T xi.
     const Pair t00 = spectral::load_pair(v[0] + i), t11 = spectral::load_pair(v[1] + i),
@@ -68,10 +44,8 @@ class StrainProjection {
     spectral::store_pair(v[4] + i, (xi[0] * u2 + xi[2] * u0) * kInvSqrt2);
     spectral::store_pair(v[5] + i, (xi[0] * u1 + xi[1] * u0) * kInvSqrt2);
   }
-
-  spectral::Grid grid_;
-  std::vector<spectral::Spectrum> spectrum_;
 };
+using StrainProjection = spectral::Projection<StrainKernel>;
 
 struct IsotropicPart {
   bool isotropic = false;

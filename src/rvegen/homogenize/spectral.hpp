@@ -206,6 +206,41 @@ class Grid {
   std::vector<double> inv_norm_;
 };
 
+/// A grid with one buffer per component and the projection made of Kernel::project(v, i, xi):
+/// P on one frequency whose real and imaginary parts lie at v[c] + i and v[c] + i + 1 (c <
+/// Kernel::kComponents), xi its real unit direction (Grid::for_each_unit_direction). Applied to
+/// component-major fields (apply), or handed to the solver (projector()); the kernel is inlined
+/// into the loop over the frequencies.
+template <class Kernel>
+class Projection {
+ public:
+  Projection(const std::array<int, 3>& dims, const Vec3& box, GradientScheme scheme, int threads,
+             const Communicator& comm)
+      : grid_(dims, box, scheme, threads, comm), spectra_(Kernel::kComponents) {
+    for (auto& s : spectra_) s.resize(grid_.spectrum_size());
+  }
+  /// P on component-major fields (Kernel::kComponents blocks of size() values; in and out may
+  /// be the same).
+  void apply(const double* in, double* out) {
+    grid_.load(in, spectra_);
+    grid_.convolve(spectra_, projector());
+    grid_.unload(spectra_, out);
+  }
+  Grid::Projector projector() const {
+    return [this](size_t lo, size_t hi, double* const* v, const double* inv_norm) {
+      grid_.for_each_unit_direction(lo, hi, inv_norm, [&](size_t at, const double* xi) {
+        Kernel::project(v, 2 * (at - lo), xi);
+      });
+    };
+  }
+  Grid& grid() { return grid_; }
+  std::vector<Spectrum>& spectra() { return spectra_; }
+
+ private:
+  Grid grid_;
+  std::vector<Spectrum> spectra_;
+};
+
 /// Voxels of a grid of `dims` voxels over a box of `box`; throws InputError when an axis has
 /// no voxel or the box no positive size.
 size_t checked_voxels(const std::array<int, 3>& dims, const Vec3& box);

@@ -133,8 +133,9 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
                     double* sums) {
         double* o[3] = {out[0] + at, out[1] + at, out[2] + at};
         double dot = 0.0, m[3] = {0.0, 0.0, 0.0};
+        const size_t nx = hi - lo;
         for (size_t i = lo, j = 0; i < hi; ++i, ++j) {
-          const Vec3 v(p[3 * i], p[3 * i + 1], p[3 * i + 2]);
+          const Vec3 v(p[j], p[nx + j], p[2 * nx + j]);
           const Vec3 q = medium.at(i) * v;
           double pq = 0.0;
           for (int c = 0; c < 3; ++c) {

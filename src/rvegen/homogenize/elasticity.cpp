@@ -179,8 +179,9 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
     for (int c = 0; c < 6; ++c) o[c] = out[c] + at;
     double dot = 0.0, m[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
     Vec6 v, t;
+    const size_t nx = hi - lo;
     for (size_t i = lo, j = 0; i < hi; ++i, ++j) {
-      for (int k = 0; k < 6; ++k) v[k] = p[6 * i + k];
+      for (int k = 0; k < 6; ++k) v[k] = p[k * nx + j];
       const uint32_t id = medium.index[i];
       const IsotropicPart& ip = iso[id];
       if (ip.isotropic) {

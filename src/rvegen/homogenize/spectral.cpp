@@ -480,14 +480,16 @@ CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectr
   const double bnorm = std::sqrt(grid.dot(b, b));
   if (!(bnorm > 0.0)) return out;
   const size_t n = grid.size(), nx = grid.row(), stride = grid.row_stride();
-  // The residual and the direction voxel by voxel (the d components of a voxel side by side):
-  // the passes then stream two fields instead of 2 d, which is what bounds them. b's storage
-  // becomes the direction.
+  // The residual and the direction row by row, a row's d components one after another (row
+  // `row`, component c, voxel j of the row at (row d + c) nx + j): the passes then stream two
+  // fields instead of 2 d, which is what bounds them, and each component's values stay
+  // contiguous for the vector units. b's storage becomes the direction.
   std::vector<double>& r = work;
   r.resize(dd * n);
   parallel_blocks(n, [&](size_t lo, size_t hi) {
     for (size_t i = lo; i < hi; ++i) {
-      for (size_t c = 0; c < dd; ++c) r[i * dd + c] = b[c * n + i];
+      const size_t block = (i / nx) * dd * nx, j = i % nx;
+      for (size_t c = 0; c < dd; ++c) r[block + c * nx + j] = b[c * n + i];
     }
   });
   std::vector<double>& p = b;
@@ -495,11 +497,14 @@ CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectr
   std::vector<double*> buffer(d);
   for (int c = 0; c < d; ++c) buffer[c] = reinterpret_cast<double*>(spectra[c].data());
   const double inv_n = 1.0 / static_cast<double>(grid.voxels());
-  // x (component-major) += alpha p at the voxels [lo, hi).
-  auto add_direction = [&](double alpha, size_t lo, size_t hi) {
-    for (size_t c = 0; c < dd; ++c) {
-      double* xc = x->data() + c * n;
-      for (size_t i = lo; i < hi; ++i) xc[i] += alpha * p[i * dd + c];
+  // x (component-major) += alpha p at the whole rows [first, last).
+  auto add_direction = [&](double alpha, size_t first, size_t last) {
+    for (size_t row = first; row < last; ++row) {
+      const double* pr = p.data() + row * dd * nx;
+      for (size_t c = 0; c < dd; ++c) {
+        double* xc = x->data() + c * n + row * nx;
+        for (size_t j = 0; j < nx; ++j) xc[j] += alpha * pr[c * nx + j];
+      }
     }
   };
   double rr = bnorm * bnorm, alpha = 0.0, beta = 0.0;
@@ -514,13 +519,13 @@ CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectr
         grid.sweep(spectra, false, true, d + 1, [&](size_t first, size_t last, double* sum) {
           for (size_t row = first; row < last; ++row) {
             const size_t lo = row * nx, hi = lo + nx, at = row * stride;
-            if (with_x) add_direction(alpha, lo, hi);
+            if (with_x) add_direction(alpha, row, row + 1);
             if (step) {
               double* pr = p.data() + lo * dd;
               const double* rr_row = r.data() + lo * dd;
               for (size_t i = 0; i < nx * dd; ++i) pr[i] = rr_row[i] + beta * pr[i];
             }
-            op.flux(p.data(), buffer.data(), lo, hi, at, sum);
+            op.flux(p.data() + lo * dd, buffer.data(), lo, hi, at, sum);
           }
         });
     x_behind = false;
@@ -539,11 +544,10 @@ CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectr
           for (size_t row = first; row < last; ++row) {
             double* rr_row = r.data() + row * nx * dd;
             const size_t at = row * stride;
-            // A component at a time: the row's values stay in L1 across the components.
             for (size_t c = 0; c < dd; ++c) {
               const double* q = buffer[c] + at;
-              double* rc = rr_row + c;
-              for (size_t i = 0; i < nx; ++i) rc[i * dd] -= a * q[i];
+              double* rc = rr_row + c * nx;
+              for (size_t i = 0; i < nx; ++i) rc[i] -= a * q[i];
             }
             s += lane_dot(rr_row, rr_row, 0, nx * dd);  // while the row is in cache
           }
@@ -561,7 +565,11 @@ CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectr
     rr = rr_new;
   }
   if (x && x_behind) {
-    parallel_blocks(n, [&](size_t lo, size_t hi) { add_direction(alpha, lo, hi); });
+    const size_t rows = n / nx;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, rows),
+                      [&](const tbb::blocked_range<size_t>& range) {
+                        add_direction(alpha, range.begin(), range.end());
+                      });
   }
   return out;
 }

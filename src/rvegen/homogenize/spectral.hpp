@@ -261,8 +261,8 @@ struct CgOutcome {
 };
 /// The Galerkin operator A = P C of the Lippmann-Schwinger solvers, given by parts so that
 /// conjugate_gradients_galerkin can keep three fields. `flux(p, out, lo, hi, at, sums)` writes
-/// C p at the voxels [lo, hi) of one row, component c of voxel i to out[c][at + i - lo], from p
-/// held voxel by voxel (voxel i's `components` values at p + components i), and adds
+/// C p at the voxels [lo, hi) of one row, component c of voxel i to out[c][at + i - lo], from
+/// the row's direction (component c of voxel i at p[c (hi - lo) + i - lo]), and adds
 /// p . C p over them to sums[0] and the sum of component c of C p to sums[1 + c], voxel by
 /// voxel in order, while the values are in registers; `project` applies P to the spectra
 /// (Grid::convolve).

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "rvegen/geometry/convex.hpp"
 #include "rvegen/geometry/shapes.hpp"
 
 namespace rvegen::reference {
@@ -38,9 +39,24 @@ inline Vec3 support(const Shape& s, const Vec3& d) {
   return s.center;
 }
 
-/// True when the closed shapes a and b intersect (MPR). Configurations within about
-/// 1e-12 of the combined size from tangency may go either way.
-inline bool overlap(const Shape& a, const Shape& b) {
+/// Support point of a sheared piece: in the frame (e1, e2, n) of its disk, the disk's rim
+/// point (r cos, r sin, 0), plus the end of the chord on the side of d, plus the ball's point.
+inline Vec3 support(const ShearedPiece& p, const Vec3& d) {
+  const Vec3 n = p.normal.normalized();
+  const Vec3 tmp = std::abs(n.x()) < 0.6 ? Vec3(1, 0, 0) : Vec3(0, 1, 0);
+  const Vec3 e1 = (tmp - tmp.dot(n) * n).normalized();
+  const Vec3 e2 = n.cross(e1);
+  const double a = d.dot(e1), b = d.dot(e2);
+  const double rho = std::sqrt(a * a + b * b);
+  Vec3 x = p.center + (d.dot(p.half_axis) >= 0 ? p.half_axis : Vec3(-p.half_axis));
+  if (rho > 0) x += p.radius * (a / rho * e1 + b / rho * e2);
+  return x + d * (p.round / d.norm());
+}
+
+/// True when the closed shapes a and b (shapes or sheared pieces) intersect (MPR).
+/// Configurations within about 1e-12 of the combined size from tangency may go either way.
+template <class A, class B>
+bool overlap(const A& a, const B& b) {
   auto S = [&](const Vec3& n) -> Vec3 { return support(b, n) - support(a, -n); };  // D = b - a
   const double scale = 1.0 + (b.center - a.center).norm();
   const double eps = 1e-13 * scale;

@@ -10,6 +10,7 @@
 #include "rvegen/io/scene_json.hpp"
 #include "rvegen/model/body.hpp"
 #include "rvegen/model/neighbours.hpp"
+#include "rvegen/packing/body_contacts.hpp"
 #include "rvegen/packing/md_integrator.hpp"
 #include "rvegen/packing/packing.hpp"
 
@@ -256,7 +257,7 @@ TEST(MdParts, ChainTurnsWithItsWave) {
     u[axis] = 0.2;
     b.shape.half_axis = u.normalized() * b.shape.half_axis.norm();
     for (const Mat3& R : turns) {
-      std::vector<Shape> before, after;
+      std::vector<ShearedPiece> before, after;
       chain_pieces(b.chain_at(1.0), &before);
       Body turned = b;
       turned.turn_by(R);
@@ -288,13 +289,13 @@ TEST(MdParts, ChainContactsActAtTheSkinAndCertifyTheForceScale) {
   ASSERT_FALSE(b[g].chain);
   b[f].shape.center = Vec3(0.5, 0.5, 0.5);
   b[f].shape.half_axis = Vec3(0, 0, b[f].shape.half_axis.norm());
-  std::vector<Shape> pieces;
+  std::vector<ShearedPiece> pieces;
   chain_pieces(b[f].chain_at(1.0), &pieces);
   const Vec3 dir = Vec3(1, 1, 0).normalized();
   auto meets = [&](double d) {
     const Shape grain = Shape::sphere(b[f].shape.center + d * dir, b[g].shape.radius);
-    for (const Shape& p : pieces) {
-      if (intersect(p, grain).overlap) return true;
+    for (const ShearedPiece& p : pieces) {
+      if (intersect_pieces(Piece::of(p), Piece::of(grain)).overlap) return true;
     }
     return false;
   };

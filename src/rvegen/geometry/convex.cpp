@@ -62,9 +62,21 @@ class SupportMap {
   Vec3 top_ = Vec3::Zero(), bottom_ = Vec3::Zero();  // end disk centres of a cylinder
 };
 
+// A sheared piece's support function (ShearedPiece::support).
+class PieceSupport {
+ public:
+  explicit PieceSupport(const ShearedPiece& p) : p_(p) {}
+  Vec3 operator()(const Vec3& d) const { return p_.support(d); }
+
+ private:
+  const ShearedPiece& p_;
+};
+
 // The pair's supports: a's in direction d, b's in -d.
+template <class MapA, class MapB>
 struct PairSupport {
-  SupportMap a, b;
+  MapA a;
+  MapB b;
   Vertex operator()(const Vec3& d) const {
     Vertex v;
     v.pa = a(d);
@@ -199,7 +211,8 @@ void solve(Simplex& s) {
 }
 
 // Grows a simplex that touches the origin to a non-degenerate tetrahedron of support points.
-bool grow_to_tetrahedron(const PairSupport& support, Simplex& s, double eps) {
+template <class Support>
+bool grow_to_tetrahedron(const Support& support, Simplex& s, double eps) {
   static const Vec3 axes[6] = {Vec3::UnitX(),  Vec3::UnitY(),  Vec3::UnitZ(),
                                -Vec3::UnitX(), -Vec3::UnitY(), -Vec3::UnitZ()};
   if (s.n == 1) {
@@ -348,7 +361,8 @@ struct Polytope {
 // depth h_D(n) met, so translating b by it along its n separates the pair whatever the
 // convergence. The polytope's nearest face is a lower bound: the search stops when the
 // decision is certain and the depth within rel of it, or the bounds are within tol / 100.
-void epa(const PairSupport& support, const Simplex& s, double tol, double rel, ConvexQuery* q) {
+template <class Support>
+void epa(const Support& support, const Simplex& s, double tol, double rel, ConvexQuery* q) {
   Polytope P;
   for (int k = 0; k < 4; ++k) P.v[k] = s.v[k];
   // Positive orientation, so that the faces below wind counter-clockwise seen from outside.
@@ -432,16 +446,15 @@ void epa(const PairSupport& support, const Simplex& s, double tol, double rel, C
   q->point_b = support.b(-best_n);
 }
 
-}  // namespace
-
-ConvexQuery convex_query(const Shape& a, const Shape& b, double tolerance, bool need_distance,
-                         double depth_rel) {
+// GJK, then EPA, on the pair's supports; ca, cb: points of a and of b, scale: the sum of their
+// bounding radii.
+template <class Support>
+ConvexQuery gjk_epa(const Support& support, const Vec3& ca, const Vec3& cb, double scale,
+                    double tolerance, bool need_distance, double depth_rel) {
   ConvexQuery q;
-  const double scale = a.bounding_radius() + b.bounding_radius();
   const double tiny = kCoincidentCentres * scale;
-  const PairSupport support{SupportMap(a), SupportMap(b)};
   Simplex s;
-  Vec3 v = a.center - b.center;  // a point of D = a - b
+  Vec3 v = ca - cb;  // a point of D = a - b
   if (v.norm() <= tiny) v = Vec3::UnitX() * tiny;
   s.v[0] = support(-v);
   s.n = 1;
@@ -489,6 +502,91 @@ ConvexQuery convex_query(const Shape& a, const Shape& b, double tolerance, bool 
   }
   epa(support, s, tolerance, depth_rel, &q);
   return q;
+}
+
+}  // namespace
+
+ConvexQuery convex_query(const Shape& a, const Shape& b, double tolerance, bool need_distance,
+                         double depth_rel) {
+  return gjk_epa(PairSupport<SupportMap, SupportMap>{SupportMap(a), SupportMap(b)}, a.center,
+                 b.center, a.bounding_radius() + b.bounding_radius(), tolerance, need_distance,
+                 depth_rel);
+}
+
+ConvexQuery convex_query(const ShearedPiece& a, const Shape& b, double tolerance,
+                         bool need_distance, double depth_rel) {
+  return gjk_epa(PairSupport<PieceSupport, SupportMap>{PieceSupport(a), SupportMap(b)}, a.center,
+                 b.center, a.bounding_radius() + b.bounding_radius(), tolerance, need_distance,
+                 depth_rel);
+}
+
+ConvexQuery convex_query(const ShearedPiece& a, const ShearedPiece& b, double tolerance,
+                         bool need_distance, double depth_rel) {
+  return gjk_epa(PairSupport<PieceSupport, PieceSupport>{PieceSupport(a), PieceSupport(b)},
+                 a.center, b.center, a.bounding_radius() + b.bounding_radius(), tolerance,
+                 need_distance, depth_rel);
+}
+
+double ShearedPiece::bounding_radius() const {
+  // The farthest point of the disk about an end of the segment, then the ball.
+  const double along = half_axis.dot(normal);
+  const double across = std::sqrt(std::max(0.0, half_axis.squaredNorm() - along * along));
+  return std::hypot(along, across + radius) + round;
+}
+
+double ShearedPiece::support_value(const Vec3& d) const {
+  const double dn = d.dot(normal);
+  const double across = std::sqrt(std::max(0.0, d.squaredNorm() - dn * dn));
+  return d.dot(center) + std::abs(d.dot(half_axis)) + radius * across + round * d.norm();
+}
+
+Vec3 ShearedPiece::support(const Vec3& d) const {
+  Vec3 x = center + (d.dot(half_axis) >= 0.0 ? half_axis : Vec3(-half_axis));
+  Vec3 radial = d - d.dot(normal) * normal;
+  radial -= radial.dot(normal) * normal;  // second Gram-Schmidt pass, as in Shape::support
+  const double rn2 = radial.squaredNorm(), d2 = d.squaredNorm();
+  if (rn2 > kRoundoff2 * d2) x += (radius / std::sqrt(rn2)) * radial;
+  if (round > 0.0 && d2 > 0.0) x += (round / std::sqrt(d2)) * d;
+  return x;
+}
+
+double ShearedPiece::distance_to_core(const Vec3& x) const {
+  // The distance to the disk about center + t half_axis is convex in t: golden-section search.
+  const Vec3 y = x - center;
+  auto at = [&](double t) {
+    const Vec3 z = y - t * half_axis;
+    const double dz = z.dot(normal);
+    const double across = std::sqrt(std::max(0.0, z.squaredNorm() - dz * dz));
+    return std::hypot(dz, std::max(0.0, across - radius));
+  };
+  // Where the disk's plane holds x (the chord crosses the planes normal to `normal`), x is at
+  // its distance from the disk's rim, or inside.
+  const double hn = half_axis.dot(normal);
+  if (std::abs(hn) > 0.0) {
+    const double t = y.dot(normal) / hn;
+    const Vec3 z = y - t * half_axis;
+    if (t >= -1.0 && t <= 1.0 && (z - z.dot(normal) * normal).norm() <= radius) return 0.0;
+  }
+  const double g = 0.5 * (std::sqrt(5.0) - 1.0);
+  double lo = -1.0, hi = 1.0;
+  double t1 = hi - g * (hi - lo), t2 = lo + g * (hi - lo), f1 = at(t1), f2 = at(t2);
+  for (int it = 0; it < 80; ++it) {
+    if (f1 <= f2) {
+      hi = t2, t2 = t1, f2 = f1, t1 = hi - g * (hi - lo), f1 = at(t1);
+    } else {
+      lo = t1, t1 = t2, f1 = f2, t2 = lo + g * (hi - lo), f2 = at(t2);
+    }
+  }
+  return std::min({f1, f2, at(-1.0), at(1.0)});
+}
+
+bool ShearedPiece::contains(const Vec3& x) const {
+  // The piece lies within radius + round of its chord: most points are told apart there.
+  const double reach = radius + round;
+  if (segment_distance2(center - half_axis, center + half_axis, x, x) > reach * reach) {
+    return false;
+  }
+  return distance_to_core(x) <= round;
 }
 
 // Squared distance between segments [p1, q1] and [p2, q2] (Ericson, Real-Time Collision

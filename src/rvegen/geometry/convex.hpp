@@ -26,6 +26,31 @@ struct ConvexQuery {
   Vec3 point_b = Vec3::Zero();
 };
 
+/// A piece of a sheared fibre (a wavy or bent one, whose sections normal to its axis are disks
+/// along a curved centre line): the Minkowski sum of the disk of radius `radius` about `center`
+/// normal to the unit vector `normal`, the segment center +- half_axis (a chord of the centre
+/// line) and the ball of radius `round`. The slice of the fibre between the planes normal to
+/// `normal` through the chord's ends lies in it when `radius` holds the fibre's radius and the
+/// centre line's departure from the chord (that departure is normal to the axis too). Convex.
+struct ShearedPiece {
+  Vec3 center = Vec3::Zero();
+  Vec3 normal = Vec3::UnitZ();
+  Vec3 half_axis = Vec3::Zero();
+  double radius = 0.0, round = 0.0;
+  double bounding_radius() const;
+  /// The support function h(d) = max over the piece of d . x, and a point where it is reached.
+  double support_value(const Vec3& d) const;
+  Vec3 support(const Vec3& d) const;
+  /// The distance from x to the piece without its ball (0 inside), and whether x lies in it.
+  double distance_to_core(const Vec3& x) const;
+  bool contains(const Vec3& x) const;
+  ShearedPiece translated(const Vec3& t) const {
+    ShearedPiece p = *this;
+    p.center += t;
+    return p;
+  }
+};
+
 /// Runs GJK, then EPA when the shapes are not separated.
 /// `tolerance` is an absolute length (callers use a small multiple of the shapes' size).
 /// `need_distance`: when false, stops as soon as a separating plane is found.
@@ -33,6 +58,12 @@ struct ConvexQuery {
 /// depth_rel * depth) of the polytope's lower bound.
 ConvexQuery convex_query(const Shape& a, const Shape& b, double tolerance, bool need_distance,
                          double depth_rel);
+
+/// The same for a sheared piece against a shape or another piece.
+ConvexQuery convex_query(const ShearedPiece& a, const Shape& b, double tolerance,
+                         bool need_distance, double depth_rel);
+ConvexQuery convex_query(const ShearedPiece& a, const ShearedPiece& b, double tolerance,
+                         bool need_distance, double depth_rel);
 
 /// Squared distance between the segments [p1, q1] and [p2, q2] (either may be a point).
 double segment_distance2(const Vec3& p1, const Vec3& q1, const Vec3& p2, const Vec3& q2);

@@ -46,6 +46,8 @@ const char* contact_type_name(ContactType t) {
       return "ce";
     case ContactType::kSupport:
       return "support";
+    case ContactType::kPiece:
+      return "piece";
   }
   return "?";
 }
@@ -465,17 +467,20 @@ Contact intersect_perram_wertheim(const Shape& e1, const Shape& e2) {
   return c;
 }
 
-Contact intersect_convex(const Shape& a, const Shape& b, double depth_rel) {
+Contact contact_of(const ConvexQuery& q, double tol, ContactType type) {
   Contact c;
-  const double tol = contact_tolerance(a, b);
-  const ConvexQuery q = convex_query(a, b, tol, false, depth_rel);
   if (q.separated || !(q.depth > tol)) return c;
   c.overlap = true;
-  c.type = ContactType::kCE;
+  c.type = type;
   c.depth = q.depth;
   c.normal = q.normal;
   c.point = 0.5 * (q.point_a + q.point_b);
   return c;
+}
+
+Contact intersect_convex(const Shape& a, const Shape& b, double depth_rel) {
+  const double tol = contact_tolerance(a, b);
+  return contact_of(convex_query(a, b, tol, false, depth_rel), tol, ContactType::kCE);
 }
 
 Contact intersect(const Shape& a, const Shape& b, double depth_rel) {

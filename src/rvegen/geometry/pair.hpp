@@ -13,6 +13,7 @@
 #include <cmath>
 #include <string>
 
+#include "rvegen/geometry/convex.hpp"
 #include "rvegen/geometry/shapes.hpp"
 
 namespace rvegen {
@@ -39,6 +40,7 @@ enum class ContactType {
   kPW,       // ellipsoid-ellipsoid or sphere-ellipsoid (Perram-Wertheim)
   kCE,       // cylinder-ellipsoid (GJK/EPA)
   kSupport,  // deformed spheres: certified support functions along the line of centres
+  kPiece,    // a sheared piece of a wavy or bent fibre's chain (GJK/EPA)
 };
 
 /// Short name as used in reports ("sc2", "cc1", "pw", ...).
@@ -59,6 +61,9 @@ struct Contact {
 
 /// Overlap tolerance for a pair (see file comment).
 double contact_tolerance(const Shape& a, const Shape& b);
+
+/// The contact a GJK/EPA query found (none unless its depth exceeds tol), of the given type.
+Contact contact_of(const ConvexQuery& q, double tol, ContactType type);
 
 /// Exact overlap test of a and b with intersection type, depth, direction and point.
 Contact intersect(const Shape& a, const Shape& b, double depth_rel = kDepthRelTolerance);

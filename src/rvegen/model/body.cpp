@@ -174,22 +174,27 @@ Shape chain_bound(const Inclusion& inc) {
   return Shape::cylinder(inc.shape.center, radius, f.u * half);
 }
 
-void chain_pieces(const Inclusion& inc, std::vector<Shape>* out) {
+void chain_pieces(const Inclusion& inc, std::vector<ShearedPiece>* out) {
   const FibreFrame f = fibre_frame(inc);
   const CentreLine line(inc);
   const ChainPlan c = chain_plan(inc, line);
-  const double R = c.R, H = c.H, pad = c.pad, ds = c.ds, sag = c.sag;
+  const double H = c.H, ds = c.ds;
   const int n = c.n;
   auto point = [&](double s) -> Vec3 { return inc.shape.center + s * f.u + line.offset(s); };
   for (int i = 0; i < n; ++i) {
     const double s0 = -H + i * ds, s1 = (i + 1 == n) ? H : s0 + ds;
-    const Vec3 p0 = point(s0), p1 = point(s1), chord = p1 - p0;
-    const double len = chord.norm();
-    const double sin_a = std::sqrt(std::max(0.0, 1.0 - std::pow((s1 - s0) / len, 2)));
-    const double half = 0.5 * len + (R + sag) * sin_a + pad;
-    // Grown by a relative 1e-12 against rounding (the exact tests decide to 1e-9 of the size).
-    out->push_back(Shape::cylinder(0.5 * (p0 + p1), (R + sag + pad) * (1.0 + kBoundMargin),
-                                   chord * (half * (1.0 + kBoundMargin) / len)));
+    const Vec3 p0 = point(s0), p1 = point(s1);
+    // The slice's sections are disks of radius R normal to the axis, about centre-line points
+    // within the sagitta of the chord (and, like the offsets, normal to the axis): the disk of
+    // radius R + sag along the chord holds them. Grown by a relative 1e-12 against rounding
+    // (the exact tests decide to 1e-9 of the size).
+    ShearedPiece p;
+    p.center = 0.5 * (p0 + p1);
+    p.normal = f.u;
+    p.half_axis = 0.5 * (p1 - p0) * (1.0 + kBoundMargin);
+    p.radius = (c.R + c.sag) * (1.0 + kBoundMargin);
+    p.round = c.pad * (1.0 + kBoundMargin);
+    out->push_back(p);
   }
 }
 

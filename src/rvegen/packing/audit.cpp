@@ -45,20 +45,20 @@ Contact support_contact(const Inclusion& a, const DeformedSupport* ta, const Inc
 Contact chain_contact(const Inclusion& a, const Shape& env_a, const DeformedSupport* ta,
                       const Inclusion& b, const Shape& env_b, const DeformedSupport* tb,
                       const Vec3& shift) {
-  std::vector<Shape> pa, pb;
-  if (packs_as_chain(a)) {
-    chain_pieces(a, &pa);
-  } else {
-    pa.push_back(env_a);
-  }
-  if (packs_as_chain(b)) {
-    chain_pieces(b, &pb);
-  } else {
-    pb.push_back(env_b);
-  }
-  for (Shape& p : pb) p = p.translated(shift);
-  std::vector<const Shape*> near_a;
-  for (const Shape& p : pa) near_a.push_back(&p);
+  auto pieces_of = [](const Inclusion& inc, const Shape& env, const Vec3& shift) {
+    std::vector<Piece> out;
+    if (packs_as_chain(inc)) {
+      std::vector<ShearedPiece> parts;
+      chain_pieces(inc, &parts);
+      for (const ShearedPiece& p : parts) out.push_back(Piece::of(p.translated(shift)));
+    } else {
+      out.push_back(Piece::of(env.translated(shift)));
+    }
+    return out;
+  };
+  const std::vector<Piece> pa = pieces_of(a, env_a, Vec3::Zero()), pb = pieces_of(b, env_b, shift);
+  std::vector<const Piece*> near_a;
+  for (const Piece& p : pa) near_a.push_back(&p);
   // A deformed grain (not a chain) meets the pieces by its support function, as packed.
   const bool is_grain_a = ta && !packs_as_chain(a), is_grain_b = tb && !packs_as_chain(b);
   const Grain ga{a.shape.center, [&](const Vec3& u) { return envelope_support(a, *ta, u); }};

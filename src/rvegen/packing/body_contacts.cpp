@@ -1,6 +1,8 @@
 #include "rvegen/packing/body_contacts.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "rvegen/geometry/convex.hpp"
 #include "rvegen/model/deformed_support.hpp"
@@ -18,23 +20,72 @@ bool capsules_meet(const Capsule& a, const Capsule& b) {
   return segment_distance2(a.p, a.q, b.p, b.q) < (a.r + b.r) * (a.r + b.r);
 }
 
-bool piece_contacts(const std::vector<const Shape*>& a, const std::vector<Shape>& b,
+Capsule capsule_of(const Piece& p) {
+  if (!p.sheared) return capsule_of(p.shape);
+  const ShearedPiece& s = p.part;
+  return {s.center - s.half_axis, s.center + s.half_axis, s.radius + s.round};
+}
+
+namespace {
+
+double piece_size(const Piece& p) {
+  return p.sheared ? p.part.radius + p.part.round : p.shape.min_size();
+}
+
+// plane_gap (deformed_support.hpp) for a piece: the plane normal to the direction from
+// `centre` to the nearest point of the piece's axis or chord.
+template <class Support>
+double piece_plane_gap(const Vec3& centre, const Piece& piece, const Support& support,
+                       Vec3* normal) {
+  if (!piece.sheared) return plane_gap(centre, piece.shape, support, normal);
+  const ShearedPiece& p = piece.part;
+  const double h2 = p.half_axis.squaredNorm();
+  const double t =
+      h2 > 0.0 ? std::clamp((centre - p.center).dot(p.half_axis) / h2, -1.0, 1.0) : 0.0;
+  Vec3 n = p.center + t * p.half_axis - centre;
+  const double len = n.norm();
+  if (!(len > 0.0)) return -std::numeric_limits<double>::infinity();
+  n /= len;
+  *normal = n;
+  return -p.support_value(-n) - n.dot(centre) - support(n);
+}
+
+}  // namespace
+
+Contact intersect_pieces(const Piece& a, const Piece& b) {
+  if (!a.sheared && !b.sheared) return intersect(a.shape, b.shape);
+  const double tol = kContactRelTolerance * std::min(piece_size(a), piece_size(b));
+  if (a.sheared && b.sheared) {
+    return contact_of(convex_query(a.part, b.part, tol, false, kDepthRelTolerance), tol,
+                      ContactType::kPiece);
+  }
+  if (a.sheared) {
+    return contact_of(convex_query(a.part, b.shape, tol, false, kDepthRelTolerance), tol,
+                      ContactType::kPiece);
+  }
+  Contact c = contact_of(convex_query(b.part, a.shape, tol, false, kDepthRelTolerance), tol,
+                         ContactType::kPiece);
+  c.normal = -c.normal;
+  return c;
+}
+
+bool piece_contacts(const std::vector<const Piece*>& a, const std::vector<Piece>& b,
                     const Grain* grain_a, const Grain* grain_b, bool first_only,
                     std::vector<Contact>* found) {
   bool any = false;
-  for (const Shape* pa : a) {
-    for (const Shape& pb : b) {
-      if ((pa->center - pb.center).squaredNorm() >=
+  for (const Piece* pa : a) {
+    for (const Piece& pb : b) {
+      if ((pa->center() - pb.center()).squaredNorm() >=
           std::pow(pa->bounding_radius() + pb.bounding_radius(), 2)) {
         continue;
       }
       if (!capsules_meet(capsule_of(*pa), capsule_of(pb))) continue;
-      Contact c = intersect(*pa, pb);
+      Contact c = intersect_pieces(*pa, pb);
       if (!c.overlap) continue;
       if (grain_a || grain_b) {
         Vec3 n;
-        const double gap = grain_a ? plane_gap(grain_a->centre, pb, grain_a->support, &n)
-                                   : plane_gap(grain_b->centre, *pa, grain_b->support, &n);
+        const double gap = grain_a ? piece_plane_gap(grain_a->centre, pb, grain_a->support, &n)
+                                   : piece_plane_gap(grain_b->centre, *pa, grain_b->support, &n);
         if (gap >= 0.0) continue;
         if (gap > -c.depth) {
           c.depth = -gap;

@@ -10,6 +10,7 @@
 #include <functional>
 #include <vector>
 
+#include "rvegen/geometry/convex.hpp"
 #include "rvegen/geometry/pair.hpp"
 #include "rvegen/geometry/shapes.hpp"
 
@@ -48,6 +49,44 @@ struct Capsule {
 Capsule capsule_of(const Shape& s);
 bool capsules_meet(const Capsule& a, const Capsule& b);
 
+/// What the piece-by-piece contacts test: a chain's sheared piece, or a body's own shape (a
+/// plain shape, or a grain's bounding ball).
+struct Piece {
+  bool sheared = false;
+  ShearedPiece part;  // when sheared
+  Shape shape;        // otherwise
+  static Piece of(const ShearedPiece& p) {
+    Piece q;
+    q.sheared = true;
+    q.part = p;
+    return q;
+  }
+  static Piece of(const Shape& s) {
+    Piece q;
+    q.shape = s;
+    return q;
+  }
+  const Vec3& center() const { return sheared ? part.center : shape.center; }
+  double bounding_radius() const {
+    return sheared ? part.bounding_radius() : shape.bounding_radius();
+  }
+  Piece translated(const Vec3& t) const {
+    Piece q = *this;
+    if (sheared) {
+      q.part.center += t;
+    } else {
+      q.shape.center += t;
+    }
+    return q;
+  }
+  bool contains(const Vec3& x) const { return sheared ? part.contains(x) : shape.contains(x); }
+};
+/// A piece's capsule: a sheared piece's chord with its disk's radius and ball.
+Capsule capsule_of(const Piece& p);
+/// The exact overlap test of two pieces (intersect for two shapes; GJK and EPA on the support
+/// functions otherwise, to the tolerance of the smaller).
+Contact intersect_pieces(const Piece& a, const Piece& b);
+
 /// A deformed grain met by pieces: its piece is its bounding ball, and a plane that separates the
 /// grain (its centre and certified support function) from a piece separates the pair.
 struct Grain {
@@ -60,7 +99,7 @@ struct Grain {
 /// when one side is a grain (grain_a or grain_b: at most one), those the grain's plane separates;
 /// there the contact takes the plane's depth and normal when they are shallower. Appends them to
 /// *found (when not null; only the first when first_only) and returns whether there is any.
-bool piece_contacts(const std::vector<const Shape*>& a, const std::vector<Shape>& b,
+bool piece_contacts(const std::vector<const Piece*>& a, const std::vector<Piece>& b,
                     const Grain* grain_a, const Grain* grain_b, bool first_only,
                     std::vector<Contact>* found);
 

@@ -149,7 +149,7 @@ Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, R
   for (size_t i = 0; i < pop.size(); ++i) {
     Body& b = bodies[i];
     b.shape = envelope(pop[i]);    // modified inclusions are packed by their envelopes ...
-    if (packs_as_chain(pop[i])) {  // ... wavy fibres by their chains of straight pieces
+    if (packs_as_chain(pop[i])) {  // ... wavy fibres by their chains of sheared pieces
       b.shape = chain_bound(pop[i]);
       b.chain = std::make_shared<const Inclusion>(pop[i]);
       b.wave_angle = pop[i].mod.wave_angle;

@@ -24,13 +24,13 @@ constexpr double kRelaxation = 1.0;  // scale of the summed contact impulses
 constexpr double kLineTestMinSine2 = 1e-6;
 
 // Pieces of every body at one scale, computed when first asked for (a body's chain costs a
-// place_like and a sine per piece; it meets many others), grown by a relative `grow`: radius
-// r (1 + grow), half length + grow r (they hold the pieces as they are).
+// place_like and a sine per piece; it meets many others), grown by a relative `grow`: by
+// grow r all round (r: a piece's radius; they hold the pieces as they are).
 class PieceCache {
  public:
   explicit PieceCache(const std::vector<Body>& bodies) : bodies_(bodies) {}
   /// Pieces of body i at the force scale of growth s (its chain's, or its own shape).
-  const std::vector<Shape>& at(int i, double s, double grow) {
+  const std::vector<Piece>& at(int i, double s, double grow) {
     if (scale_.empty()) {  // sized when first asked: most passes meet no chain
       store_.resize(bodies_.size());
       scale_.assign(bodies_.size(), -1.0);
@@ -38,15 +38,18 @@ class PieceCache {
     }
     if (scale_[i] != s || grow_[i] != grow) {
       const Body& b = bodies_[i];
-      std::vector<Shape>& out = store_[i];
+      std::vector<Piece>& out = store_[i];
       out.clear();
       if (b.chain) {
-        chain_pieces(b.chain_at(b.force_scale(s)), &out);
+        parts_.clear();
+        chain_pieces(b.chain_at(b.force_scale(s)), &parts_);
+        for (ShearedPiece& p : parts_) {
+          p.round += grow * p.radius;
+          out.push_back(Piece::of(p));
+        }
       } else {
-        out.push_back(b.at_scale(s));
-      }
-      if (grow > 0.0) {
-        for (Shape& p : out) {
+        Shape p = b.at_scale(s);
+        if (grow > 0.0) {
           const double dr = grow * p.radius;
           if (p.kind == ShapeKind::Cylinder) {
             const double h = p.half_axis.norm();
@@ -54,6 +57,7 @@ class PieceCache {
           }
           p.radius += dr;
         }
+        out.push_back(Piece::of(p));
       }
       scale_[i] = s;
       grow_[i] = grow;
@@ -63,7 +67,8 @@ class PieceCache {
 
  private:
   const std::vector<Body>& bodies_;
-  std::vector<std::vector<Shape>> store_;
+  std::vector<std::vector<Piece>> store_;
+  std::vector<ShearedPiece> parts_;
   std::vector<double> scale_, grow_;
 };
 
@@ -71,8 +76,8 @@ class PieceCache {
 // of each body near the other's bounding capsule, then the exact tests between those. Appends
 // the contacts to *found (only the first when first_only) and returns whether there is any.
 struct NearPieces {
-  std::vector<const Shape*> a;
-  std::vector<Shape> b;  // shifted
+  std::vector<const Piece*> a;
+  std::vector<Piece> b;  // shifted
 };
 bool chain_overlaps(const std::vector<Body>& bodies, const std::vector<Vec3>& axis,
                     PieceCache* pieces, const PairEntry& e, double s, double grow, bool first_only,
@@ -86,12 +91,12 @@ bool chain_overlaps(const std::vector<Body>& bodies, const std::vector<Vec3>& ax
   const Capsule cap_b{cb - hb, cb + hb, rb};
   near->a.clear();
   near->b.clear();
-  for (const Shape& p : pieces->at(e.a, s, grow)) {
+  for (const Piece& p : pieces->at(e.a, s, grow)) {
     if (capsules_meet(capsule_of(p), cap_b)) near->a.push_back(&p);
   }
   if (near->a.empty()) return false;
-  for (const Shape& p : pieces->at(e.b, s, grow)) {
-    const Shape q = p.translated(e.shift);
+  for (const Piece& p : pieces->at(e.b, s, grow)) {
+    const Piece q = p.translated(e.shift);
     if (capsules_meet(capsule_of(q), cap_a)) near->b.push_back(q);
   }
   // A deformed grain's piece is its bounding ball (its support function at the force scale,

@@ -531,7 +531,7 @@ double ShearedPiece::bounding_radius() const {
   // The farthest point of the disk about an end of the segment, then the ball.
   const double along = half_axis.dot(normal);
   const double across = std::sqrt(std::max(0.0, half_axis.squaredNorm() - along * along));
-  return std::hypot(along, across + radius) + round;
+  return std::sqrt(along * along + (across + radius) * (across + radius)) + round;
 }
 
 double ShearedPiece::support_value(const Vec3& d) const {

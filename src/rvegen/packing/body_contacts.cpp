@@ -74,23 +74,26 @@ bool piece_contacts(const std::vector<const Piece*>& a, const std::vector<Piece>
                     std::vector<Contact>* found) {
   bool any = false;
   for (const Piece* pa : a) {
+    const Capsule cap_a = capsule_of(*pa);
     for (const Piece& pb : b) {
       if ((pa->center() - pb.center()).squaredNorm() >=
           std::pow(pa->bounding_radius() + pb.bounding_radius(), 2)) {
         continue;
       }
-      if (!capsules_meet(capsule_of(*pa), capsule_of(pb))) continue;
+      if (!capsules_meet(cap_a, capsule_of(pb))) continue;
+      // A grain's plane first: where it separates the pair, the exact test is not needed.
+      Vec3 n;
+      double gap = 0.0;
+      if (grain_a || grain_b) {
+        gap = grain_a ? piece_plane_gap(grain_a->centre, pb, grain_a->support, &n)
+                      : piece_plane_gap(grain_b->centre, *pa, grain_b->support, &n);
+        if (gap >= 0.0) continue;
+      }
       Contact c = intersect_pieces(*pa, pb);
       if (!c.overlap) continue;
-      if (grain_a || grain_b) {
-        Vec3 n;
-        const double gap = grain_a ? piece_plane_gap(grain_a->centre, pb, grain_a->support, &n)
-                                   : piece_plane_gap(grain_b->centre, *pa, grain_b->support, &n);
-        if (gap >= 0.0) continue;
-        if (gap > -c.depth) {
-          c.depth = -gap;
-          c.normal = grain_a ? n : Vec3(-n);
-        }
+      if ((grain_a || grain_b) && gap > -c.depth) {
+        c.depth = -gap;
+        c.normal = grain_a ? n : Vec3(-n);
       }
       any = true;
       if (found) found->push_back(c);

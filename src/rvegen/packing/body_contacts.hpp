@@ -53,23 +53,24 @@ bool capsules_meet(const Capsule& a, const Capsule& b);
 /// plain shape, or a grain's bounding ball).
 struct Piece {
   bool sheared = false;
-  ShearedPiece part;  // when sheared
-  Shape shape;        // otherwise
+  ShearedPiece part;   // when sheared
+  Shape shape;         // otherwise
+  double bound = 0.0;  // the bounding radius (worked out once: pieces meet many pieces)
   static Piece of(const ShearedPiece& p) {
     Piece q;
     q.sheared = true;
     q.part = p;
+    q.bound = p.bounding_radius();
     return q;
   }
   static Piece of(const Shape& s) {
     Piece q;
     q.shape = s;
+    q.bound = s.bounding_radius();
     return q;
   }
   const Vec3& center() const { return sheared ? part.center : shape.center; }
-  double bounding_radius() const {
-    return sheared ? part.bounding_radius() : shape.bounding_radius();
-  }
+  double bounding_radius() const { return bound; }
   Piece translated(const Vec3& t) const {
     Piece q = *this;
     if (sheared) {

@@ -91,13 +91,23 @@ bool chain_overlaps(const std::vector<Body>& bodies, const std::vector<Vec3>& ax
   const Capsule cap_b{cb - hb, cb + hb, rb};
   near->a.clear();
   near->b.clear();
+  // A piece whose bounding ball misses the other's capsule (a point against a segment, cheaper
+  // than the capsules' segments) is apart from it.
+  auto near_capsule = [](const Piece& p, const Capsule& cap) {
+    const Vec3 d = cap.q - cap.p;
+    const double d2 = d.squaredNorm();
+    const double t = d2 > 0.0 ? std::clamp((p.center() - cap.p).dot(d) / d2, 0.0, 1.0) : 0.0;
+    const double reach = p.bounding_radius() + cap.r;
+    return (cap.p + t * d - p.center()).squaredNorm() < reach * reach &&
+           capsules_meet(capsule_of(p), cap);
+  };
   for (const Piece& p : pieces->at(e.a, s, grow)) {
-    if (capsules_meet(capsule_of(p), cap_b)) near->a.push_back(&p);
+    if (near_capsule(p, cap_b)) near->a.push_back(&p);
   }
   if (near->a.empty()) return false;
   for (const Piece& p : pieces->at(e.b, s, grow)) {
     const Piece q = p.translated(e.shift);
-    if (capsules_meet(capsule_of(q), cap_a)) near->b.push_back(q);
+    if (near_capsule(q, cap_a)) near->b.push_back(q);
   }
   // A deformed grain's piece is its bounding ball (its support function at the force scale,
   // grown like the pieces, gives the plane test).

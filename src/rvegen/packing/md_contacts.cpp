@@ -22,6 +22,10 @@ constexpr double kRelaxation = 1.0;  // scale of the summed contact impulses
 // Axes closer to parallel than this (squared sine) skip the line test: their lines' distance
 // says little about their segments'.
 constexpr double kLineTestMinSine2 = 1e-6;
+// A chain pair overlapping by more than kEmbedded of the smaller body whose contacts' pushes
+// (depth times normal) add up to less than kCancelling of their depths has a body caught inside
+// the other (see visit_pair).
+constexpr double kEmbedded = 0.5, kCancelling = 0.25;
 
 // Pieces of every body at one scale, computed when first asked for (a body's chain costs a
 // place_like and a sine per piece; it meets many others), grown by a relative `grow`: by
@@ -309,10 +313,31 @@ void visit_pair(const std::vector<Body>& bodies, const std::vector<Vec3>& axis, 
       return;
     }
     const Shape A = ba.at_scale(s_out), B = bb.at_scale(s_out).translated(e.shift);
+    double deepest = 0.0, total = 0.0;
+    Vec3 sum = Vec3::Zero();
     for (const Contact& c : *found) {
       const double rel = c.depth / std::min(A.min_size(), B.min_size());
       out.max_overlap = std::max(out.max_overlap, rel);
       out.chain_depth = std::max(out.chain_depth, rel);
+      deepest = std::max(deepest, rel);
+      total += c.depth;
+      sum += c.depth * c.normal;
+    }
+    if (deepest > kEmbedded && sum.norm() < kCancelling * total) {
+      // A body caught inside a chain: its pieces' least translations point along the fibre, into
+      // the next piece, and cancel, so the pair would stay as it is. One contact pushes it out
+      // across the chain's axis instead, by the deepest overlap.
+      const Vec3& u = axis[ba.chain ? e.a : e.b];
+      Vec3 n = cb - ca;
+      n -= n.dot(u) * u;
+      n = n.squaredNorm() > 0.0 ? Vec3(n.normalized()) : any_orthogonal(u);
+      Contact c;
+      c.overlap = true;
+      c.type = ContactType::kPiece;
+      c.depth = deepest * std::min(A.min_size(), B.min_size());
+      c.normal = n;
+      c.point = 0.5 * (ca + cb);
+      found->assign(1, c);
     }
     const BodyMobility ma = ba.mobility(A), mb = bb.mobility(B);
     for (const Contact& c : *found) {

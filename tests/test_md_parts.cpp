@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <set>
+#include <string>
 #include <tuple>
 
 #include "rvegen/io/scene_json.hpp"
@@ -273,22 +274,47 @@ TEST(MdParts, ChainTurnsWithItsWave) {
   }
 }
 
+// A coated wavy fibre (radius 0.02, L/D 8, amplitude = radius, the given wavelength) packed as
+// a chain, along z about the middle of the unit box, and a sphere of the given radius: the
+// bodies, which is which, and one contact pass with the sphere where it is.
+struct ChainAndGrain {
+  ChainAndGrain(double wavelength, double grain_radius) {
+    const std::string json =
+        R"({"box":{"size":[1,1,1]},"seed":4,"families":[
+    {"shape":"cylinder","radius":0.02,"aspect_ratio":8,"count":1,
+     "waviness":{"amplitude":0.02,"wavelength":)" +
+        std::to_string(wavelength) + R"(},"coating":{"thickness":0.005}},
+    {"shape":"sphere","radius":)" +
+        std::to_string(grain_radius) + R"(,"count":1}]})";
+    bodies = bodies_of(json);
+    box = parse_scene(json).box;
+    f = bodies.all[0].chain ? 0 : 1;
+    g = 1 - f;
+    Body& fibre = bodies.all[f];
+    fibre.shape.center = Vec3(0.5, 0.5, 0.5);
+    fibre.shape.half_axis = Vec3(0, 0, fibre.shape.half_axis.norm());
+  }
+  double pass(double skin, md::ContactSums* sums) {
+    md::VerletList list;
+    list.build(&bodies.all, box, 1.0, nullptr);
+    return md::contact_pass(bodies.all, bodies.oriented, list.pairs(), box, 1.0, 0.0, skin, sums,
+                            nullptr);
+  }
+  md::Bodies bodies;
+  Box box;
+  int f = 0, g = 1;
+};
+
 // Chain pairs push at pieces grown by the skin and are certified at the force scale when the
 // pieces as they are do not meet: a grain 0.4 skin radii from a chain is pushed away and valid
 // at scale 1; without a skin it is not pushed; 0.4 skin radii into the chain it is not valid at
 // scale 1.
 TEST(MdParts, ChainContactsActAtTheSkinAndCertifyTheForceScale) {
-  const char* json = R"({"box":{"size":[1,1,1]},"seed":4,"families":[
-    {"shape":"cylinder","radius":0.02,"aspect_ratio":8,"count":1,
-     "waviness":{"amplitude":0.02,"wavelength":0.2},"coating":{"thickness":0.005}},
-    {"shape":"sphere","radius":0.05,"count":1}]})";
-  md::Bodies bodies = bodies_of(json);
-  std::vector<Body>& b = bodies.all;
-  const int f = b[0].chain ? 0 : 1, g = 1 - f;
+  ChainAndGrain scene(0.2, 0.05);
+  std::vector<Body>& b = scene.bodies.all;
+  const int f = scene.f, g = scene.g;
   ASSERT_TRUE(b[f].chain);
   ASSERT_FALSE(b[g].chain);
-  b[f].shape.center = Vec3(0.5, 0.5, 0.5);
-  b[f].shape.half_axis = Vec3(0, 0, b[f].shape.half_axis.norm());
   std::vector<ShearedPiece> pieces;
   chain_pieces(b[f].chain_at(1.0), &pieces);
   const Vec3 dir = Vec3(1, 1, 0).normalized();
@@ -304,12 +330,9 @@ TEST(MdParts, ChainContactsActAtTheSkinAndCertifyTheForceScale) {
   for (int it = 0; it < 60; ++it) (meets(0.5 * (lo + hi)) ? lo : hi) = 0.5 * (lo + hi);
   constexpr double kSkin = 0.01;
   const double gap = 0.4 * kSkin * b[g].shape.radius;
-  const Box box = parse_scene(json).box;
   auto pass = [&](double d, double skin, md::ContactSums* sums) {
     b[g].shape.center = b[f].shape.center + d * dir;
-    md::VerletList list;
-    list.build(&b, box, 1.0, nullptr);
-    return md::contact_pass(b, bodies.oriented, list.pairs(), box, 1.0, 0.0, skin, sums, nullptr);
+    return scene.pass(skin, sums);
   };
   md::ContactSums sums;
   EXPECT_EQ(pass(hi + gap, kSkin, &sums), 1.0);
@@ -326,26 +349,16 @@ TEST(MdParts, ChainContactsActAtTheSkinAndCertifyTheForceScale) {
 // a push across the axis it stays there (a 1-wave mixture in a 1.2 box jammed at 0.0006 so). The
 // pass pushes it out across the axis, on the side its centre lies.
 TEST(MdParts, GrainCaughtInsideAChainIsPushedOutAcrossTheAxis) {
-  const char* json = R"({"box":{"size":[1,1,1]},"seed":4,"families":[
-    {"shape":"cylinder","radius":0.02,"aspect_ratio":8,"count":1,
-     "waviness":{"amplitude":0.02,"wavelength":0.32},"coating":{"thickness":0.005}},
-    {"shape":"sphere","radius":0.004,"count":1}]})";
-  md::Bodies bodies = bodies_of(json);
-  std::vector<Body>& b = bodies.all;
-  const int f = b[0].chain ? 0 : 1, g = 1 - f;
+  ChainAndGrain scene(0.32, 0.004);
+  std::vector<Body>& b = scene.bodies.all;
+  const int f = scene.f, g = scene.g;
   ASSERT_TRUE(b[f].chain);
   const Vec3 u(0, 0, 1);
-  b[f].shape.center = Vec3(0.5, 0.5, 0.5);
-  b[f].shape.half_axis = u * b[f].shape.half_axis.norm();
   // On the centre line, a little off it across the axis (the wave's offset at the middle).
   const Vec3 side = Vec3(1, 2, 0).normalized();
   b[g].shape.center = b[f].shape.center + centre_offset(b[f].chain_at(1.0), 0.0) + 0.001 * side;
-  const Box box = parse_scene(json).box;
-  md::VerletList list;
-  list.build(&b, box, 1.0, nullptr);
   md::ContactSums sums;
-  EXPECT_EQ(md::contact_pass(b, bodies.oriented, list.pairs(), box, 1.0, 0.0, 0.0, &sums, nullptr),
-            0.0);
+  EXPECT_EQ(scene.pass(0.0, &sums), 0.0);
   EXPECT_GT(sums.max_overlap, 0.5);
   const Vec3 push = sums.move[g] - sums.move[f];
   const Vec3 across = push - push.dot(u) * u;

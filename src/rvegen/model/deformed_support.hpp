@@ -60,17 +60,25 @@ inline double bounded_support(const DeformedSupport& table, double core_radius, 
 /// cylinder `piece`'s axis, between the piece and a body about `centre` whose support function
 /// about it is at most support(n): >= 0 when that plane separates them, -infinity when there is
 /// no such direction (not a cylinder, or the centre on its axis). *normal = n.
-template <class Support>
-double plane_gap(const Vec3& centre, const Shape& piece, const Support& support, Vec3* normal) {
-  if (piece.kind != ShapeKind::Cylinder) return -std::numeric_limits<double>::infinity();
-  const double t = std::clamp(
-      (centre - piece.center).dot(piece.half_axis) / piece.half_axis.squaredNorm(), -1.0, 1.0);
+/// The same for any piece with an axis (center +- half_axis) and a support_value: a cylinder, a
+/// sheared piece.
+template <class Piece, class Support>
+double axis_plane_gap(const Vec3& centre, const Piece& piece, const Support& support,
+                      Vec3* normal) {
+  const double h2 = piece.half_axis.squaredNorm();
+  const double t =
+      h2 > 0.0 ? std::clamp((centre - piece.center).dot(piece.half_axis) / h2, -1.0, 1.0) : 0.0;
   Vec3 n = piece.center + t * piece.half_axis - centre;
   const double len = n.norm();
   if (!(len > 0.0)) return -std::numeric_limits<double>::infinity();
   n /= len;
   *normal = n;
   return -piece.support_value(-n) - n.dot(centre) - support(n);
+}
+template <class Support>
+double plane_gap(const Vec3& centre, const Shape& piece, const Support& support, Vec3* normal) {
+  if (piece.kind != ShapeKind::Cylinder) return -std::numeric_limits<double>::infinity();
+  return axis_plane_gap(centre, piece, support, normal);
 }
 
 /// The support function of such an inclusion's packing envelope about its centre along u:

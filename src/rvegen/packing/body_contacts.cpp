@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 
 #include "rvegen/geometry/convex.hpp"
 #include "rvegen/model/deformed_support.hpp"
@@ -37,17 +36,8 @@ double piece_size(const Piece& p) {
 template <class Support>
 double piece_plane_gap(const Vec3& centre, const Piece& piece, const Support& support,
                        Vec3* normal) {
-  if (!piece.sheared) return plane_gap(centre, piece.shape, support, normal);
-  const ShearedPiece& p = piece.part;
-  const double h2 = p.half_axis.squaredNorm();
-  const double t =
-      h2 > 0.0 ? std::clamp((centre - p.center).dot(p.half_axis) / h2, -1.0, 1.0) : 0.0;
-  Vec3 n = p.center + t * p.half_axis - centre;
-  const double len = n.norm();
-  if (!(len > 0.0)) return -std::numeric_limits<double>::infinity();
-  n /= len;
-  *normal = n;
-  return -p.support_value(-n) - n.dot(centre) - support(n);
+  return piece.sheared ? axis_plane_gap(centre, piece.part, support, normal)
+                       : plane_gap(centre, piece.shape, support, normal);
 }
 
 }  // namespace

@@ -344,6 +344,49 @@ TEST(MdParts, ChainContactsActAtTheSkinAndCertifyTheForceScale) {
   EXPECT_GT(sums.move[g].dot(dir), 0.0);
 }
 
+// A grain pressed into a wavy fibre meets several of its pieces at once. Their contacts push
+// the pair apart as far as the deepest of them, as a convex pair's single contact would: at a
+// share 1 / count each (their mean), chain pairs were softer than any other pair and took the
+// deepest overlaps under pressure.
+TEST(MdParts, AChainPairIsPushedApartByItsDeepestOverlap) {
+  ChainAndGrain scene(0.2, 0.05);
+  std::vector<Body>& b = scene.bodies.all;
+  const int f = scene.f, g = scene.g;
+  std::vector<ShearedPiece> pieces;
+  chain_pieces(b[f].chain_at(1.0), &pieces);
+  const Vec3 dir = Vec3(1, 1, 0).normalized();
+  auto contacts = [&](double d) {
+    std::vector<Contact> out;
+    const Shape grain = Shape::sphere(b[f].shape.center + d * dir, b[g].shape.radius);
+    for (const ShearedPiece& p : pieces) {
+      const Contact c = intersect_pieces(Piece::of(p), Piece::of(grain));
+      if (c.overlap) out.push_back(c);
+    }
+    return out;
+  };
+  double lo = 0.0, hi = 0.5;  // the touching distance along dir
+  for (int it = 0; it < 60; ++it) (contacts(0.5 * (lo + hi)).empty() ? hi : lo) = 0.5 * (lo + hi);
+  for (double into : {0.25, 0.4}) {
+    const double d = hi - into * b[g].shape.radius;
+    const std::vector<Contact> found = contacts(d);
+    ASSERT_GE(found.size(), 3u);
+    double deepest = 0.0;
+    Vec3 mean = Vec3::Zero();  // the push at a share 1 / count each
+    for (const Contact& c : found) {
+      deepest = std::max(deepest, c.depth);
+      mean += c.depth * c.normal / static_cast<double>(found.size());
+    }
+    EXPECT_LT(mean.norm(), 0.75 * deepest);  // what a share 1 / count each would give
+    b[g].shape.center = b[f].shape.center + d * dir;
+    md::ContactSums sums;
+    scene.pass(0.0, &sums);
+    // Apart by the deepest overlap, less the share the fibre's turn takes.
+    const double apart = (sums.move[g] - sums.move[f]).dot(dir);
+    EXPECT_GT(apart, 0.85 * deepest);
+    EXPECT_LT(apart, 1.5 * deepest);
+  }
+}
+
 // A small grain caught inside a chain, near its axis (as random placement leaves some at the
 // start scale): the inner pieces' least translations run along the fibre and cancel, so without
 // a push across the axis it stays there (a 1-wave mixture in a 1.2 box jammed at 0.0006 so). The
@@ -366,6 +409,59 @@ TEST(MdParts, GrainCaughtInsideAChainIsPushedOutAcrossTheAxis) {
   EXPECT_GT(across.normalized().dot(b[g].shape.center - b[f].shape.center -
                                     (b[g].shape.center - b[f].shape.center).dot(u) * u),
             0.0);
+}
+
+// Two parallel wavy fibres overlapping side by side (here a fibre and its copy moved across by
+// 0.4 of its radius): the pieces are slices thinner than they are wide, so each pair of pieces
+// parts soonest along the fibres, and those pushes point either way and cancel; with them
+// alone the pair stays as it is (a three-wave mixture in a unit box stalled 40 s on such a pair
+// at 8 % overlap). The pass pushes them apart across the axes, on the side the copy lies.
+TEST(MdParts, ParallelChainsOverlappingSideBySideArePushedApartAcrossTheAxis) {
+  const std::string json =
+      R"({"box":{"size":[1,1,1]},"seed":4,"families":[
+    {"shape":"cylinder","radius":0.02,"aspect_ratio":8,"count":2,
+     "waviness":{"amplitude":0.02,"wavelength":0.106667},"coating":{"thickness":0.005}}]})";
+  md::Bodies bodies = bodies_of(json);
+  const Box box = parse_scene(json).box;
+  std::vector<Body>& b = bodies.all;
+  ASSERT_EQ(b.size(), 2u);
+  ASSERT_TRUE(b[0].chain && b[1].chain);
+  const Vec3 u(0, 0, 1);
+  b[0].shape.center = Vec3(0.5, 0.5, 0.5);
+  b[0].shape.half_axis = b[0].shape.half_axis.norm() * u;
+  b[1] = b[0];
+  const Vec3 side = Vec3(2, 1, 0).normalized();
+  b[1].shape.center += 0.01 * side;
+  // The premise: the pieces' contacts, as the pass finds them, cancel at an overlap well below
+  // a body caught inside the other.
+  std::vector<ShearedPiece> pa, pb;
+  chain_pieces(b[0].chain_at(1.0), &pa);
+  chain_pieces(b[1].chain_at(1.0), &pb);
+  std::vector<Piece> a_pieces, b_pieces;
+  for (const ShearedPiece& p : pa) a_pieces.push_back(Piece::of(p));
+  for (const ShearedPiece& p : pb) b_pieces.push_back(Piece::of(p));
+  std::vector<const Piece*> a_near;
+  for (const Piece& p : a_pieces) a_near.push_back(&p);
+  std::vector<Contact> found;
+  ASSERT_TRUE(piece_contacts(a_near, b_pieces, nullptr, nullptr, false, &found));
+  Vec3 sum = Vec3::Zero();
+  double total = 0.0;
+  for (const Contact& c : found) {
+    sum += c.depth * c.normal;
+    total += c.depth;
+  }
+  EXPECT_GE(found.size(), 10u);
+  EXPECT_LT(sum.norm(), 0.25 * total);
+  md::VerletList list;
+  list.build(&b, box, 1.0, nullptr);
+  md::ContactSums sums;
+  EXPECT_EQ(md::contact_pass(b, bodies.oriented, list.pairs(), box, 1.0, 0.0, 0.0, &sums, nullptr),
+            0.0);
+  EXPECT_GT(sums.max_overlap, 0.1);
+  EXPECT_LT(sums.max_overlap, 0.5);
+  const Vec3 push = sums.move[1] - sums.move[0];
+  EXPECT_GT(push.dot(side), 0.9 * push.norm()) << push.transpose();
+  EXPECT_GT(push.norm(), 0.005) << push.transpose();
 }
 
 TEST(MdParts, SpaceOrderKeepsEveryBodyAndPutsNeighboursTogether) {

@@ -22,10 +22,9 @@ constexpr double kRelaxation = 1.0;  // scale of the summed contact impulses
 // Axes closer to parallel than this (squared sine) skip the line test: their lines' distance
 // says little about their segments'.
 constexpr double kLineTestMinSine2 = 1e-6;
-// A chain pair overlapping by more than kEmbedded of the smaller body whose contacts' pushes
-// (depth times normal) add up to less than kCancelling of their depths has a body caught inside
-// the other (see visit_pair).
-constexpr double kEmbedded = 0.5, kCancelling = 0.25;
+// A chain pair whose contacts' pushes (depth times normal) add up to less than kCancelling of
+// their depths is held in place by them (see visit_pair).
+constexpr double kCancelling = 0.25;
 
 // Pieces of every body at one scale, computed when first asked for (a body's chain costs a
 // place_like and a sine per piece; it meets many others), grown by a relative `grow`: by
@@ -323,10 +322,13 @@ void visit_pair(const std::vector<Body>& bodies, const std::vector<Vec3>& axis, 
       total += c.depth;
       sum += c.depth * c.normal;
     }
-    if (deepest > kEmbedded && sum.norm() < kCancelling * total) {
-      // A body caught inside a chain: its pieces' least translations point along the fibre, into
-      // the next piece, and cancel, so the pair would stay as it is. One contact pushes it out
-      // across the chain's axis instead, by the deepest overlap.
+    const double pushed = sum.norm();
+    if (pushed < kCancelling * total) {
+      // The pieces' least translations cancel, so the pair would stay as it is: a body caught
+      // inside a chain (they point along the fibre, into the next piece), or two wavy fibres side
+      // by side whose waves interleave (crests in the other's troughs, the flanks pushing either
+      // way). One contact pushes them apart across the chain's axis instead, by the deepest
+      // overlap.
       const Vec3& u = axis[ba.chain ? e.a : e.b];
       Vec3 n = cb - ca;
       n -= n.dot(u) * u;
@@ -340,9 +342,18 @@ void visit_pair(const std::vector<Body>& bodies, const std::vector<Vec3>& axis, 
       found->assign(1, c);
     }
     const BodyMobility ma = ba.mobility(A), mb = bb.mobility(B);
+    // Each contact at the weight that makes their summed push the deepest overlap's, as a
+    // convex pair's single contact would be (at least 1 / count, at most full weight): at
+    // 1 / count, their mean, a chain's contacts were softer than any other pair's, and chain
+    // pairs took the deepest overlaps under pressure.
+    const double count = static_cast<double>(found->size());
+    const double weight =
+        found->size() > 1 && pushed > 0.0
+            ? std::clamp(kRelaxation * deepest * std::min(A.min_size(), B.min_size()) / pushed,
+                         kRelaxation / count, kRelaxation)
+            : kRelaxation / count;
     for (const Contact& c : *found) {
-      const ContactResponse r =
-          contact_response(ca, ma, cb, mb, c, kRelaxation / static_cast<double>(found->size()));
+      const ContactResponse r = contact_response(ca, ma, cb, mb, c, weight);
       out.adds.push_back({e.a, true, r.move_a, r.turn_a});
       out.adds.push_back({e.b, true, r.move_b, r.turn_b});
     }

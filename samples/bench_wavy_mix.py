@@ -11,6 +11,7 @@ per box side, with the wall time.
 
 usage: /usr/bin/python3 samples/bench_wavy_mix.py [BUILD_DIR] [--waves 1,2,3,4]
        [--boxes 0.6,1.0,1.2] [--smoothness 1,3] [--seeds 1,2,3,4,5] [--budget 120]
+       [--name wavy_mix]   (the table and chart's file names: samples/charts/NAME_table.md, NAME.png)
 """
 import os
 import sys
@@ -39,6 +40,7 @@ boxes = option("--boxes", [0.6, 1.0, 1.2])
 smoothness = option("--smoothness", [1.0, 3.0])
 seeds = option("--seeds", [1, 2, 3, 4, 5], int)
 budget = option("--budget", [120.0])[0]
+name_out = option("--name", ["wavy_mix"], str)[0]
 build = sys.argv[1] if len(sys.argv) > 1 else "build"
 exe = os.path.abspath(os.path.join(build, "bin", "rvegen"))
 work = tempfile.mkdtemp(prefix="rvegen-wavy-mix-")
@@ -78,7 +80,7 @@ for w in waves:
 reached = [r for r in rows if r[6] == "ok"]
 summary = "%d of %d runs reached 0.35 within %g s" % (len(reached), len(rows), budget)
 print(summary)
-with open(os.path.join(charts, "wavy_mix_table.md"), "w") as f:
+with open(os.path.join(charts, name_out + "_table.md"), "w") as f:
     f.write("Machine: %s. `samples/bench_wavy_mix.py` (target 0.35, budget %g s, all cores).\n\n"
             % (machine(), budget))
     f.write(header + "\n")
@@ -109,5 +111,5 @@ at.set_xticks(waves)
 at.legend()
 fig.suptitle("Coated wavy fibres 0.20 + deformed grains 0.15, target 0.35")
 fig.tight_layout()
-fig.savefig(os.path.join(charts, "wavy_mix.png"), dpi=110)
-print("wrote samples/charts/wavy_mix_table.md and samples/charts/wavy_mix.png")
+fig.savefig(os.path.join(charts, name_out + ".png"), dpi=110)
+print("wrote samples/charts/%s_table.md and samples/charts/%s.png" % (name_out, name_out))

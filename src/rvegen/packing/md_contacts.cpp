@@ -325,10 +325,10 @@ void visit_pair(const std::vector<Body>& bodies, const std::vector<Vec3>& axis, 
     const double pushed = sum.norm();
     if (pushed < kCancelling * total) {
       // The pieces' least translations cancel, so the pair would stay as it is: a body caught
-      // inside a chain (they point along the fibre, into the next piece), or two wavy fibres side
-      // by side whose waves interleave (crests in the other's troughs, the flanks pushing either
-      // way). One contact pushes them apart across the chain's axis instead, by the deepest
-      // overlap.
+      // inside a chain, or two parallel chains overlapping side by side. The pieces are slices
+      // thinner than they are wide: each pair of them parts soonest along the fibre, into the
+      // next piece, and such pushes point either way. One contact pushes the pair apart across
+      // the chain's axis instead, by the deepest overlap.
       const Vec3& u = axis[ba.chain ? e.a : e.b];
       Vec3 n = cb - ca;
       n -= n.dot(u) * u;

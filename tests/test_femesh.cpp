@@ -174,5 +174,57 @@ TEST(TetMesh, ACellFaceNearlyAlongATiltedFibreEndIsMovedOffIt) {
   EXPECT_GT(std::abs(o[2] - set.box.origin[2]), 0.0035);
 }
 
+TEST(TetMesh, ACellFaceAlongAFibreNearlyParallelToItIsMovedOffTheMantle) {
+  // A fibre tilted by 4 degrees from the face z = 1: the line of its mantle furthest along z
+  // rises from 1 - 0.01395 to 1 + 0.01395 over its length, so the face is tangent to the
+  // mantle where it crosses that line and cuts a wedge of 4 degrees. Its rims' extremes lie
+  // 0.7 radii from the face, which alone would keep the box.
+  const double tilt = 4.0 * M_PI / 180.0, r = 0.02, h = 0.2;
+  const Vec3 u(std::cos(tilt), 0.0, std::sin(tilt));
+  const double top = r * std::cos(tilt), span = h * std::sin(tilt);
+  const InclusionSet set = one_of(Shape::cylinder(Vec3(0.5, 0.5, 1.0 - top), r, h * u));
+  EXPECT_EQ(face_clearance(set, set.box.origin), 0.0);
+  const Vec3 o = cell_origin(set);
+  EXPECT_EQ(o[0], 0.0);
+  EXPECT_EQ(o[1], 0.0);
+  EXPECT_GE(face_clearance(set, o), kGoodClearance);
+  // The face left both lines' spans (about z = 1 and z = 1 - 2 top).
+  const double z = o[2] - std::floor(o[2]);
+  for (const double line : {1.0, 1.0 - 2.0 * top}) {
+    double d = std::abs(z - line);
+    d = std::min(d, 1.0 - d);
+    EXPECT_GE(d, span + kGoodClearance * r) << line;
+  }
+}
+
+TEST(TetMesh, WhereShallowFibresCoverTheAxisTheShallowestAreStillAvoided) {
+  // Twelve fibres 7 degrees off the z faces, at heights k / 12: their mantle lines' spans cover
+  // every height, and their rims leave the best room for a face about z = 0.0218, between the
+  // first one's upper rim and the second one's lower. A long fibre 3 degrees off the faces has
+  // its upper line's span about that height (its rims far from it). No face position misses
+  // every span, so the least shallow are let go, and the cell's z faces miss the 3-degree
+  // fibre's lines.
+  InclusionSet set = one_of(Shape::sphere(Vec3(0.5, 0.5, 0.5), 0.01));
+  set.inclusions.clear();
+  const double r = 0.02;
+  auto fibre = [&](double degrees, double h, double z) {
+    const double t = degrees * M_PI / 180.0;
+    Inclusion inc;
+    inc.shape = Shape::cylinder(Vec3(0.5, 0.5, z), r, h * Vec3(std::cos(t), 0.0, std::sin(t)));
+    set.inclusions.push_back(inc);
+  };
+  for (int k = 0; k < 12; ++k) fibre(7.0, 0.2, k / 12.0);
+  const double shallow = 3.0 * M_PI / 180.0, top = r * std::cos(shallow);
+  const double span = 2.0 * std::sin(shallow), room = 0.0218;
+  fibre(3.0, 2.0, room - top);
+  const Vec3 o = cell_origin(set);
+  const double z = o[2] - std::floor(o[2]);
+  for (const double line : {room, room - 2.0 * top}) {
+    double d = std::abs(z - line);
+    d = std::min(d, 1.0 - d);
+    EXPECT_GT(d, span) << line;
+  }
+}
+
 }  // namespace
 }  // namespace rvegen

@@ -98,7 +98,10 @@ TetMesh tet_mesh(const InclusionSet& set, const TetMeshOptions& options = {},
 /// rim, over its radius, and to the span of a cylinder's end disk within 20 degrees of parallel
 /// to the face, over the radius. A face that cuts a sphere at distance c r inside its extreme
 /// leaves a cap with an edge angle of acos(1 - c); one that crosses an end disk at angle phi, a
-/// wedge of phi.
+/// wedge of phi. Also from the span along the face's normal of the two lines of a cylinder's
+/// mantle furthest along it, where the cylinder's axis lies within 8 degrees of the face: a face
+/// within that span is tangent to the mantle where it crosses the line, a wedge as thin as the
+/// tilt.
 double face_clearance(const InclusionSet& set, const Vec3& origin);
 
 /// The edge clearance of a cell with lower corner `origin`: how far, in the same units, the
@@ -110,7 +113,11 @@ double edge_clearance(const InclusionSet& set, const Vec3& origin);
 /// Where tet_mesh puts the cell's lower corner when options.shift_cell: the box's when its face
 /// and edge clearances are at least kGoodClearance; otherwise, of a few positions per axis with
 /// the largest face clearance (the box's among them), the combination with the largest least
-/// clearance of faces and edges. The same medium: the cell is a window on the periodic RVE.
+/// clearance of faces and edges, and of those the one with the clearest edges. Where the spans
+/// of shallow mantles cover an axis (long fibres nearly along the faces), the least shallow are
+/// let go first: the tilt below which spans count falls from 8 to 6, 4, 2 and 0 degrees until
+/// some position misses them all; then the spans of steep disks are let go. The same medium:
+/// the cell is a window on the periodic RVE.
 Vec3 cell_origin(const InclusionSet& set);
 inline constexpr double kGoodClearance = 0.05;  // caps of 18 degrees or more
 

@@ -1085,10 +1085,10 @@ Vec3 cell_origin(const InclusionSet& set) {
       if (apart) candidates[a].push_back({c, f});
     }
   }
-  // The combination whose least clearance, of faces, edges and corners, is the largest (the
-  // box's own first, so that it is kept on a tie); of those, the one whose edges and corners are
-  // clearest (a face may hold the least for every combination: one that crosses a fibre nearly
-  // along it wherever it lies).
+  // The combination whose least clearance, of faces, edges and corners, is the largest; of
+  // those, the one whose edges and corners are clearest (a face may hold the least for every
+  // combination: one that crosses a fibre nearly along it wherever it lies); the box's own is
+  // first, so that it is kept on a tie of both.
   Vec3 origin = box;
   double best = -1.0, best_edges = -1.0;
   for (const auto& [cx, x] : candidates[0]) {

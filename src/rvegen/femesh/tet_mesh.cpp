@@ -860,14 +860,15 @@ Extremes extremes(const InclusionSet& set, int a, bool disks = true,
       continue;
     }
     const Vec3 u = s.half_axis.normalized();
-    const double half = s.radius * std::sqrt(std::max(0.0, 1.0 - u[a] * u[a]));
+    const double across = std::sqrt(std::max(0.0, 1.0 - u[a] * u[a]));
+    const double half = s.radius * across;
     if (std::abs(u[a]) < std::sin(mantle_tilt)) {
-      // The mantle's two lines furthest along a (and the shell's), each over the fibre's
-      // extent along a.
+      // The mantle's two lines furthest along a (and the shell's, of radius r + t), each over
+      // the fibre's extent along a.
       const double span = std::abs(s.half_axis[a]);
       for (const double side : {-1.0, 1.0}) {
         add(s.center[a] + side * half, span, s.radius);
-        if (t > 0.0) add(s.center[a] + side * (half + t), span, s.radius + t);
+        if (t > 0.0) add(s.center[a] + side * (s.radius + t) * across, span, s.radius + t);
       }
     }
     for (const double end : {s.center[a] - s.half_axis[a], s.center[a] + s.half_axis[a]}) {

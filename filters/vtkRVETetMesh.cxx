@@ -28,7 +28,8 @@ vtkRVETetMesh::vtkRVETetMesh()
       MinSize(kDefaults.min_size),
       ChordError(kDefaults.chord_error),
       GapElements(kDefaults.gap_elements),
-      ShiftCell(kDefaults.shift_cell) {}
+      ShiftCell(kDefaults.shift_cell),
+      KeepVolumes(kDefaults.keep_volumes) {}
 
 int vtkRVETetMesh::FillInputPortInformation(int, vtkInformation* info) {
   info->Set(vtkAlgorithm::INPUT_REQUIRED_DATA_TYPE(), "vtkDataObject");
@@ -48,8 +49,8 @@ int vtkRVETetMesh::RequestData(vtkInformation*, vtkInformationVector** in,
   // The sizes are checked as a scene's "mesh_tet" is.
   rvegen::Scene scene;
   scene.box = set.box;
-  scene.tet_mesh = {this->MaxSize, this->MinSize, this->ChordError, this->GapElements,
-                    this->ShiftCell};
+  scene.tet_mesh = {this->MaxSize,     this->MinSize,   this->ChordError,
+                    this->GapElements, this->ShiftCell, this->KeepVolumes};
   rvegen::TetMesh mesh;
   try {
     rvegen::validate_tet_mesh_spec(scene);
@@ -112,6 +113,10 @@ int vtkRVETetMesh::RequestData(vtkInformation*, vtkInformationVector** in,
   merged->SetName("merged_nodes");
   merged->InsertNextValue(static_cast<int>(mesh.merged_nodes));
   grid->GetFieldData()->AddArray(merged);
+  vtkNew<vtkIntArray> moved;
+  moved->SetName("moved_nodes");
+  moved->InsertNextValue(static_cast<int>(mesh.moved_nodes));
+  grid->GetFieldData()->AddArray(moved);
   this->UpdateProgress(1.0);
   return 1;
 }
@@ -122,5 +127,6 @@ void vtkRVETetMesh::PrintSelf(ostream& os, vtkIndent indent) {
      << indent << "MinSize: " << this->MinSize << "\n"
      << indent << "ChordError: " << this->ChordError << "\n"
      << indent << "GapElements: " << this->GapElements << "\n"
-     << indent << "ShiftCell: " << this->ShiftCell << "\n";
+     << indent << "ShiftCell: " << this->ShiftCell << "\n"
+     << indent << "KeepVolumes: " << this->KeepVolumes << "\n";
 }

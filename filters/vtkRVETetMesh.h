@@ -7,9 +7,10 @@
  * vtkUnstructuredGrid of tetrahedra following every interface, with opposite box faces meshed
  * alike (cell data phase and inclusion_id; field data phase_names, and merged_nodes, the nodes
  * the mesher left at one position and rvegen merged). Spheres, cylinders and ellipsoids,
- * coated spheres and cylinders; other inclusions give an error naming the family. The sizes are those of a scene's "mesh_tet"
- * object (0: the default). Progress follows the mesher's stages; Abort stops it (within a
- * stage it first finishes with coarse elements) and leaves the output empty.
+ * coated spheres and cylinders; other inclusions give an error naming the family. The sizes are
+ * those of a scene's "mesh_tet" object (0: the default). Progress follows the mesher's stages;
+ * Abort stops it (within a stage it first finishes with coarse elements) and leaves the output
+ * empty.
  */
 #ifndef vtkRVETetMesh_h
 #define vtkRVETetMesh_h
@@ -40,6 +41,11 @@ class RVEGENFILTERS_EXPORT vtkRVETetMesh : public vtkUnstructuredGridAlgorithm {
   vtkSetMacro(ShiftCell, bool);
   vtkGetMacro(ShiftCell, bool);
   vtkBooleanMacro(ShiftCell, bool);
+  /// Whether the nodes inside curved interfaces move along the normal so that each phase keeps
+  /// its exact volume (off: every interface node on the exact surface).
+  vtkSetMacro(KeepVolumes, bool);
+  vtkGetMacro(KeepVolumes, bool);
+  vtkBooleanMacro(KeepVolumes, bool);
 
  protected:
   vtkRVETetMesh();
@@ -53,6 +59,7 @@ class RVEGENFILTERS_EXPORT vtkRVETetMesh : public vtkUnstructuredGridAlgorithm {
   double ChordError;
   double GapElements;
   bool ShiftCell;
+  bool KeepVolumes;
 
  private:
   vtkRVETetMesh(const vtkRVETetMesh&) = delete;

@@ -224,6 +224,8 @@ nlohmann::ordered_json tet_mesh_report(const rvegen::InclusionSet& set,
   r["nodes"] = mesh.nodes.size();
   r["periodic_pairs"] = mesh.periodic.size();
   r["merged_nodes"] = mesh.merged_nodes;
+  // Interface nodes moved along the normal to keep the phases' volumes (mesh_tet.keep_volumes).
+  r["moved_nodes"] = mesh.moved_nodes;
   // The cell meshed: the box, or the box moved along its axes (mesh_tet.shift_cell).
   r["cell_origin"] = {mesh.box.origin[0], mesh.box.origin[1], mesh.box.origin[2]};
   // (1 and more alike: far from grazing anything; no inclusion near an edge gives 1.)

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <set>
@@ -437,6 +438,266 @@ void check_conforming(const TetMesh& mesh) {
   }
 }
 
+namespace {
+
+// The least dihedral angle of a tetrahedron, in degrees: at each edge, the angle between the
+// other two vertices seen across it.
+double least_dihedral(const Vec3 (&p)[4]) {
+  double m = 180.0;
+  for (int i = 0; i < 4; ++i) {
+    for (int j = i + 1; j < 4; ++j) {
+      int other[2], n = 0;
+      for (int k = 0; k < 4; ++k) {
+        if (k != i && k != j) other[n++] = k;
+      }
+      const Vec3 axis = (p[j] - p[i]).normalized();
+      Vec3 u = p[other[0]] - p[i], w = p[other[1]] - p[i];
+      u -= u.dot(axis) * axis;
+      w -= w.dot(axis) * axis;
+      const double c = std::clamp(u.normalized().dot(w.normalized()), -1.0, 1.0);
+      m = std::min(m, std::acos(c) * 180.0 / M_PI);
+    }
+  }
+  return m;
+}
+
+double least_dihedral(const TetMesh& mesh, const std::array<int32_t, 4>& t) {
+  const Vec3 p[4] = {mesh.nodes[t[0]], mesh.nodes[t[1]], mesh.nodes[t[2]], mesh.nodes[t[3]]};
+  return least_dihedral(p);
+}
+
+// The signed distance of x from the surface of shape s grown by t (negative inside), and the
+// outward normal there: exact for spheres and for cylinders (flat ends; grown, their rims are
+// rounded), to first order for ellipsoids ((f - 1) / |grad f| with f the ellipsoidal radius;
+// its error near the surface is of the order of the squared distance over the radius of
+// curvature). `feature`: x lies on a flat end's plane of an ungrown cylinder (its rim and end
+// disk), where the normal has no single direction.
+double surface_distance(const Shape& s, double t, const Vec3& x, Vec3* normal, bool* feature) {
+  const Vec3 d = x - s.center;
+  *feature = false;
+  switch (s.kind) {
+    case ShapeKind::Sphere: {
+      const double n = d.norm();
+      *normal = n > 0.0 ? Vec3(d / n) : Vec3::UnitZ();
+      return n - s.radius - t;
+    }
+    case ShapeKind::Cylinder: {
+      const double h = s.half_axis.norm();
+      const Vec3 u = s.half_axis / h;
+      const double a = d.dot(u);
+      const Vec3 radial = d - a * u;
+      const double rho = radial.norm();
+      const Vec3 er = rho > 0.0 ? Vec3(radial / rho) : any_orthogonal(u);
+      const Vec3 eu = a >= 0.0 ? u : Vec3(-u);
+      const double dr = rho - s.radius, dz = std::abs(a) - h;
+      *feature = t == 0.0 && std::abs(dz) <= 1e-6 * std::max(h, s.radius);
+      if (dr > 0.0 && dz > 0.0) {
+        const double n = std::hypot(dr, dz);
+        *normal = (dr * er + dz * eu) / n;
+        return n - t;
+      }
+      *normal = dr >= dz ? er : eu;
+      return std::max(dr, dz) - t;
+    }
+    case ShapeKind::Ellipsoid: {
+      const Vec3 y = s.rotation.transpose() * d;
+      const Vec3 q = y.cwiseQuotient(s.semi_axes);
+      const double f = q.norm();
+      const Vec3 g = s.rotation * (q.cwiseQuotient(s.semi_axes) / std::max(f, 1e-300));
+      const double gn = g.norm();
+      *normal = gn > 0.0 ? Vec3(g / gn) : Vec3::UnitZ();
+      return gn > 0.0 ? (f - 1.0) / gn : -s.semi_axes.minCoeff();
+    }
+  }
+  return 0.0;
+}
+
+}  // namespace
+
+// Each interface of the mesh (a face between the matrix and an inclusion's core or shell, or
+// between a core and its shell) belongs to one exact surface. Its triangles are chords of that
+// surface, and cut off the gap between them and it: for a triangle, its area times the mean gap,
+// which the mean of the gaps at its edge midpoints gives exactly for a surface of constant
+// curvature (the gap is then quadratic over the triangle and nought at its corners). Each node
+// inside a curved surface (not on a box face, on another surface or on a flat end's plane) moves
+// along the surface's normal by the area-weighted mean gap of its triangles: a move d of a node
+// adds d times a third of its triangles' area to the volume inside, so the moves give back what
+// the chords cut off, to second order. A move is undone where it would invert an element, or
+// leave one with a least dihedral angle under 5 degrees that had a larger one before.
+long long keep_phase_volumes(TetMesh* mesh, const InclusionSet& set) {
+  const size_t nn = mesh->nodes.size(), ne = mesh->tets.size();
+  std::unordered_map<int32_t, int> by_id;
+  for (size_t k = 0; k < set.inclusions.size(); ++k) {
+    by_id[set.inclusions[k].id] = static_cast<int>(k);
+  }
+  auto region = [&](size_t e) {
+    return (static_cast<int64_t>(mesh->inclusion_id[e]) << 32) |
+           static_cast<uint32_t>(mesh->phase[e]);
+  };
+  // Nodes that elements of two regions share; faces with three such nodes are the candidates.
+  std::vector<int64_t> first(nn, std::numeric_limits<int64_t>::min());
+  std::vector<uint8_t> shared(nn, 0);
+  for (size_t e = 0; e < ne; ++e) {
+    const int64_t r = region(e);
+    for (int32_t n : mesh->tets[e]) {
+      if (first[n] == std::numeric_limits<int64_t>::min()) {
+        first[n] = r;
+      } else if (first[n] != r) {
+        shared[n] = 1;
+      }
+    }
+  }
+  struct Face {
+    std::array<int32_t, 3> n;
+    int32_t tet;
+  };
+  std::vector<Face> faces;
+  for (size_t e = 0; e < ne; ++e) {
+    const auto& t = mesh->tets[e];
+    for (int skip = 0; skip < 4; ++skip) {
+      Face f;
+      int k = 0;
+      for (int c = 0; c < 4; ++c) {
+        if (c != skip) f.n[k++] = t[c];
+      }
+      if (!(shared[f.n[0]] && shared[f.n[1]] && shared[f.n[2]])) continue;
+      std::sort(f.n.begin(), f.n.end());
+      f.tet = static_cast<int32_t>(e);
+      faces.push_back(f);
+    }
+  }
+  std::sort(faces.begin(), faces.end(),
+            [](const Face& a, const Face& b) { return a.n != b.n ? a.n < b.n : a.tet < b.tet; });
+  // Per node: its surface (2 k for inclusion k's core, 2 k + 1 for its shell's outer surface;
+  // -1 none yet, -2 on two surfaces or on an interface of no single surface), the image shift of
+  // the inclusion, and its triangles' area and area times gap.
+  std::vector<int> surface(nn, -1);
+  std::vector<Vec3> shift(nn, Vec3::Zero());
+  std::vector<double> area(nn, 0.0), gap(nn, 0.0);
+  std::vector<double> deficit(2 * set.inclusions.size(), 0.0);  // per surface
+  const Box& box = mesh->box;
+  for (size_t k = 0; k + 1 < faces.size(); ++k) {
+    if (faces[k].n != faces[k + 1].n) continue;
+    const size_t e1 = faces[k].tet, e2 = faces[k + 1].tet;
+    ++k;
+    if (region(e1) == region(e2)) continue;
+    // Which surface: a core against the matrix or its own shell; a shell against the matrix.
+    int which = -2;
+    const int id1 = mesh->inclusion_id[e1], id2 = mesh->inclusion_id[e2];
+    const PhaseKind k1 = mesh->phases[mesh->phase[e1]].kind,
+                    k2 = mesh->phases[mesh->phase[e2]].kind;
+    auto inc = [&](int id) {
+      const auto it = by_id.find(id);
+      return it == by_id.end() ? -1 : it->second;
+    };
+    if (id1 == id2 && inc(id1) >= 0) {
+      which = 2 * inc(id1);
+    } else if (k1 == PhaseKind::kMatrix || k2 == PhaseKind::kMatrix) {
+      const int id = k1 == PhaseKind::kMatrix ? id2 : id1;
+      const PhaseKind kind = k1 == PhaseKind::kMatrix ? k2 : k1;
+      if (inc(id) >= 0 && kind == PhaseKind::kCore) which = 2 * inc(id);
+      if (inc(id) >= 0 && kind == PhaseKind::kInterphase) which = 2 * inc(id) + 1;
+    }
+    const std::array<int32_t, 3>& n = faces[k].n;
+    if (which < 0) {
+      for (int32_t i : n) surface[i] = -2;
+      continue;
+    }
+    const Inclusion& in = set.inclusions[which / 2];
+    const double grown = (which & 1) ? in.mod.coating : 0.0;
+    const Vec3 &p0 = mesh->nodes[n[0]], &p1 = mesh->nodes[n[1]], &p2 = mesh->nodes[n[2]];
+    // The inclusion's periodic image the triangle lies on: the one nearest its centre's surface.
+    const Vec3 centre = (p0 + p1 + p2) / 3.0;
+    Vec3 best = Vec3::Zero(), nrm;
+    bool feature;
+    double least = 1e300;
+    for (int dx = -1; dx <= 1; ++dx) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dz = -1; dz <= 1; ++dz) {
+          const Vec3 t = Vec3(dx, dy, dz).cwiseProduct(box.size);
+          const double v =
+              std::abs(surface_distance(in.shape.translated(t), grown, centre, &nrm, &feature));
+          if (v < least) {
+            least = v;
+            best = t;
+          }
+        }
+      }
+    }
+    const Shape s = in.shape.translated(best);
+    const double a = 0.5 * (p1 - p0).cross(p2 - p0).norm();
+    const double g = -(surface_distance(s, grown, 0.5 * (p0 + p1), &nrm, &feature) +
+                       surface_distance(s, grown, 0.5 * (p1 + p2), &nrm, &feature) +
+                       surface_distance(s, grown, 0.5 * (p0 + p2), &nrm, &feature)) /
+                     3.0;
+    deficit[which] += a * g;
+    for (int32_t i : n) {
+      if (surface[i] == -2) continue;
+      if (surface[i] >= 0 && (surface[i] != which || shift[i] != best)) {
+        surface[i] = -2;
+        continue;
+      }
+      surface[i] = which;
+      shift[i] = best;
+      area[i] += a;
+      gap[i] += a * g;
+    }
+  }
+  // The moves. Nodes that stay (on box faces, rims) leave their triangles' share of the gap;
+  // the other nodes of the surface make it up, each in proportion (at most twice their own).
+  const std::vector<std::array<int8_t, 3>> ends = node_ends(*mesh);
+  const std::vector<Vec3> before = mesh->nodes;
+  std::vector<uint8_t> movable(nn, 0);
+  std::vector<Vec3> normal(nn, Vec3::Zero());
+  std::vector<double> given(deficit.size(), 0.0);
+  for (size_t i = 0; i < nn; ++i) {
+    if (surface[i] < 0 || !(area[i] > 0.0) || !std::isfinite(gap[i])) continue;
+    if (ends[i][0] >= 0 || ends[i][1] >= 0 || ends[i][2] >= 0) continue;
+    const Inclusion& in = set.inclusions[surface[i] / 2];
+    const double grown = (surface[i] & 1) ? in.mod.coating : 0.0;
+    bool feature;
+    surface_distance(in.shape.translated(shift[i]), grown, before[i], &normal[i], &feature);
+    if (feature || gap[i] == 0.0) continue;
+    movable[i] = 1;
+    given[surface[i]] += gap[i] / 3.0;
+  }
+  std::vector<uint8_t> moved(nn, 0);
+  long long count = 0;
+  for (size_t i = 0; i < nn; ++i) {
+    if (!movable[i]) continue;
+    const double whole = deficit[surface[i]], part = given[surface[i]];
+    const double scale = part != 0.0 && whole / part > 1.0 ? std::min(2.0, whole / part) : 1.0;
+    mesh->nodes[i] = before[i] + scale * gap[i] / area[i] * normal[i];
+    moved[i] = 1;
+    ++count;
+  }
+  // Undone where an element would suffer (a few passes: undoing one move changes its other
+  // elements back too, never for the worse).
+  for (bool again = true; again;) {
+    again = false;
+    for (const auto& t : mesh->tets) {
+      if (!(moved[t[0]] || moved[t[1]] || moved[t[2]] || moved[t[3]])) continue;
+      bool bad = !(tet_volume(mesh->nodes, t) > 0.0);
+      if (!bad) {
+        const double now = least_dihedral(*mesh, t);
+        if (now < 5.0) {
+          const Vec3 p[4] = {before[t[0]], before[t[1]], before[t[2]], before[t[3]]};
+          bad = now < least_dihedral(p);
+        }
+      }
+      if (!bad) continue;
+      for (int32_t n : t) {
+        if (!moved[n]) continue;
+        mesh->nodes[n] = before[n];
+        moved[n] = 0;
+        --count;
+        again = true;
+      }
+    }
+  }
+  return count;
+}
+
 void check_tet_meshable(const InclusionSet& set) {
   if (!set.box.periodic) {
     throw InputError("outputs: mesh_tet needs a periodic box (box.periodic false)");
@@ -758,6 +1019,7 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
   stage(0.95, 1.0, "mesh_tet: checking the mesh");
   if (mesh.tets.empty()) throw MeshError("mesh_tet: the volume mesher made no elements");
   mesh.merged_nodes = merge_coincident_nodes(&mesh);
+  if (options.keep_volumes) mesh.moved_nodes = keep_phase_volumes(&mesh, set);
   check_conforming(mesh);
 
   // Periodic pairs by coordinates: every node with a coordinate at an upper end, and the node
@@ -1158,22 +1420,7 @@ TetQuality tet_quality(const TetMesh& mesh) {
     q.min_volume = std::min(q.min_volume, v);
     const int label = mesh.phase[e];
     if (label >= 0 && label < static_cast<int>(q.phase_volume.size())) q.phase_volume[label] += v;
-    // The dihedral angle at each edge: the angle between the other two vertices seen across it.
-    double m = 180.0;
-    for (int i = 0; i < 4; ++i) {
-      for (int j = i + 1; j < 4; ++j) {
-        int other[2], n = 0;
-        for (int k = 0; k < 4; ++k) {
-          if (k != i && k != j) other[n++] = k;
-        }
-        const Vec3 axis = (p[j] - p[i]).normalized();
-        Vec3 u = p[other[0]] - p[i], w = p[other[1]] - p[i];
-        u -= u.dot(axis) * axis;
-        w -= w.dot(axis) * axis;
-        const double c = std::clamp(u.normalized().dot(w.normalized()), -1.0, 1.0);
-        m = std::min(m, std::acos(c) * 180.0 / M_PI);
-      }
-    }
+    const double m = least_dihedral(p);
     least[e] = m;
     size_t bin = 0;
     while (bin + 1 < TetQuality::kBins.size() && m >= TetQuality::kBins[bin + 1]) ++bin;

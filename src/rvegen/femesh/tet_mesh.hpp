@@ -55,6 +55,9 @@ struct TetMesh {
   std::vector<std::array<int32_t, 2>> periodic;
   /// Nodes the volume mesher left at the position of another, merged (merge_coincident_nodes).
   long long merged_nodes = 0;
+  /// Interface nodes moved off the exact surface to keep the phases' volumes
+  /// (keep_phase_volumes).
+  long long moved_nodes = 0;
 };
 
 /// The signed volume of tetrahedron `t` of the mesh (positive when oriented as tet_mesh gives it).
@@ -127,6 +130,16 @@ inline constexpr double kGoodClearance = 0.05;  // caps of 18 degrees or more
 /// where one is, which cracks the mesh.
 /// Returns the number of nodes merged into others.
 long long merge_coincident_nodes(TetMesh* mesh);
+
+/// Moves the nodes inside each curved interface (between the matrix and a core or a shell, or a
+/// core and its shell: spheres, cylinders' mantles, ellipsoids, shells' outer surfaces) along the
+/// surface's normal by the area-weighted mean gap between its triangles and the exact surface, so
+/// that the volume the chords cut off is given back: each phase's volume is then exact to second
+/// order in the chord error. Nodes on box faces, on flat ends, on two surfaces, or on an
+/// interface between two inclusions stay. A move that would invert an element, or leave one with
+/// a least dihedral angle under 5 degrees and smaller than before, is undone. tet_mesh calls it
+/// when options.keep_volumes. Returns the number of nodes moved.
+long long keep_phase_volumes(TetMesh* mesh, const InclusionSet& set);
 
 /// Throws MeshError unless the mesh conforms (every face of an element is a face of another
 /// element or lies in a box face) and fills the box (every element positive, their volumes

@@ -417,7 +417,9 @@ Scene parse_scene(const std::string& text) {
   }
   if (root.contains("mesh_tet")) {
     const Json& m = root["mesh_tet"];
-    only_keys(m, {"max_size", "min_size", "chord_error", "gap_elements", "shift_cell"}, "mesh_tet");
+    only_keys(m,
+              {"max_size", "min_size", "chord_error", "gap_elements", "shift_cell", "keep_volumes"},
+              "mesh_tet");
     TetMeshSpec& t = s.tet_mesh;
     if (m.contains("max_size")) t.max_size = positive(m["max_size"], "mesh_tet.max_size");
     if (m.contains("min_size")) t.min_size = positive(m["min_size"], "mesh_tet.min_size");
@@ -426,6 +428,8 @@ Scene parse_scene(const std::string& text) {
     if (m.contains("gap_elements"))
       t.gap_elements = positive(m["gap_elements"], "mesh_tet.gap_elements");
     if (m.contains("shift_cell")) t.shift_cell = boolean(m["shift_cell"], "mesh_tet.shift_cell");
+    if (m.contains("keep_volumes"))
+      t.keep_volumes = boolean(m["keep_volumes"], "mesh_tet.keep_volumes");
   }
   if (root.contains("materials")) parse_materials(root["materials"], &s);
   if (root.contains("homogenization")) {
@@ -590,7 +594,8 @@ std::string scene_to_json(const Scene& s) {
     const TetMeshSpec& t = s.tet_mesh;
     root["mesh_tet"] = {{"chord_error", t.chord_error},
                         {"gap_elements", t.gap_elements},
-                        {"shift_cell", t.shift_cell}};
+                        {"shift_cell", t.shift_cell},
+                        {"keep_volumes", t.keep_volumes}};
     if (t.max_size > 0.0) root["mesh_tet"]["max_size"] = t.max_size;
     if (t.min_size > 0.0) root["mesh_tet"]["min_size"] = t.min_size;
   }

@@ -176,9 +176,14 @@ struct TetMeshSpec {
   /// The mesh's cell may be the box moved along its axes (the same periodic medium), so that no
   /// box face grazes an inclusion (a thin cap bounds its elements' angles); false: the box.
   bool shift_cell = true;
+  /// The nodes inside curved interfaces move along the surface's normal so that each phase keeps
+  /// its exact volume (the facets, chords of the surface, would cut it short by about three
+  /// times the chord error); false: every interface node on the exact surface.
+  bool keep_volumes = true;
   bool operator==(const TetMeshSpec& o) const {
     return max_size == o.max_size && min_size == o.min_size && chord_error == o.chord_error &&
-           gap_elements == o.gap_elements && shift_cell == o.shift_cell;
+           gap_elements == o.gap_elements && shift_cell == o.shift_cell &&
+           keep_volumes == o.keep_volumes;
   }
 };
 

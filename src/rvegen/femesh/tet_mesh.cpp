@@ -771,7 +771,11 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
     // brought into the box by its shift. A face cut by a box face then lies on both opposite faces
     // as one face and its exact translate, whatever the surface (OpenCASCADE makes spline
     // surfaces of ellipsoids, and the cuts of two translated images by opposite box faces,
-    // computed apart, differed by 3 % of their area).
+    // computed apart, differed by 3 % of their area). Inclusions inside the box without a shell
+    // go in as they are. All the others are cut in one boolean operation: the solids (cores, and
+    // shells' outer surfaces) against one cell per shift, the box moved by minus the shift (Gmsh's
+    // bookkeeping of OpenCASCADE's shapes costs in proportion to the shapes it holds at each
+    // operation: cut one inclusion at a time, the default scene's 1,269 pieces took 179 s).
     const std::vector<Image> images = images_near(set, 0.0);
     std::map<int, std::vector<Vec3>> shifts_of;
     for (const Image& im : images) shifts_of[im.inc].push_back(im.shift);
@@ -780,9 +784,12 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
     std::vector<int32_t> tool_label;  // the phase of each piece
     const std::vector<int> shell_label =
         interphase_labels(mesh.phases, static_cast<int>(set.family_names.size()));
+    gmsh::vectorpair objects;
+    std::vector<int> object_inc;
+    std::vector<char> object_core;
+    std::vector<Vec3> cell_shift;
     for (const auto& [inc, shifts] : shifts_of) {
       const Inclusion& in = set.inclusions[inc];
-      const int32_t core_phase = core_label(in.family);
       const int core = add_solid(in.shape, box);
       Vec3 lo, hi;
       outer_aabb(in, &lo, &hi);
@@ -791,41 +798,63 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
       if (inside && !in.mod.coated()) {
         tools.push_back({3, core});
         tool_inc.push_back(inc);
-        tool_label.push_back(core_phase);
+        tool_label.push_back(core_label(in.family));
         continue;
       }
-      // The core and its shell's outer surface, cut together by the cells (none when inside).
-      gmsh::vectorpair objects = {{3, core}}, cells, out;
-      if (in.mod.coated()) objects.push_back({3, add_solid(in.shape, box, in.mod.coating)});
-      const std::vector<Vec3> moves = inside ? std::vector<Vec3>{Vec3::Zero()} : shifts;
-      if (!inside) {
-        for (const Vec3& t : shifts) {
-          const Vec3 c = o - t;
-          cells.push_back({3, gmsh::model::occ::addBox(c[0], c[1], c[2], len[0], len[1], len[2])});
+      objects.push_back({3, core});
+      object_inc.push_back(inc);
+      object_core.push_back(1);
+      if (in.mod.coated()) {
+        objects.push_back({3, add_solid(in.shape, box, in.mod.coating)});
+        object_inc.push_back(inc);
+        object_core.push_back(0);
+      }
+      for (const Vec3& t : shifts) {
+        if (std::find(cell_shift.begin(), cell_shift.end(), t) == cell_shift.end()) {
+          cell_shift.push_back(t);
         }
+      }
+    }
+    if (!objects.empty()) {
+      gmsh::vectorpair cells, out;
+      for (const Vec3& t : cell_shift) {
+        const Vec3 c = o - t;
+        cells.push_back({3, gmsh::model::occ::addBox(c[0], c[1], c[2], len[0], len[1], len[2])});
       }
       std::vector<gmsh::vectorpair> map;
       gmsh::model::occ::fragment(objects, cells, out, map);
-      std::set<int> of_core, of_outer;
+      // Each piece of a solid belongs to the first inclusion whose solids hold it (where shells
+      // that may touch overlap), and is a core's when one of that inclusion's cores holds it.
+      std::map<int, int> piece_inc;
+      std::set<int> core_piece;
       for (size_t k = 0; k < objects.size() && k < map.size(); ++k) {
-        for (const auto& dt : map[k]) (k == 0 ? of_core : of_outer).insert(dt.second);
-      }
-      for (size_t k = 0; k < moves.size(); ++k) {
-        // Inside the box: every piece; otherwise cell k's.
-        if (!inside && objects.size() + k >= map.size()) break;
-        const gmsh::vectorpair& in_cell = inside ? out : map[objects.size() + k];
-        for (const auto& dt : in_cell) {
-          const bool core_piece = of_core.count(dt.second) > 0;
-          if (!core_piece && !of_outer.count(dt.second)) continue;
-          gmsh::vectorpair copy;
-          gmsh::model::occ::copy({dt}, copy);
-          gmsh::model::occ::translate(copy, moves[k][0], moves[k][1], moves[k][2]);
-          tools.push_back(copy.front());
-          tool_inc.push_back(inc);
-          tool_label.push_back(core_piece ? core_phase : shell_label[in.family]);
+        for (const auto& dt : map[k]) {
+          const int owner_inc = piece_inc.emplace(dt.second, object_inc[k]).first->second;
+          if (object_core[k] && owner_inc == object_inc[k]) core_piece.insert(dt.second);
         }
       }
-      gmsh::model::occ::remove(out, true);
+      std::set<int> taken;
+      for (size_t c = 0; c < cells.size() && objects.size() + c < map.size(); ++c) {
+        gmsh::vectorpair mine;
+        for (const auto& dt : map[objects.size() + c]) {
+          const auto it = piece_inc.find(dt.second);
+          if (it == piece_inc.end() || !taken.insert(dt.second).second) continue;
+          const Inclusion& in = set.inclusions[it->second];
+          mine.push_back(dt);
+          tools.push_back(dt);
+          tool_inc.push_back(it->second);
+          tool_label.push_back(core_piece.count(dt.second) ? core_label(in.family)
+                                                           : shell_label[in.family]);
+        }
+        const Vec3& t = cell_shift[c];
+        if (!mine.empty() && !t.isZero()) gmsh::model::occ::translate(mine, t[0], t[1], t[2]);
+      }
+      // The cells' other pieces.
+      gmsh::vectorpair rest;
+      for (const auto& dt : out) {
+        if (!taken.count(dt.second)) rest.push_back(dt);
+      }
+      gmsh::model::occ::remove(rest, true);
     }
     stage(0.0, 0.15,
           "mesh_tet: fragmenting " + std::to_string(tools.size()) +

@@ -16,6 +16,7 @@ samples/charts/tet_mesh_sweep.png (time and least dihedral angle against the vol
 one curve per min_gap).
 
 usage: /usr/bin/python3 samples/bench_tet_mesh.py [BUILD_DIR] [--quick] [--no-ccx] [--no-fibres]
+                                                  [--no-default]
 """
 import json
 import math
@@ -99,7 +100,7 @@ for gap in gaps:
         tets, least, below, worst, merged = mesh_row(report)
         sweep.setdefault(gap, []).append((vf, wall, least, tets))
         got = report["volume_fraction"]
-        say("| %.2f%s | %g | %d | %d | %.1f | %.0f | %d | %.0f | %.2f | %d | %.2f %% | %s |"
+        say("| %.2f%s | %g | %d | %d | %.1f | %.0f | %d | %.0f | %.2f | %d | %.3f %% | %s |"
             % (vf, " (packed %.3f)" % got if rc == 3 else "", gap, count, rc, wall, peak, tets,
                tets / wall, least, below, 100 * worst, clearance(report)))
         shutil.rmtree(os.path.join(work, name), ignore_errors=True)
@@ -146,7 +147,7 @@ def fibres_part():
         tets, least, below, worst, merged = mesh_row(report)
         fft = report["effective"]["conductivity"]["tensor"]
         say("rvegen generate (packing, mesh, FFT at %d^3): %.1f s, %.0f MiB; %d tetrahedra, "
-            "least angle %.2f deg, %d under 5 deg, worst phase volume error %.2f %%, %d nodes merged"
+            "least angle %.2f deg, %d under 5 deg, worst phase volume error %.3f %%, %d nodes merged"
             % (fibres["voxels"]["resolution"], wall, peak, tets, least, below, 100 * worst, merged))
         if "--no-ccx" not in sys.argv and shutil.which("ccx"):
             run = os.path.join(work, "fibres_run")
@@ -172,38 +173,44 @@ def fibres_part():
 if "--no-fibres" not in sys.argv:
     fibres_part()
 
+
 # 3. The default scene: the estimate at the default chord error, then meshes at coarser ones.
-say()
-say("## The default scene (946 inclusions, min_gap 0)")
-say()
-rc, wall, peak, err = timed([exe, "generate", "-q", "--outputs", "mesh_tet", "--max-memory", "4G",
-                             "-o", os.path.join(work, "default")])
-why = [ln for ln in err.strip().splitlines() if ln.startswith("rvegen:")]
-say("Default chord error 0.003, `--max-memory 4G`: exit %d after %.1f s: %s"
-    % (rc, wall, (why or ["?"])[-1]))
-say()
-say("| chord error | exit | wall s | peak MiB | tetrahedra | tets/s | least angle | under 5 deg "
-    "| volume error per phase | cell, clearance face / edge |")
-say("|---|---|---|---|---|---|---|---|---|---|")
-for chord in ([0.03] if quick else [0.03, 0.01]):
-    scene = json.loads(subprocess.run([exe, "default-scene"], check=True, capture_output=True,
-                                      text=True).stdout)
-    scene["mesh_tet"] = {"chord_error": chord}
-    scene["outputs"] = ["mesh_tet"]
-    try:
-        rc, wall, peak, report = generate(exe, scene, work, "default_%g" % chord)
-    except SystemExit as e:
-        say("| %g | failed: %s | | | | | | | | |" % (chord, str(e)[-200:].replace("\n", " ")))
-        continue
-    if rc != 0:
-        say("| %g | %d | %.1f | %.0f | failed | | | | | |" % (chord, rc, wall, peak))
-        continue
-    tets, least, below, worst, merged = mesh_row(report)
-    errors = ", ".join("%s %+.1f %%" % (p["name"], 100 * p["relative_error"])
-                       for p in report["mesh_tet"]["phases"])
-    say("| %g | %d | %.1f | %.0f | %d | %.0f | %.2f | %d | %s | %s |"
-        % (chord, rc, wall, peak, tets, tets / wall, least, below, errors, clearance(report)))
-    shutil.rmtree(os.path.join(work, "default_%g" % chord), ignore_errors=True)
+def default_part():
+    say()
+    say("## The default scene (946 inclusions, min_gap 0)")
+    say()
+    rc, wall, peak, err = timed([exe, "generate", "-q", "--outputs", "mesh_tet", "--max-memory",
+                                 "4G", "-o", os.path.join(work, "default")])
+    why = [ln for ln in err.strip().splitlines() if ln.startswith("rvegen:")]
+    say("Default chord error 0.003, `--max-memory 4G`: exit %d after %.1f s: %s"
+        % (rc, wall, (why or ["?"])[-1]))
+    say()
+    say("| chord error | exit | wall s | peak MiB | tetrahedra | tets/s | least angle | under 5 deg "
+        "| volume error per phase | cell, clearance face / edge |")
+    say("|---|---|---|---|---|---|---|---|---|---|")
+    for chord in ([0.03] if quick else [0.03, 0.01]):
+        scene = json.loads(subprocess.run([exe, "default-scene"], check=True, capture_output=True,
+                                          text=True).stdout)
+        scene["mesh_tet"] = {"chord_error": chord}
+        scene["outputs"] = ["mesh_tet"]
+        try:
+            rc, wall, peak, report = generate(exe, scene, work, "default_%g" % chord)
+        except SystemExit as e:
+            say("| %g | failed: %s | | | | | | | | |" % (chord, str(e)[-200:].replace("\n", " ")))
+            continue
+        if rc != 0:
+            say("| %g | %d | %.1f | %.0f | failed | | | | | |" % (chord, rc, wall, peak))
+            continue
+        tets, least, below, worst, merged = mesh_row(report)
+        errors = ", ".join("%s %+.2f %%" % (p["name"], 100 * p["relative_error"])
+                           for p in report["mesh_tet"]["phases"])
+        say("| %g | %d | %.1f | %.0f | %d | %.0f | %.2f | %d | %s | %s |"
+            % (chord, rc, wall, peak, tets, tets / wall, least, below, errors, clearance(report)))
+        shutil.rmtree(os.path.join(work, "default_%g" % chord), ignore_errors=True)
+
+
+if "--no-default" not in sys.argv:
+    default_part()
 
 with open(os.path.join(charts, "tet_mesh_table.md"), "w") as f:
     f.write("\n".join(lines) + "\n")

@@ -17,6 +17,7 @@ cores of transversely isotropic fibres) print in their local frame, named at the
 the values are turned back to the box's frame with the *ORIENTATION cards of NAME.inp. Prints
 JSON: {"conductivity": [[...]]} or {"stiffness": [[...]]}.
 """
+import array
 import json
 import math
 import os
@@ -65,24 +66,40 @@ def to_box(kind, values, r):
     return [g[0][0], g[1][1], g[2][2], g[0][1], g[0][2], g[1][2]]
 
 
+class Block:
+    """One printed block: the element of each row (integration point) and its values (width per
+    row), in compact arrays (a deck of millions of elements prints tens of millions of rows)."""
+
+    def __init__(self, kind):
+        self.kind = kind
+        self.elements = array.array("q")
+        self.values = array.array("d")
+        self.width = 0
+
+    def add(self, element, values):
+        self.width = len(values)
+        self.elements.append(element)
+        self.values.extend(values)
+
+
 def blocks(path, frames):
-    """The printed blocks, in the box's frame: [(kind, [(element, [values]), ...])] in file
-    order; kind "heat", "stresses" or "volume"."""
-    out, rows, kind = [], None, None
+    """The printed blocks one by one, in the box's frame: Block of kind "heat", "stresses" or
+    "volume", in file order."""
+    block = None
     with open(path) as f:
         for line in f:
             words = line.split()
             if not words:
                 continue
             if words[0] in ("heat", "stresses", "volume"):
-                kind = words[0]
-                rows = []
-                out.append((kind, rows))
+                if block is not None:
+                    yield block
+                block = Block(words[0])
                 continue
-            if rows is None:
+            if block is None:
                 continue
-            if kind == "volume":
-                rows.append((int(words[0]), [float(words[1])]))
+            if block.kind == "volume":
+                block.add(int(words[0]), [float(words[1])])
                 continue
             # Element, integration point, the values; then, for elements with an orientation,
             # its name.
@@ -96,38 +113,56 @@ def blocks(path, frames):
             if frame is not None:
                 if frame not in frames:
                     sys.exit("orientation %s is not in the deck" % frame)
-                values = to_box(kind, values, frames[frame])
-            rows.append((int(words[0]), values))
-    return out
+                values = to_box(block.kind, values, frames[frame])
+            block.add(int(words[0]), values)
+    if block is not None:
+        yield block
 
 
-def mean(rows, volumes):
-    """The mean of the rows' values: plain, or weighted by {element: volume} shared among the
-    element's integration points."""
+def mean(block, volumes):
+    """The mean of the block's values: plain, or weighted by the volume block's element volumes,
+    each shared among the element's integration points."""
+    w, n = block.width, len(block.elements)
+    if n == 0:
+        sys.exit("an empty %s block" % block.kind)
     if volumes is None:
-        n = len(rows)
-        return [sum(v[c] for _, v in rows) / n for c in range(len(rows[0][1]))]
-    points = {}
-    for e, _ in rows:
-        points[e] = points.get(e, 0) + 1
-    if set(points) != set(volumes):
+        return [sum(block.values[c::w]) / n for c in range(w)]
+    top = max(max(block.elements), max(volumes.elements)) + 1
+    points = array.array("l", bytes(8 * top))
+    for e in block.elements:
+        points[e] += 1
+    volume = array.array("d", bytes(8 * top))
+    listed = array.array("b", bytes(top))
+    for e, v in zip(volumes.elements, volumes.values):
+        volume[e] = v
+        listed[e] = 1
+    if any((points[e] > 0) != (listed[e] == 1) for e in range(top)):
         sys.exit("the volume block does not list the elements of the flux or stress block")
-    total = sum(volumes.values())
-    width = len(rows[0][1])
-    return [sum(volumes[e] / points[e] * v[c] for e, v in rows) / total for c in range(width)]
-
-
-def steps(found):
-    """[(kind, rows, {element: volume} or None)] per load step."""
+    total = sum(volumes.values)
     out = []
-    for kind, rows in found:
-        if kind == "volume":
-            if not out or out[-1][2] is not None:
-                sys.exit("a volume block without its flux or stress block")
-            out[-1] = (out[-1][0], out[-1][1], {e: v[0] for e, v in rows})
-        else:
-            out.append((kind, rows, None))
+    for c in range(w):
+        column = block.values[c::w]
+        out.append(sum(volume[e] / points[e] * v for e, v in zip(block.elements, column)) / total)
     return out
+
+
+def columns_of(found):
+    """The mean of each load step's flux or stress block (weighted when a volume block follows
+    it), and the kind of the blocks. Only one step's blocks are held at a time."""
+    out, kind, pending = [], None, None
+    for block in found:
+        if block.kind == "volume":
+            if pending is None:
+                sys.exit("a volume block without its flux or stress block")
+            out.append(mean(pending, block))
+            pending = None
+            continue
+        if pending is not None:
+            out.append(mean(pending, None))
+        pending, kind = block, block.kind
+    if pending is not None:
+        out.append(mean(pending, None))
+    return kind, out
 
 
 def main():
@@ -135,11 +170,9 @@ def main():
         sys.exit(__doc__)
     directory, name = sys.argv[1:3]
     frames = orientations(os.path.join(directory, name + ".inp"))
-    found = steps(blocks(os.path.join(directory, name + ".dat"), frames))
-    if not found:
+    kind, columns = columns_of(blocks(os.path.join(directory, name + ".dat"), frames))
+    if not columns:
         sys.exit("no flux or stress blocks in %s.dat" % name)
-    kind = found[0][0]
-    columns = [mean(rows, volumes) for _, rows, volumes in found]
     if kind == "heat":
         if len(columns) != 3:
             sys.exit("expected 3 load steps, found %d" % len(columns))

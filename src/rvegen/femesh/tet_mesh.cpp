@@ -530,17 +530,19 @@ long long keep_phase_volumes(TetMesh* mesh, const InclusionSet& set) {
   for (size_t k = 0; k < set.inclusions.size(); ++k) {
     by_id[set.inclusions[k].id] = static_cast<int>(k);
   }
+  // An element's region: its inclusion (the matrix's -1 too) and its phase, as one number.
   auto region = [&](size_t e) {
-    return (static_cast<int64_t>(mesh->inclusion_id[e]) << 32) |
+    return (static_cast<uint64_t>(static_cast<uint32_t>(mesh->inclusion_id[e])) << 32) |
            static_cast<uint32_t>(mesh->phase[e]);
   };
   // Nodes that elements of two regions share; faces with three such nodes are the candidates.
-  std::vector<int64_t> first(nn, std::numeric_limits<int64_t>::min());
+  constexpr uint64_t kNone = std::numeric_limits<uint64_t>::max();  // no phase label is -1
+  std::vector<uint64_t> first(nn, kNone);
   std::vector<uint8_t> shared(nn, 0);
   for (size_t e = 0; e < ne; ++e) {
-    const int64_t r = region(e);
+    const uint64_t r = region(e);
     for (int32_t n : mesh->tets[e]) {
-      if (first[n] == std::numeric_limits<int64_t>::min()) {
+      if (first[n] == kNone) {
         first[n] = r;
       } else if (first[n] != r) {
         shared[n] = 1;

@@ -29,7 +29,8 @@ vtkRVETetMesh::vtkRVETetMesh()
       ChordError(kDefaults.chord_error),
       GapElements(kDefaults.gap_elements),
       ShiftCell(kDefaults.shift_cell),
-      KeepVolumes(kDefaults.keep_volumes) {}
+      KeepVolumes(kDefaults.keep_volumes),
+      Order(kDefaults.order) {}
 
 int vtkRVETetMesh::FillInputPortInformation(int, vtkInformation* info) {
   info->Set(vtkAlgorithm::INPUT_REQUIRED_DATA_TYPE(), "vtkDataObject");
@@ -49,8 +50,8 @@ int vtkRVETetMesh::RequestData(vtkInformation*, vtkInformationVector** in,
   // The sizes are checked as a scene's "mesh_tet" is.
   rvegen::Scene scene;
   scene.box = set.box;
-  scene.tet_mesh = {this->MaxSize,     this->MinSize,   this->ChordError,
-                    this->GapElements, this->ShiftCell, this->KeepVolumes};
+  scene.tet_mesh = {this->MaxSize,   this->MinSize,     this->ChordError, this->GapElements,
+                    this->ShiftCell, this->KeepVolumes, this->Order};
   rvegen::TetMesh mesh;
   try {
     rvegen::validate_tet_mesh_spec(scene);
@@ -85,9 +86,11 @@ int vtkRVETetMesh::RequestData(vtkInformation*, vtkInformationVector** in,
     points->SetPoint(static_cast<vtkIdType>(i), mesh.nodes[i].data());
   }
   const vtkIdType cells = static_cast<vtkIdType>(mesh.tets.size());
+  // 4 corners, then for second order the midside nodes (TetMesh::mid: VTK's order).
+  const vtkIdType n = mesh.mid.empty() ? 4 : 10;
   vtkNew<vtkIdTypeArray> offsets, connectivity;
   offsets->SetNumberOfValues(cells + 1);
-  connectivity->SetNumberOfValues(4 * cells);
+  connectivity->SetNumberOfValues(n * cells);
   vtkNew<vtkUnsignedCharArray> phase;
   phase->SetName("phase");
   phase->SetNumberOfValues(cells);
@@ -95,16 +98,17 @@ int vtkRVETetMesh::RequestData(vtkInformation*, vtkInformationVector** in,
   ids->SetName("inclusion_id");
   ids->SetNumberOfValues(cells);
   for (vtkIdType e = 0; e < cells; ++e) {
-    offsets->SetValue(e, 4 * e);
-    for (int c = 0; c < 4; ++c) connectivity->SetValue(4 * e + c, mesh.tets[e][c]);
+    offsets->SetValue(e, n * e);
+    for (int c = 0; c < 4; ++c) connectivity->SetValue(n * e + c, mesh.tets[e][c]);
+    for (vtkIdType c = 4; c < n; ++c) connectivity->SetValue(n * e + c, mesh.mid[e][c - 4]);
     phase->SetValue(e, static_cast<unsigned char>(mesh.phase[e]));
     ids->SetValue(e, mesh.inclusion_id[e]);
   }
-  offsets->SetValue(cells, 4 * cells);
+  offsets->SetValue(cells, n * cells);
   vtkNew<vtkCellArray> tets;
   tets->SetData(offsets, connectivity);
   grid->SetPoints(points);
-  grid->SetCells(VTK_TETRA, tets);
+  grid->SetCells(n == 4 ? VTK_TETRA : VTK_QUADRATIC_TETRA, tets);
   grid->GetCellData()->AddArray(phase);
   grid->GetCellData()->AddArray(ids);
   grid->GetCellData()->SetActiveScalars("phase");

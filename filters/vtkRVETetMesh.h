@@ -46,6 +46,9 @@ class RVEGENFILTERS_EXPORT vtkRVETetMesh : public vtkUnstructuredGridAlgorithm {
   vtkSetMacro(KeepVolumes, bool);
   vtkGetMacro(KeepVolumes, bool);
   vtkBooleanMacro(KeepVolumes, bool);
+  /// Element order: 1 for 4-node tetrahedra, 2 for 10-node ones (VTK_QUADRATIC_TETRA).
+  vtkSetClampMacro(Order, int, 1, 2);
+  vtkGetMacro(Order, int);
 
  protected:
   vtkRVETetMesh();
@@ -60,6 +63,7 @@ class RVEGENFILTERS_EXPORT vtkRVETetMesh : public vtkUnstructuredGridAlgorithm {
   double GapElements;
   bool ShiftCell;
   bool KeepVolumes;
+  int Order;
 
  private:
   vtkRVETetMesh(const vtkRVETetMesh&) = delete;

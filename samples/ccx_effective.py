@@ -9,8 +9,8 @@ integration point of every element (*EL PRINT of EALL), one block per load step.
 elements are equal, with equal weights, so the plain mean of a block is the mean over the box;
 the tetrahedral decks also print every element's volume (a "volume" block after each flux or
 stress block), and each integration point then weighs its element's volume over the element's
-number of points (exact for the one-point C3D4 and for the eight equal points of a voxel). Conductivity: column k is minus the mean
-flux of step k (a unit mean gradient along k; CalculiX's flux is -k grad T). Elasticity: column
+number of points (exact for the one-point C3D4, the four equal points of a C3D10 with straight
+edges, and the eight equal points of a voxel). Conductivity: column k is minus the mean flux of step k (a unit mean gradient along k; CalculiX's flux is -k grad T). Elasticity: column
 k is the mean stress of step k (the unit Mandel strain k) in Mandel form (rows 11, 22, 33, 23,
 13, 12, shear times sqrt 2), as rvegen's report states it. Elements with an orientation (the
 cores of transversely isotropic fibres) print in their local frame, named at the end of the line:

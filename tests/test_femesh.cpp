@@ -72,6 +72,34 @@ TEST(TetMesh, AnElementCollapsedByTheMergeIsRefused) {
   EXPECT_THROW(merge_coincident_nodes(&m), MeshError);
 }
 
+// Second order: one node in the middle of each edge, shared by the elements around it. The cube
+// of six has 19 edges: 12 of the cube, 6 face diagonals, the centre diagonal.
+TEST(TetMesh, SecondOrderPutsOneNodeInTheMiddleOfEachEdge) {
+  TetMesh m = kuhn_cube();
+  add_midside_nodes(&m);
+  ASSERT_EQ(m.mid.size(), m.tets.size());
+  EXPECT_EQ(m.nodes.size(), 8u + 19u);
+  std::vector<int> uses(m.nodes.size(), 0);
+  for (size_t e = 0; e < m.tets.size(); ++e) {
+    for (int k = 0; k < 6; ++k) {
+      const int32_t n = m.mid[e][k];
+      ASSERT_GE(n, 8);
+      ++uses[n];
+      const Vec3 middle =
+          0.5 * (m.nodes[m.tets[e][kTetEdges[k][0]]] + m.nodes[m.tets[e][kTetEdges[k][1]]]);
+      EXPECT_EQ(m.nodes[n], middle) << "element " << e << ", edge " << k;
+    }
+  }
+  // Every midside node is used; the centre diagonal's by all six elements.
+  for (size_t n = 8; n < m.nodes.size(); ++n) EXPECT_GT(uses[n], 0) << n;
+  EXPECT_EQ(*std::max_element(uses.begin(), uses.end()), 6);
+  // The corners are untouched, and a second call adds nothing.
+  EXPECT_EQ(m.nodes[7], Vec3(1, 1, 1));
+  add_midside_nodes(&m);
+  EXPECT_EQ(m.nodes.size(), 27u);
+  EXPECT_NO_THROW(check_conforming(m));
+}
+
 // Two spheres, one cut by a box face, in the unit box.
 InclusionSet two_spheres() {
   InclusionSet set;
@@ -116,6 +144,34 @@ TEST(TetMesh, ProgressRisesToOneAndAStopIsACancelThatLeavesTheMesherReusable) {
   EXPECT_EQ(after_stop, 0);
   // The same call runs again.
   EXPECT_GT(tet_mesh(set).tets.size(), 1000u);
+}
+
+// A second-order mesh of the spheres: every node on an upper face, midside nodes included, is
+// tied to its image on the lower faces, one box size away along each axis it lies at the end of.
+TEST(TetMesh, SecondOrderMidsideNodesOnTheFacesArePairedToo) {
+  const InclusionSet set = two_spheres();
+  TetMeshOptions opt;
+  opt.chord_error = 0.02;
+  opt.order = 2;
+  const TetMesh m = tet_mesh(set, opt);
+  ASSERT_EQ(m.mid.size(), m.tets.size());
+  int32_t corners = 0;
+  for (const auto& t : m.tets) corners = std::max(corners, *std::max_element(t.begin(), t.end()));
+  ++corners;
+  const auto ends = node_ends(m);
+  size_t upper = 0;
+  for (const auto& a : ends) upper += (a[0] == 1 || a[1] == 1 || a[2] == 1);
+  EXPECT_EQ(m.periodic.size(), upper);
+  long long midside_pairs = 0;
+  for (const auto& [dep, master] : m.periodic) {
+    Vec3 shift = Vec3::Zero();
+    for (int a = 0; a < 3; ++a) shift[a] = ends[dep][a] == 1 ? m.box.size[a] : 0.0;
+    EXPECT_LT((m.nodes[dep] - shift - m.nodes[master]).norm(), 1e-12) << dep;
+    EXPECT_EQ(dep >= corners, master >= corners) << "a midside node's image is a midside node";
+    midside_pairs += dep >= corners;
+  }
+  // Faces carry about three edges for every two triangles' corners.
+  EXPECT_GT(midside_pairs, static_cast<long long>(m.periodic.size()) / 2);
 }
 
 InclusionSet one_of(const Shape& shape) {

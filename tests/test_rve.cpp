@@ -160,7 +160,8 @@ TEST(Scene, TetMeshSizesRoundTripAndBadOnesAreNamed) {
       R"({"box":{"size":[1,1,1]},"families":[{"shape":"sphere","radius":0.1,"count":3}],)";
   const Scene s = parse_scene(
       head + R"("mesh_tet":{"max_size":0.05,"min_size":0.002,"chord_error":0.01,"gap_elements":3,)"
-             R"("shift_cell":false,"keep_volumes":false}})");
+             R"("shift_cell":false,"keep_volumes":false,"order":2}})");
+  EXPECT_EQ(s.tet_mesh.order, 2);
   EXPECT_FALSE(s.tet_mesh.shift_cell);
   EXPECT_FALSE(s.tet_mesh.keep_volumes);
   EXPECT_EQ(s.tet_mesh.max_size, 0.05);
@@ -177,6 +178,9 @@ TEST(Scene, TetMeshSizesRoundTripAndBadOnesAreNamed) {
            {R"({"gap_elements":0.1})", "mesh_tet.gap_elements"},
            {R"({"shift_cell":1})", "mesh_tet.shift_cell"},
            {R"({"keep_volumes":"yes"})", "mesh_tet.keep_volumes"},
+           {R"({"order":3})", "mesh_tet.order"},
+           {R"({"order":1.5})", "mesh_tet.order"},
+           {R"({"order":"quadratic"})", "mesh_tet.order"},
            {R"({"chord":0.01})", "mesh_tet.chord: unknown key"}}) {
     EXPECT_NE(scene_error(head + R"("mesh_tet":)" + bad + "}").find(named), std::string::npos)
         << bad << ": " << scene_error(head + R"("mesh_tet":)" + bad + "}");

@@ -12,6 +12,9 @@
    10^10 elements) give errors and no mesh.
 4. ParaView reads mesh_tet.vtu that `rvegen generate` writes (a coarse mesh of the sample):
    tetrahedra with phase and inclusion_id, as many as report.json counts.
+5. Order 2 on the filter (a coarse mesh): quadratic tetrahedra whose corners fill the box and
+   whose midside nodes lie in the middle of their edges; ParaView reads the command line's
+   10-node mesh_tet.vtu.
 
 usage: pvpython test_tet_mesh.py PLUGIN.so SAMPLES_DIR RVEGEN WORK_DIR
 """
@@ -37,10 +40,10 @@ def check(cond, msg):
         print("FAIL:", msg)
 
 
-def volumes(grid):
-    """Element volumes and phases of an unstructured grid of tetrahedra."""
+def volumes(grid, nodes=4):
+    """Element volumes and phases of an unstructured grid of tetrahedra (`nodes` 4 or 10)."""
     pts = vtk_to_numpy(grid.GetPoints().GetData())
-    conn = vtk_to_numpy(grid.GetCells().GetConnectivityArray()).reshape(-1, 4)
+    conn = vtk_to_numpy(grid.GetCells().GetConnectivityArray()).reshape(-1, nodes)
     P = pts[conn]
     vol = np.einsum("ij,ij->i", P[:, 1] - P[:, 0],
                     np.cross(P[:, 2] - P[:, 0], P[:, 3] - P[:, 0])) / 6
@@ -139,6 +142,32 @@ check(read.GetNumberOfCells() == counted and read.GetCellType(0) == 10,
       "mesh_tet.vtu: %d cells of type %d, report %d" % (read.GetNumberOfCells(), read.GetCellType(0), counted))
 check(read.GetCellData().GetArray("phase") is not None
       and read.GetCellData().GetArray("inclusion_id") is not None, "mesh_tet.vtu lacks its arrays")
+
+# 5. Second order.
+mesh.ChordError = 0.03
+mesh.Order = 2
+mesh.UpdatePipeline()
+quad = servermanager.Fetch(mesh)
+check(quad.GetNumberOfCells() > 1000 and quad.GetCellType(0) == 24,
+      "Order 2: %d cells of type %d" % (quad.GetNumberOfCells(), quad.GetCellType(0)))
+if quad.GetNumberOfCells() > 0 and quad.GetCellType(0) == 24:
+    vol, _ = volumes(quad, 10)
+    check(vol.min() > 0 and abs(vol.sum() / L ** 3 - 1) < 1e-9, "Order 2: the corners' elements")
+    pts = vtk_to_numpy(quad.GetPoints().GetData())
+    conn = vtk_to_numpy(quad.GetCells().GetConnectivityArray()).reshape(-1, 10)
+    off = max(np.abs(pts[conn[:, 4 + k]] - 0.5 * (pts[conn[:, a]] + pts[conn[:, b]])).max()
+              for k, (a, b) in enumerate([(0, 1), (1, 2), (2, 0), (0, 3), (1, 3), (2, 3)]))
+    check(off < 1e-12, "Order 2: a midside node %g off its edge's middle" % off)
+scene["mesh_tet"]["order"] = 2
+with open(os.path.join(work, "quadratic.json"), "w") as f:
+    json.dump(scene, f)
+subprocess.run([rvegen, "generate", "-q", os.path.join(work, "quadratic.json"), "-o",
+                os.path.join(work, "quadratic")], check=True)
+reader = XMLUnstructuredGridReader(FileName=[os.path.join(work, "quadratic", "mesh_tet.vtu")])  # noqa: F405
+reader.UpdatePipeline()
+read = servermanager.Fetch(reader)
+check(read.GetNumberOfCells() > 1000 and read.GetCellType(0) == 24,
+      "10-node mesh_tet.vtu: %d cells of type %d" % (read.GetNumberOfCells(), read.GetCellType(0)))
 
 if failures:
     print("%d failure(s)" % len(failures))

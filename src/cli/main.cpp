@@ -221,6 +221,8 @@ nlohmann::ordered_json tet_mesh_report(const rvegen::InclusionSet& set,
   r["files"] = {"mesh_tet.inp", "mesh_tet.msh", "mesh_tet.vtu"};
   r["mesher"] = "Gmsh (OpenCASCADE, HXT)";
   r["tetrahedra"] = mesh.tets.size();
+  // 1: 4-node tetrahedra (C3D4); 2: 10-node (C3D10), straight edges (mesh_tet.order).
+  r["order"] = mesh.mid.empty() ? 1 : 2;
   r["nodes"] = mesh.nodes.size();
   r["periodic_pairs"] = mesh.periodic.size();
   r["merged_nodes"] = mesh.merged_nodes;

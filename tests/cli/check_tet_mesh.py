@@ -7,7 +7,10 @@ element face shared by two elements or lying in a box face), every least dihedra
 box, and the face, edge and corner node sets of the .inp. The mesh's cell is the box moved to
 report.json's cell_origin (mesh_tet.shift_cell); its face clearance, computed here from the
 inclusions, is the report's and at least 0.05 (every face at least 5 % of an inclusion's least
-size, or of a fibre's radius, from its extremes and rims: no thin caps).
+size, or of a fibre's radius, from its extremes and rims: no thin caps). Second-order meshes
+(10-node tetrahedra): the same of the corners, and each midside node at the middle of its edge,
+in VTK's order in the .vtu, Abaqus's in the .inp and Gmsh's in the .msh (meshio reads the last in
+VTK's).
 
 usage: check_tet_mesh.py DIR [VOLUME_TOLERANCE [LEAST_ANGLE]]
   (relative volume error, default 0.01; least dihedral angle in degrees, default 5)
@@ -65,10 +68,26 @@ assert abs(got - rep["face_clearance"]) <= 1e-9, (got, rep["face_clearance"])
 assert got >= 0.05, "face clearance %g" % got
 m = meshio.read(d + "/mesh_tet.vtu")
 pts = m.points
-tets = m.cells_dict["tetra"]
-phase = np.asarray(m.cell_data_dict["phase"]["tetra"]).astype(int)
+kind = "tetra10" if rep.get("order", 1) == 2 else "tetra"
+assert list(m.cells_dict) == [kind], (list(m.cells_dict), rep.get("order"))
+cells = m.cells_dict[kind]
+tets = cells[:, :4]
+phase = np.asarray(m.cell_data_dict["phase"][kind]).astype(int)
 inp = meshio.read(d + "/mesh_tet.inp", file_format="abaqus")
-assert len(inp.cells_dict["tetra"]) == len(tets), "the .inp and the .vtu differ in elements"
+assert len(inp.cells_dict[kind]) == len(tets), "the .inp and the .vtu differ in elements"
+if kind == "tetra10":
+    # Midside nodes at the middle of the edges (0,1), (1,2), (2,0), (0,3), (1,3), (2,3); the .inp
+    # and the .msh give each element the same ten nodes in that order (meshio reorders the .msh's).
+    for k, (a, b) in enumerate([(0, 1), (1, 2), (2, 0), (0, 3), (1, 3), (2, 3)]):
+        gap = np.abs(pts[cells[:, 4 + k]] - 0.5 * (pts[cells[:, a]] + pts[cells[:, b]])).max()
+        assert gap <= 1e-12 * L, "midside node %d off its edge's middle by %g" % (k, gap)
+    msh = meshio.read(d + "/mesh_tet.msh")
+    # (The files number the nodes alike: compare the rows of node numbers, and the nodes.)
+    for other, name in ((inp, ".inp"), (msh, ".msh")):
+        assert np.abs(other.points[:len(pts)] - pts).max() <= 1e-9 * L, name + ": nodes"
+        q = np.concatenate([c.data for c in other.cells if c.type == kind])
+        assert {tuple(x) for x in q} == {tuple(x) for x in cells}, name + ": the 10-node elements differ"
+    assert len(np.unique(cells)) == len(pts), "a node no element uses"
 # Volumes: positive, and per phase within 1 % of the exact ones.
 P = pts[tets]
 vol = np.einsum("ij,ij->i", P[:, 1] - P[:, 0], np.cross(P[:, 2] - P[:, 0], P[:, 3] - P[:, 0])) / 6

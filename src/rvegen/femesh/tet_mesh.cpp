@@ -438,6 +438,45 @@ void check_conforming(const TetMesh& mesh) {
   }
 }
 
+// The edges as sorted keys (lower node in the high half), sorted and made unique: an edge's
+// midside node is the corners' count plus its rank among them. No hash table: 8 bytes an edge
+// for the elements' six, then the edges alone.
+void add_midside_nodes(TetMesh* mesh) {
+  if (!mesh->mid.empty()) return;
+  auto key = [](int32_t a, int32_t b) {
+    if (a > b) std::swap(a, b);
+    return (static_cast<uint64_t>(static_cast<uint32_t>(a)) << 32) | static_cast<uint32_t>(b);
+  };
+  std::vector<uint64_t> edges;
+  edges.reserve(6 * mesh->tets.size());
+  for (const auto& t : mesh->tets) {
+    for (const auto& e : kTetEdges) edges.push_back(key(t[e[0]], t[e[1]]));
+  }
+  std::sort(edges.begin(), edges.end());
+  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  edges.shrink_to_fit();
+  const size_t corners = mesh->nodes.size();
+  if (corners + edges.size() > static_cast<size_t>(std::numeric_limits<int32_t>::max())) {
+    throw MeshError("mesh_tet: too many nodes for second order (" +
+                    std::to_string(corners + edges.size()) + ")");
+  }
+  mesh->nodes.resize(corners + edges.size());
+  for (size_t i = 0; i < edges.size(); ++i) {
+    const int32_t a = static_cast<int32_t>(edges[i] >> 32);
+    const int32_t b = static_cast<int32_t>(edges[i] & 0xffffffffu);
+    mesh->nodes[corners + i] = 0.5 * (mesh->nodes[a] + mesh->nodes[b]);
+  }
+  mesh->mid.resize(mesh->tets.size());
+  for (size_t e = 0; e < mesh->tets.size(); ++e) {
+    const auto& t = mesh->tets[e];
+    for (int k = 0; k < 6; ++k) {
+      const uint64_t x = key(t[kTetEdges[k][0]], t[kTetEdges[k][1]]);
+      const size_t rank = std::lower_bound(edges.begin(), edges.end(), x) - edges.begin();
+      mesh->mid[e][k] = static_cast<int32_t>(corners + rank);
+    }
+  }
+}
+
 namespace {
 
 // The least dihedral angle of a tetrahedron, in degrees: at each edge, the angle between the
@@ -1052,6 +1091,7 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
   mesh.merged_nodes = merge_coincident_nodes(&mesh);
   if (options.keep_volumes) mesh.moved_nodes = keep_phase_volumes(&mesh, set);
   check_conforming(mesh);
+  if (options.order == 2) add_midside_nodes(&mesh);
 
   // Periodic pairs by coordinates: every node with a coordinate at an upper end, and the node
   // at its coordinates brought to the lower ends.
@@ -1103,7 +1143,8 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
     }
     mesh.periodic.push_back({i, master});
   }
-  report(1.0, "mesh_tet: " + std::to_string(mesh.tets.size()) + " tetrahedra, " +
+  report(1.0, "mesh_tet: " + std::to_string(mesh.tets.size()) +
+                  (mesh.mid.empty() ? " tetrahedra, " : " 10-node tetrahedra, ") +
                   std::to_string(mesh.nodes.size()) + " nodes" +
                   (mesh.merged_nodes
                        ? " (" + std::to_string(mesh.merged_nodes) + " coincident nodes merged)"

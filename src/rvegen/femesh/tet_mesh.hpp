@@ -8,7 +8,7 @@
 // graze (cell_origin). The element size follows the local gap between surfaces (two inclusions,
 // an inclusion and a box face it does not cross, a shell's two surfaces) and the curvature of
 // the inclusions (a bound on the chord error, grown away from the surface), between a least and
-// a largest size.
+// a largest size. Second order (options.order 2) adds a node in the middle of each edge.
 //
 // Spheres, cylinders (flat ends) and ellipsoids; coated spheres and cylinders with their
 // interphase shells (the exact offsets of the cores). Coated ellipsoids, wavy, bent, deformed and
@@ -48,6 +48,9 @@ struct TetMesh {
   std::vector<Vec3> nodes;
   /// Node indices (0-based) of each tetrahedron, positively oriented.
   std::vector<std::array<int32_t, 4>> tets;
+  /// Second order (order 2): the node at the middle of each tetrahedron's edges, in the order
+  /// of kTetEdges; these nodes follow the corners in `nodes`. Empty for first order.
+  std::vector<std::array<int32_t, 6>> mid;
   std::vector<int32_t> phase;         // per tetrahedron: phase label
   std::vector<int32_t> inclusion_id;  // per tetrahedron: -1 in the matrix
   /// (dependent, master) node pairs: every node with a coordinate at the upper end of an axis,
@@ -59,6 +62,10 @@ struct TetMesh {
   /// (keep_phase_volumes).
   long long moved_nodes = 0;
 };
+
+/// A tetrahedron's edges as pairs of its corners, in the order of the midside nodes of Abaqus's
+/// C3D10 and VTK's quadratic tetrahedron (Gmsh's 10-node tetrahedron swaps the last two).
+inline constexpr int kTetEdges[6][2] = {{0, 1}, {1, 2}, {2, 0}, {0, 3}, {1, 3}, {2, 3}};
 
 /// The signed volume of tetrahedron `t` of the mesh (positive when oriented as tet_mesh gives it).
 inline double tet_volume(const std::vector<Vec3>& nodes, const std::array<int32_t, 4>& t) {
@@ -140,6 +147,13 @@ long long merge_coincident_nodes(TetMesh* mesh);
 /// a least dihedral angle under 5 degrees and smaller than before, is undone. tet_mesh calls it
 /// when options.keep_volumes. Returns the number of nodes moved.
 long long keep_phase_volumes(TetMesh* mesh, const InclusionSet& set);
+
+/// Makes the mesh second order: a node at the middle of every edge (one per edge, shared by the
+/// elements around it), appended after the corners, and mesh->mid. The edges stay straight, so
+/// the elements keep their volumes and angles, and the middle of an edge on an upper box face is
+/// the image of the middle of its translate on the lower face. tet_mesh calls it when
+/// options.order is 2, before it pairs the periodic nodes.
+void add_midside_nodes(TetMesh* mesh);
 
 /// Throws MeshError unless the mesh conforms (every face of an element is a face of another
 /// element or lies in a box face) and fills the box (every element positive, their volumes

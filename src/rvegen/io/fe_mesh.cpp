@@ -202,16 +202,27 @@ void gmsh_periodic_head(std::ostringstream& s, int a, double length, long long p
   s << "\n" << pairs << "\n";
 }
 
-// One row per tetrahedron of phase `label`: element id (its index + 1), then its four nodes,
-// separated by `sep`; flushed to `out` every 4096 elements.
-void tet_rows(const TetMesh& mesh, int label, const char* sep, std::ostringstream& s,
+// One row per tetrahedron of phase `label`: element id (its index + 1), then its four corners
+// and, for second order, its six midside nodes (in Gmsh's order when `gmsh`: the last two
+// swapped), separated by `sep`; flushed to `out` every 4096 elements.
+void tet_rows(const TetMesh& mesh, int label, const char* sep, bool gmsh, std::ostringstream& s,
               std::FILE* out) {
   for (size_t e = 0; e < mesh.tets.size(); ++e) {
     if (mesh.phase[e] != label) continue;
     const auto& t = mesh.tets[e];
-    s << e + 1 << sep << t[0] + 1 << sep << t[1] + 1 << sep << t[2] + 1 << sep << t[3] + 1 << "\n";
+    s << e + 1 << sep << t[0] + 1 << sep << t[1] + 1 << sep << t[2] + 1 << sep << t[3] + 1;
+    if (!mesh.mid.empty()) {
+      const auto& m = mesh.mid[e];
+      for (int k : {0, 1, 2, 3, gmsh ? 5 : 4, gmsh ? 4 : 5}) s << sep << m[k] + 1;
+    }
+    s << "\n";
     if (e % 4096 == 4095) put(out, s.str()), s.str("");
   }
+}
+
+// The Abaqus element type of the mesh: C3D4, or C3D10 for second order.
+const char* abaqus_tet_type(const TetMesh& mesh) {
+  return mesh.mid.empty() ? "C3D4" : "C3D10";
 }
 
 }  // namespace
@@ -321,8 +332,8 @@ void write_abaqus_tet_mesh(const TetMesh& mesh, std::FILE* out) {
   const Box& box = mesh.box;
   std::ostringstream s;
   s.precision(kAbaqusDigits);
-  s << "** rvegen tetrahedral mesh: " << mesh.tets.size() << " tetrahedra (C3D4), "
-    << mesh.nodes.size()
+  s << "** rvegen tetrahedral mesh: " << mesh.tets.size() << " tetrahedra ("
+    << abaqus_tet_type(mesh) << "), " << mesh.nodes.size()
     << " nodes, element sets per phase, periodic node sets, reference nodes REFX, REFY, "
        "REFZ.\n*NODE, NSET=ALLNODES\n";
   for (size_t i = 0; i < mesh.nodes.size(); ++i) {
@@ -336,8 +347,8 @@ void write_abaqus_tet_mesh(const TetMesh& mesh, std::FILE* out) {
       << "\n";
   }
   for (const Phase* p : phases_present(mesh)) {
-    s << "*ELEMENT, TYPE=C3D4, ELSET=" << set_name(p->name) << "\n";
-    tet_rows(mesh, p->label, ", ", s, out);
+    s << "*ELEMENT, TYPE=" << abaqus_tet_type(mesh) << ", ELSET=" << set_name(p->name) << "\n";
+    tet_rows(mesh, p->label, ", ", false, s, out);
   }
   const std::vector<std::array<int8_t, 3>> at = node_ends(mesh);
   long long origin = -1;
@@ -533,8 +544,9 @@ void write_gmsh_tet_mesh(const TetMesh& mesh, std::FILE* out) {
     << used.size() << " " << mesh.tets.size() << " 1 " << mesh.tets.size() << "\n";
   for (const Phase* p : used) {
     const auto count = std::count(mesh.phase.begin(), mesh.phase.end(), p->label);
-    s << "3 " << p->label + 1 << " 4 " << count << "\n";
-    tet_rows(mesh, p->label, " ", s, out);
+    // Element type 4: 4-node tetrahedron; 11: 10-node.
+    s << "3 " << p->label + 1 << (mesh.mid.empty() ? " 4 " : " 11 ") << count << "\n";
+    tet_rows(mesh, p->label, " ", true, s, out);
   }
   // The image of a node across one face: the node of the same periodic class (the nodes tied
   // to one master, and the master) with the same ends but that axis's brought to the lower end.

@@ -42,14 +42,15 @@ void write_abaqus_voxel_mesh(const VoxelImage& image, std::FILE* out);
 /// translation by the box size as affine transform).
 void write_gmsh_voxel_mesh(const VoxelImage& image, std::FILE* out);
 
-/// mesh_tet.inp: the tetrahedral mesh (C3D4, node and element numbers from 1 in the mesh's
-/// order) with the node and element sets of mesh_voxel.inp: an ELSET per phase present, EALL, the
+/// mesh_tet.inp: the tetrahedral mesh (C3D4, or C3D10 for a second-order mesh; node and element
+/// numbers from 1 in the mesh's order) with the node and element sets of mesh_voxel.inp: an ELSET per phase present, EALL, the
 /// faces, edges and corners (nodes within 1e-9 of the box size of those ends), ORIGIN (the node at
 /// the box's lower corner), and the reference nodes REFX, REFY, REFZ (REFS).
 void write_abaqus_tet_mesh(const TetMesh& mesh, std::FILE* out);
 
 /// mesh_tet.msh: the tetrahedral mesh in Gmsh's format 4.1 as mesh_voxel.msh (physical groups
-/// per phase, the six face entities, the nodes and elements of mesh_tet.inp with the same ids),
+/// per phase, the six face entities, the nodes and elements of mesh_tet.inp with the same ids;
+/// element type 4, or 11 with the midside nodes in Gmsh's order),
 /// with a $Periodic section pairing each node on an upper face with its image on the lower one.
 void write_gmsh_tet_mesh(const TetMesh& mesh, std::FILE* out);
 

@@ -418,7 +418,8 @@ Scene parse_scene(const std::string& text) {
   if (root.contains("mesh_tet")) {
     const Json& m = root["mesh_tet"];
     only_keys(m,
-              {"max_size", "min_size", "chord_error", "gap_elements", "shift_cell", "keep_volumes"},
+              {"max_size", "min_size", "chord_error", "gap_elements", "shift_cell", "keep_volumes",
+               "order"},
               "mesh_tet");
     TetMeshSpec& t = s.tet_mesh;
     if (m.contains("max_size")) t.max_size = positive(m["max_size"], "mesh_tet.max_size");
@@ -430,6 +431,12 @@ Scene parse_scene(const std::string& text) {
     if (m.contains("shift_cell")) t.shift_cell = boolean(m["shift_cell"], "mesh_tet.shift_cell");
     if (m.contains("keep_volumes"))
       t.keep_volumes = boolean(m["keep_volumes"], "mesh_tet.keep_volumes");
+    if (m.contains("order")) {
+      const double n = number(m["order"], "mesh_tet.order");
+      if (n != 1.0 && n != 2.0)
+        fail("mesh_tet.order", "must be 1 (4-node) or 2 (10-node tetrahedra)");
+      t.order = static_cast<int>(n);
+    }
   }
   if (root.contains("materials")) parse_materials(root["materials"], &s);
   if (root.contains("homogenization")) {
@@ -595,7 +602,8 @@ std::string scene_to_json(const Scene& s) {
     root["mesh_tet"] = {{"chord_error", t.chord_error},
                         {"gap_elements", t.gap_elements},
                         {"shift_cell", t.shift_cell},
-                        {"keep_volumes", t.keep_volumes}};
+                        {"keep_volumes", t.keep_volumes},
+                        {"order", t.order}};
     if (t.max_size > 0.0) root["mesh_tet"]["max_size"] = t.max_size;
     if (t.min_size > 0.0) root["mesh_tet"]["min_size"] = t.min_size;
   }

@@ -256,12 +256,15 @@ void write_tet_mesh_vtu(const TetMesh& mesh, std::FILE* out) {
   for (size_t i = 0; i < points; ++i) {
     for (int a = 0; a < 3; ++a) xyz[3 * i + a] = mesh.nodes[i][a];
   }
-  std::vector<int64_t> conn(4 * cells), offsets(cells);
+  // VTK_TETRA, or VTK_QUADRATIC_TETRA (its midside nodes in the order of TetMesh::mid).
+  const size_t n = mesh.mid.empty() ? 4 : 10;
+  std::vector<int64_t> conn(n * cells), offsets(cells);
   for (size_t e = 0; e < cells; ++e) {
-    for (int c = 0; c < 4; ++c) conn[4 * e + c] = mesh.tets[e][c];
-    offsets[e] = 4 * (static_cast<int64_t>(e) + 1);
+    for (int c = 0; c < 4; ++c) conn[n * e + c] = mesh.tets[e][c];
+    for (size_t c = 4; c < n; ++c) conn[n * e + c] = mesh.mid[e][c - 4];
+    offsets[e] = static_cast<int64_t>(n * (e + 1));
   }
-  std::vector<uint8_t> types(cells, 10);  // VTK_TETRA
+  std::vector<uint8_t> types(cells, n == 4 ? 10 : 24);
   const std::vector<uint8_t> phase(mesh.phase.begin(), mesh.phase.end());
   write_unstructured(out, xyz, conn, offsets, types, phase, mesh.inclusion_id);
 }

@@ -30,6 +30,9 @@ constexpr double kBytesPerMeshedInclusion = 4.0e6;
 // ellipsoids of 0.1 x 0.07 x 0.05 in a box of 0.6).
 constexpr double kEllipsoidExtra = 1.5;
 constexpr double kBytesPerTet = 220.0;
+// Second order: the midside nodes (about 1.2 an element) and their numbers, and the sorted
+// edge keys that find them (8 bytes for each of an element's six edges, while they are made).
+constexpr double kSecondOrderBytesPerTet = 24.0 + 1.2 * 24.0 + 48.0;
 
 // Triangles of one mean-size inclusion as tessellate() meshes it (MeshOptions defaults:
 // segments for an edge of 1/96 of the smallest box size, clamped to [12, 64]), times 1.3 for
@@ -162,7 +165,8 @@ double tet_mesh_bytes(const InclusionSet& set, const TetMeshSpec& t) {
   for (const Inclusion& inc : set.inclusions) {
     n += tet_elements_near(inc.shape, inc.mod.coating, t, largest);
   }
-  return n * kBytesPerTet + set.inclusions.size() * kBytesPerMeshedInclusion;
+  return n * (kBytesPerTet + (t.order == 2 ? kSecondOrderBytesPerTet : 0.0)) +
+         set.inclusions.size() * kBytesPerMeshedInclusion;
 }
 
 double ResourceEstimate::total_bytes() const {
@@ -212,7 +216,9 @@ ResourceEstimate estimate_resources(const Scene& scene) {
     const TetMeshSpec& t = scene.tet_mesh;
     const double largest = t.max_size > 0.0 ? t.max_size : scene.box.size.minCoeff() / 10.0;
     e.tetrahedra += tet_elements_away(scene.box, largest);
-    e.tet_mesh_bytes = e.tetrahedra * kBytesPerTet + e.inclusions * kBytesPerMeshedInclusion;
+    e.tet_mesh_bytes =
+        e.tetrahedra * (kBytesPerTet + (t.order == 2 ? kSecondOrderBytesPerTet : 0.0)) +
+        e.inclusions * kBytesPerMeshedInclusion;
   }
   e.voxels = static_cast<double>(scene.resolution[0]) * scene.resolution[1] * scene.resolution[2];
   e.voxel_bytes = e.voxels * (scene.partial_volume ? 9.0 : 5.0) * 1.1;

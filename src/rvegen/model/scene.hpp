@@ -180,10 +180,13 @@ struct TetMeshSpec {
   /// its exact volume (the facets, chords of the surface, would cut it short by about three
   /// times the chord error); false: every interface node on the exact surface.
   bool keep_volumes = true;
+  /// Element order: 1 for 4-node tetrahedra (C3D4), 2 for 10-node ones (C3D10: a node at the
+  /// middle of each edge, the edges straight).
+  int order = 1;
   bool operator==(const TetMeshSpec& o) const {
     return max_size == o.max_size && min_size == o.min_size && chord_error == o.chord_error &&
            gap_elements == o.gap_elements && shift_cell == o.shift_cell &&
-           keep_volumes == o.keep_volumes;
+           keep_volumes == o.keep_volumes && order == o.order;
   }
 };
 

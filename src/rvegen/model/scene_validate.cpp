@@ -249,6 +249,8 @@ void validate_tet_mesh_spec(const Scene& s) {
     fail("mesh_tet.chord_error", "must be in [1e-5, 0.1] (a fraction of the radius of curvature)");
   if (!(t.gap_elements >= 0.5 && t.gap_elements <= 20.0))
     fail("mesh_tet.gap_elements", "must be in [0.5, 20]");
+  if (t.order != 1 && t.order != 2)
+    fail("mesh_tet.order", "must be 1 (4-node) or 2 (10-node tetrahedra)");
 }
 
 void validate_scene(const Scene& s) {

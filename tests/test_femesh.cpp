@@ -8,6 +8,7 @@
 
 #include "rvegen/femesh/lsan_suppressions.hpp"  // in sanitizer builds
 #include "rvegen/femesh/tet_mesh.hpp"
+#include "rvegen/io/report.hpp"
 #include "rvegen/model/body.hpp"
 
 namespace rvegen {
@@ -98,6 +99,56 @@ TEST(TetMesh, SecondOrderPutsOneNodeInTheMiddleOfEachEdge) {
   add_midside_nodes(&m);
   EXPECT_EQ(m.nodes.size(), 27u);
   EXPECT_NO_THROW(check_conforming(m));
+}
+
+// The unit cube as twelve tetrahedra from a node inside it to the halves of its faces.
+TetMesh cube_around(const Vec3& inside) {
+  TetMesh m;
+  m.box.origin = Vec3(0, 0, 0);
+  m.box.size = Vec3(1, 1, 1);
+  for (int k = 0; k < 8; ++k) m.nodes.push_back(Vec3(k & 1, (k >> 1) & 1, (k >> 2) & 1));
+  m.nodes.push_back(inside);
+  for (int a = 0; a < 3; ++a) {
+    const int b = 1 << ((a + 1) % 3), c = 1 << ((a + 2) % 3);
+    for (int end : {0, 1 << a}) {
+      const int q[4] = {end, end | b, end | b | c, end | c};
+      for (const auto& tri : {std::array<int, 3>{q[0], q[1], q[2]}, {q[0], q[2], q[3]}}) {
+        std::array<int32_t, 4> t = {tri[0], tri[1], tri[2], 8};
+        if (tet_volume(m.nodes, t) < 0.0) std::swap(t[0], t[1]);
+        m.tets.push_back(t);
+        m.phase.push_back(0);
+        m.inclusion_id.push_back(-1);
+      }
+    }
+  }
+  return m;
+}
+
+double least_angle(const TetMesh& m) {
+  TetQuality q = tet_quality(m);
+  return q.min_dihedral;
+}
+
+// A node inside the matrix, near a face, flattens the elements on that face to slivers; it is
+// moved to where they are lifted over 5 degrees, the box's faces and volume as they were. A node
+// on an interface (two regions meet at it) or on a box face stays.
+TEST(TetMesh, SliversAreLiftedByMovingTheNodesInsideOneRegion) {
+  TetMesh m = cube_around(Vec3(0.45, 0.55, 0.02));
+  ASSERT_NO_THROW(check_conforming(m));
+  ASSERT_LT(least_angle(m), 5.0);
+  EXPECT_EQ(lift_slivers(&m), 1);
+  EXPECT_GE(least_angle(m), 5.0);
+  EXPECT_NO_THROW(check_conforming(m));
+  for (int k = 0; k < 8; ++k) EXPECT_EQ(m.nodes[k], Vec3(k & 1, (k >> 1) & 1, (k >> 2) & 1));
+
+  // The same node on an interface: half the elements in an inclusion.
+  TetMesh two = cube_around(Vec3(0.45, 0.55, 0.02));
+  for (size_t e = 0; e < 6; ++e) two.inclusion_id[e] = 3, two.phase[e] = 1;
+  EXPECT_EQ(lift_slivers(&two), 0);
+  EXPECT_EQ(two.nodes[8], Vec3(0.45, 0.55, 0.02));
+  // On a box face (a degenerate cube: the slivers stay).
+  TetMesh face = cube_around(Vec3(0.45, 0.55, 0.0));
+  EXPECT_EQ(lift_slivers(&face), 0);
 }
 
 // Two spheres, one cut by a box face, in the unit box.
@@ -283,19 +334,11 @@ TEST(TetMesh, WhereShallowFibresCoverTheAxisTheShallowestAreStillAvoided) {
   }
 }
 
-// Every phase's volume in the mesh and the exact one (region_volumes), by label.
+// Every phase's volume in the mesh and the exact one, by label.
 std::pair<std::vector<double>, std::vector<double>> volumes(const InclusionSet& set,
                                                             const TetMesh& mesh) {
-  std::vector<double> exact(mesh.phases.size(), 0.0);
-  const std::vector<int> shell = interphase_labels(mesh.phases, 1);
-  double inside = 0.0;
-  for (const Inclusion& inc : set.inclusions) {
-    const RegionVolumes v = region_volumes(inc);
-    exact[core_label(inc.family)] += v.core;
-    if (v.shell > 0.0) exact[shell[inc.family]] += v.shell;
-    inside += v.core + v.shell;
-  }
-  exact[0] = set.box.volume() - inside;
+  std::vector<double> exact = phase_volume_fractions(set, mesh.phases);
+  for (double& v : exact) v *= set.box.volume();
   return {tet_quality(mesh).phase_volume, exact};
 }
 

@@ -202,21 +202,8 @@ std::function<void(rvegen::InclusionSet&)> fault_hook() {
 nlohmann::ordered_json tet_mesh_report(const rvegen::InclusionSet& set,
                                        const rvegen::TetMesh& mesh) {
   const rvegen::TetQuality q = rvegen::tet_quality(mesh);
-  std::vector<double> exact(mesh.phases.size(), 0.0);
-  double cores = 0.0;
-  const std::vector<int> shell_of =
-      rvegen::interphase_labels(mesh.phases, static_cast<int>(set.family_names.size()));
-  for (const rvegen::Inclusion& inc : set.inclusions) {
-    const rvegen::RegionVolumes v = rvegen::region_volumes(inc);
-    exact[rvegen::core_label(inc.family)] += v.core;
-    cores += v.core;
-    if (v.shell > 0.0 && inc.family < static_cast<int>(shell_of.size()) &&
-        shell_of[inc.family] >= 0) {
-      exact[shell_of[inc.family]] += v.shell;
-      cores += v.shell;
-    }
-  }
-  exact[0] = set.box.volume() - cores;
+  std::vector<double> exact = rvegen::phase_volume_fractions(set, mesh.phases);
+  for (double& v : exact) v *= set.box.volume();
   nlohmann::ordered_json r;
   r["files"] = {"mesh_tet.inp", "mesh_tet.msh", "mesh_tet.vtu"};
   r["mesher"] = "Gmsh (OpenCASCADE, HXT)";
@@ -228,6 +215,8 @@ nlohmann::ordered_json tet_mesh_report(const rvegen::InclusionSet& set,
   r["merged_nodes"] = mesh.merged_nodes;
   // Interface nodes moved along the normal to keep the phases' volumes (mesh_tet.keep_volumes).
   r["moved_nodes"] = mesh.moved_nodes;
+  // Nodes inside one region moved to lift elements under 5 degrees.
+  r["relocated_nodes"] = mesh.relocated_nodes;
   // The cell meshed: the box, or the box moved along its axes (mesh_tet.shift_cell).
   r["cell_origin"] = {mesh.box.origin[0], mesh.box.origin[1], mesh.box.origin[2]};
   // (1 and more alike: far from grazing anything; no inclusion near an edge gives 1.)

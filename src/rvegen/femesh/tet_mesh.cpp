@@ -739,6 +739,123 @@ long long keep_phase_volumes(TetMesh* mesh, const InclusionSet& set) {
   return count;
 }
 
+// The nodes a relocation may move: inside one region (every element around in one inclusion and
+// phase: a move changes no phase's volume and no interface) and off the box faces (whose
+// triangulations must stay translates of each other). Elements under `angle` have each such
+// node moved where the least angle of its ball (the elements around it) is largest: a pattern
+// search from where it is, along the axes and towards the centroid of its neighbours, in steps
+// from a quarter of its shortest edge down to a thousandth of it; a step is taken only when it
+// raises the ball's least angle, every element positive. Rounds until none is left under `angle`
+// or a round moves nothing (at most 4): a move can help an element next to it.
+long long lift_slivers(TetMesh* mesh, double angle) {
+  const size_t nn = mesh->nodes.size(), ne = mesh->tets.size();
+  auto region = [&](size_t e) {
+    return (static_cast<uint64_t>(static_cast<uint32_t>(mesh->inclusion_id[e])) << 32) |
+           static_cast<uint32_t>(mesh->phase[e]);
+  };
+  constexpr uint64_t kNone = std::numeric_limits<uint64_t>::max();
+  std::vector<uint64_t> first(nn, kNone);
+  std::vector<uint8_t> fixed(nn, 0);
+  for (size_t e = 0; e < ne; ++e) {
+    const uint64_t r = region(e);
+    for (int32_t n : mesh->tets[e]) {
+      if (first[n] == kNone) {
+        first[n] = r;
+      } else if (first[n] != r) {
+        fixed[n] = 1;
+      }
+    }
+  }
+  const std::vector<std::array<int8_t, 3>> ends = node_ends(*mesh);
+  for (size_t i = 0; i < nn; ++i) {
+    if (ends[i][0] >= 0 || ends[i][1] >= 0 || ends[i][2] >= 0) fixed[i] = 1;
+  }
+  std::vector<double> least(ne);
+  for (size_t e = 0; e < ne; ++e) least[e] = least_dihedral(*mesh, mesh->tets[e]);
+  long long moved = 0;
+  for (int round = 0; round < 4; ++round) {
+    // The free nodes of the elements under the angle, and their balls.
+    std::unordered_map<int32_t, std::vector<int32_t>> ball;
+    for (size_t e = 0; e < ne; ++e) {
+      if (least[e] >= angle) continue;
+      for (int32_t n : mesh->tets[e]) {
+        if (!fixed[n]) ball[n];
+      }
+    }
+    if (ball.empty()) break;
+    for (size_t e = 0; e < ne; ++e) {
+      for (int32_t n : mesh->tets[e]) {
+        const auto it = ball.find(n);
+        if (it != ball.end()) it->second.push_back(static_cast<int32_t>(e));
+      }
+    }
+    std::vector<int32_t> order;
+    for (const auto& kv : ball) order.push_back(kv.first);
+    std::sort(order.begin(), order.end());  // the same moves on every run
+    long long this_round = 0;
+    for (int32_t n : order) {
+      const std::vector<int32_t>& around = ball[n];
+      Vec3& x = mesh->nodes[n];
+      // The ball's least angle with the node at y (-1 if an element is not positive).
+      auto worst = [&](const Vec3& y) {
+        const Vec3 keep = x;
+        x = y;
+        double w = 180.0;
+        for (int32_t e : around) {
+          const auto& t = mesh->tets[e];
+          w = tet_volume(mesh->nodes, t) > 0.0 ? std::min(w, least_dihedral(*mesh, t)) : -1.0;
+          if (w < 0.0) break;
+        }
+        x = keep;
+        return w;
+      };
+      double shortest = 1e300;
+      Vec3 centroid = Vec3::Zero();
+      int neighbours = 0;
+      for (int32_t e : around) {
+        for (int32_t m : mesh->tets[e]) {
+          if (m == n) continue;
+          shortest = std::min(shortest, (mesh->nodes[m] - x).norm());
+          centroid += mesh->nodes[m];
+          ++neighbours;
+        }
+      }
+      centroid /= std::max(1, neighbours);
+      const double start = worst(x);
+      double best = start;
+      Vec3 at = x;
+      const Vec3 to_centroid =
+          (centroid - x).norm() > 0.0 ? Vec3((centroid - x).normalized()) : Vec3::UnitX();
+      const Vec3 dirs[8] = {to_centroid,   -to_centroid,   Vec3::UnitX(), -Vec3::UnitX(),
+                            Vec3::UnitY(), -Vec3::UnitY(), Vec3::UnitZ(), -Vec3::UnitZ()};
+      int tries = 0;
+      for (double h = 0.25 * shortest; h > 1e-3 * shortest && tries < 400;) {
+        bool better = false;
+        for (const Vec3& d : dirs) {
+          const Vec3 y = at + h * d;
+          const double w = worst(y);
+          ++tries;
+          if (w > best) {
+            best = w;
+            at = y;
+            better = true;
+            break;
+          }
+        }
+        if (!better) h *= 0.5;
+      }
+      if (best > start) {
+        x = at;
+        ++this_round;
+        for (int32_t e : around) least[e] = least_dihedral(*mesh, mesh->tets[e]);
+      }
+    }
+    moved += this_round;
+    if (this_round == 0) break;
+  }
+  return moved;
+}
+
 void check_tet_meshable(const InclusionSet& set) {
   if (!set.box.periodic) {
     throw InputError("outputs: mesh_tet needs a periodic box (box.periodic false)");
@@ -1090,6 +1207,7 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
   if (mesh.tets.empty()) throw MeshError("mesh_tet: the volume mesher made no elements");
   mesh.merged_nodes = merge_coincident_nodes(&mesh);
   if (options.keep_volumes) mesh.moved_nodes = keep_phase_volumes(&mesh, set);
+  mesh.relocated_nodes = lift_slivers(&mesh);
   check_conforming(mesh);
   if (options.order == 2) add_midside_nodes(&mesh);
 

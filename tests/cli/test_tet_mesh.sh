@@ -37,20 +37,21 @@ done
 $py "$(dirname "$0")/check_tet_mesh.py" "$WORK/a" 0.002 || fail "tetrahedral mesh"
 # The .msh: meshio reads it (the same nodes and elements as the .vtu, the phases as physical
 # groups), its $Periodic pairs are one box size apart on each axis, and Gmsh checks it.
-$py - "$WORK/a" <<'PY' || fail "mesh_tet.msh"
+cat >"$WORK/check_msh.py" <<'PY'
 import json, sys
 import numpy as np, meshio
 d = sys.argv[1]
 m = meshio.read(d + "/mesh_tet.msh")
 v = meshio.read(d + "/mesh_tet.vtu")
+kind = "tetra10" if json.load(open(d + "/report.json"))["mesh_tet"]["order"] == 2 else "tetra"
 assert np.allclose(m.points, v.points, atol=0, rtol=1e-15)
-tets = np.concatenate([c.data for c in m.cells if c.type == "tetra"])
+tets = np.concatenate([c.data for c in m.cells if c.type == kind])
 tags = np.concatenate(m.cell_data["gmsh:physical"])
-assert len(tets) == len(v.cells_dict["tetra"])
+assert len(tets) == len(v.cells_dict[kind])
 # The elements in .msh come phase by phase: compare as sets of (nodes, phase).
 key = lambda t, p: set(zip(map(tuple, np.sort(t, axis=1)), p))
-assert key(tets, tags - 1) == key(v.cells_dict["tetra"], v.cell_data_dict["phase"]["tetra"].astype(int))
-L = 0.6
+assert key(tets, tags - 1) == key(v.cells_dict[kind], v.cell_data_dict["phase"][kind].astype(int))
+L = json.load(open(d + "/inclusions.json"))["box"]["size"][0]
 o = json.load(open(d + "/report.json"))["mesh_tet"]["cell_origin"]
 assert len(m.gmsh_periodic) == 3
 for dim, (upper, lower), affine, pairs in m.gmsh_periodic:
@@ -61,9 +62,14 @@ for dim, (upper, lower), affine, pairs in m.gmsh_periodic:
     want = np.zeros(3); want[a] = L
     assert np.abs(m.points[pairs[:, 0]] - m.points[pairs[:, 1]] - want).max() <= 1e-9 * L
 PY
-gmsh -check "$WORK/a/mesh_tet.msh" >"$WORK/gmsh.log" 2>&1 || fail "gmsh -check: $(tail -3 "$WORK/gmsh.log")"
-grep -q "Error" "$WORK/gmsh.log" && fail "gmsh -check: $(grep Error "$WORK/gmsh.log" | head -3)"
-grep -q "Done checking mesh coherence" "$WORK/gmsh.log" || fail "gmsh did not check mesh_tet.msh"
+# (Also run on the 10-node mesh below.)
+check_msh() {
+  $py "$WORK/check_msh.py" "$1" || fail "$1/mesh_tet.msh"
+  gmsh -check "$1/mesh_tet.msh" >"$WORK/gmsh.log" 2>&1 || fail "gmsh -check: $(tail -3 "$WORK/gmsh.log")"
+  grep -q "Error" "$WORK/gmsh.log" && fail "gmsh -check: $(grep Error "$WORK/gmsh.log" | head -3)"
+  grep -q "Done checking mesh coherence" "$WORK/gmsh.log" || fail "gmsh did not check $1/mesh_tet.msh"
+}
+check_msh "$WORK/a"
 
 # The decks: periodic equations, and CalculiX's conductivity against the FFT solver's.
 for physics in conductivity elasticity; do
@@ -126,6 +132,9 @@ for n in near near1; do
 done
 grep -q "TYPE=C3D10" "$WORK/near/mesh_tet.inp" || fail "order 2 did not write C3D10 elements"
 $py "$(dirname "$0")/check_tet_mesh.py" "$WORK/near" 0.005 0 || fail "10-node tetrahedral mesh"
+check_msh "$WORK/near"
+$py "$(dirname "$0")/check_periodic_deck.py" "$WORK/near/mesh_tet.inp" \
+  "$WORK/near/run_tet_conductivity.inp" 0.4 || fail "periodic equations of the 10-node deck"
 $py - "$WORK/near" "$WORK/near1" <<'PY' || fail "10-node tetrahedra in CalculiX against the FFT solver"
 import json, sys
 def error(d):

@@ -136,7 +136,7 @@ TEST(TetMesh, SliversAreLiftedByMovingTheNodesInsideOneRegion) {
   TetMesh m = cube_around(Vec3(0.45, 0.55, 0.02));
   ASSERT_NO_THROW(check_conforming(m));
   ASSERT_LT(least_angle(m), 5.0);
-  EXPECT_EQ(lift_slivers(&m), 1);
+  EXPECT_EQ(lift_slivers(&m, InclusionSet{}), 1);
   EXPECT_GE(least_angle(m), 5.0);
   EXPECT_NO_THROW(check_conforming(m));
   for (int k = 0; k < 8; ++k) EXPECT_EQ(m.nodes[k], Vec3(k & 1, (k >> 1) & 1, (k >> 2) & 1));
@@ -144,11 +144,11 @@ TEST(TetMesh, SliversAreLiftedByMovingTheNodesInsideOneRegion) {
   // The same node on an interface: half the elements in an inclusion.
   TetMesh two = cube_around(Vec3(0.45, 0.55, 0.02));
   for (size_t e = 0; e < 6; ++e) two.inclusion_id[e] = 3, two.phase[e] = 1;
-  EXPECT_EQ(lift_slivers(&two), 0);
+  EXPECT_EQ(lift_slivers(&two, InclusionSet{}), 0);
   EXPECT_EQ(two.nodes[8], Vec3(0.45, 0.55, 0.02));
   // On a box face (a degenerate cube: the slivers stay).
   TetMesh face = cube_around(Vec3(0.45, 0.55, 0.0));
-  EXPECT_EQ(lift_slivers(&face), 0);
+  EXPECT_EQ(lift_slivers(&face, InclusionSet{}), 0);
 }
 
 // Two spheres, one cut by a box face, in the unit box.
@@ -340,6 +340,80 @@ std::pair<std::vector<double>, std::vector<double>> volumes(const InclusionSet& 
   std::vector<double> exact = phase_volume_fractions(set, mesh.phases);
   for (double& v : exact) v *= set.box.volume();
   return {tet_quality(mesh).phase_volume, exact};
+}
+
+// A node on a sphere's surface turned about the centre towards a neighbour on it flattens its
+// elements; it slides back along the surface, at its distance from the centre, until they are
+// over 5 degrees, and the phases' volumes barely change.
+TEST(TetMesh, ANodeOnAnInterfaceSlidesAlongItToLiftItsElements) {
+  const Vec3 c(0.5, 0.5, 0.5);
+  const InclusionSet set = one_of(Shape::sphere(c, 0.3));
+  TetMeshOptions opt;
+  opt.chord_error = 0.02;
+  TetMesh m = tet_mesh(set, opt);
+  const std::vector<double> volumes = tet_quality(m).phase_volume;
+  // Interface nodes (elements of both phases around) and their balls.
+  std::vector<int> phases(m.nodes.size(), 0);
+  for (size_t e = 0; e < m.tets.size(); ++e) {
+    for (int32_t n : m.tets[e]) phases[n] |= 1 << m.phase[e];
+  }
+  auto ball_of = [&](int32_t n) {
+    std::vector<size_t> b;
+    for (size_t e = 0; e < m.tets.size(); ++e) {
+      if (std::count(m.tets[e].begin(), m.tets[e].end(), n)) b.push_back(e);
+    }
+    return b;
+  };
+  // The least angle of the elements (-1 if one is not positive).
+  auto least_of = [&](const std::vector<size_t>& b) {
+    double w = 180.0;
+    for (size_t e : b) {
+      if (!(tet_volume(m.nodes, m.tets[e]) > 0.0)) return -1.0;
+      TetMesh one;
+      one.box = m.box;
+      one.phases = m.phases;
+      for (int32_t n : m.tets[e]) one.nodes.push_back(m.nodes[n]);
+      one.tets = {{0, 1, 2, 3}};
+      one.phase = {0};
+      one.inclusion_id = {-1};
+      w = std::min(w, tet_quality(one).min_dihedral);
+    }
+    return w;
+  };
+  // The first interface node with a neighbour on the interface that can be turned towards it
+  // until an element is under 4 degrees, none inverted.
+  int32_t node = -1;
+  std::vector<size_t> ball;
+  double before = 0.0;
+  for (int32_t n = 0; n < static_cast<int32_t>(m.nodes.size()) && node < 0; ++n) {
+    if (phases[n] != 3) continue;
+    ball = ball_of(n);
+    before = least_of(ball);
+    const Vec3 x = m.nodes[n];
+    for (size_t e : ball) {
+      for (int32_t o : m.tets[e]) {
+        if (o == n || phases[o] != 3 || node >= 0) continue;
+        const Vec3 a = (x - c).normalized(), b = (m.nodes[o] - c).normalized();
+        const Vec3 axis = a.cross(b).normalized();
+        const double full = std::acos(std::clamp(a.dot(b), -1.0, 1.0));
+        for (double f = 0.95; f > 0.3 && node < 0; f -= 0.05) {
+          m.nodes[n] = c + Eigen::AngleAxisd(f * full, axis) * (x - c);
+          const double w = least_of(ball);
+          if (w > 0.0 && w < 4.0) node = n;
+        }
+        if (node < 0) m.nodes[n] = x;
+      }
+    }
+  }
+  ASSERT_GE(node, 0) << "no interface node to push";
+  const double radius = (m.nodes[node] - c).norm();
+  ASSERT_LT(least_of(ball), 4.0);
+  EXPECT_GE(lift_slivers(&m, set), 1);
+  EXPECT_GE(least_of(ball), std::min(5.0, before));
+  EXPECT_NEAR((m.nodes[node] - c).norm(), radius, 1e-9);
+  const std::vector<double> after = tet_quality(m).phase_volume;
+  for (size_t p = 0; p < after.size(); ++p) EXPECT_NEAR(after[p] / volumes[p], 1.0, 1e-4) << p;
+  EXPECT_NO_THROW(check_conforming(m));
 }
 
 TEST(TetMesh, TheVolumeTheChordsCutOffIsGivenBackToEveryPhase) {

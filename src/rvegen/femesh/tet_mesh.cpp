@@ -739,47 +739,87 @@ long long keep_phase_volumes(TetMesh* mesh, const InclusionSet& set) {
   return count;
 }
 
-// The nodes a relocation may move: inside one region (every element around in one inclusion and
-// phase: a move changes no phase's volume and no interface) and off the box faces (whose
-// triangulations must stay translates of each other). Elements under `angle` have each such
-// node moved where the least angle of its ball (the elements around it) is largest: a pattern
-// search from where it is, along the axes and towards the centroid of its neighbours, in steps
-// from a quarter of its shortest edge down to a thousandth of it; a step is taken only when it
-// raises the ball's least angle, every element positive. Rounds until none is left under `angle`
-// or a round moves nothing (at most 4): a move can help an element next to it.
-long long lift_slivers(TetMesh* mesh, double angle) {
+// The nodes a relocation may move, and how. A node inside one region (every element around in
+// one inclusion and phase) moves freely: no phase's volume or interface changes. A node on one
+// curved interface (a core against the matrix or its shell, a shell against the matrix) slides
+// along it, at its signed distance from the exact surface (keep_phase_volumes set it): the
+// phases' volumes change only by the surface's curvature over a step. Nodes on box faces (whose
+// triangulations must stay translates of each other), on flat ends, on two interfaces or
+// between two inclusions stay. Elements under `angle` have each such node moved where the least
+// angle of its ball (the elements around it) is largest: a pattern search from where it is,
+// along the axes and towards the centroid of its neighbours (in the surface's tangent plane for a
+// sliding node), in steps from a quarter of its shortest edge down to a thousandth of it; a step
+// is taken only when it raises the ball's least angle, every element positive. Rounds until none
+// is left under `angle` or a round moves nothing (at most 4): a move can help an element next to
+// it.
+long long lift_slivers(TetMesh* mesh, const InclusionSet& set, double angle) {
   const size_t nn = mesh->nodes.size(), ne = mesh->tets.size();
   auto region = [&](size_t e) {
     return (static_cast<uint64_t>(static_cast<uint32_t>(mesh->inclusion_id[e])) << 32) |
            static_cast<uint32_t>(mesh->phase[e]);
   };
+  // Per node, the first two regions met; `many` a third (or a box face).
   constexpr uint64_t kNone = std::numeric_limits<uint64_t>::max();
-  std::vector<uint64_t> first(nn, kNone);
-  std::vector<uint8_t> fixed(nn, 0);
+  std::vector<std::array<uint64_t, 2>> met(nn, {kNone, kNone});
+  std::vector<uint8_t> many(nn, 0);
   for (size_t e = 0; e < ne; ++e) {
     const uint64_t r = region(e);
     for (int32_t n : mesh->tets[e]) {
-      if (first[n] == kNone) {
-        first[n] = r;
-      } else if (first[n] != r) {
-        fixed[n] = 1;
+      auto& m = met[n];
+      if (m[0] == kNone || m[0] == r) {
+        m[0] = r;
+      } else if (m[1] == kNone || m[1] == r) {
+        m[1] = r;
+      } else {
+        many[n] = 1;
       }
     }
   }
   const std::vector<std::array<int8_t, 3>> ends = node_ends(*mesh);
   for (size_t i = 0; i < nn; ++i) {
-    if (ends[i][0] >= 0 || ends[i][1] >= 0 || ends[i][2] >= 0) fixed[i] = 1;
+    if (ends[i][0] >= 0 || ends[i][1] >= 0 || ends[i][2] >= 0) many[i] = 1;
   }
+  std::unordered_map<int32_t, int> by_id;
+  for (size_t k = 0; k < set.inclusions.size(); ++k) {
+    by_id[set.inclusions[k].id] = static_cast<int>(k);
+  }
+  // The surface a node on two regions slides on: inclusion index and growth (0 for the core,
+  // the coating for a shell's outer surface); false where it may not move.
+  auto surface_of = [&](int32_t n, int* inc, double* grown) {
+    const int id[2] = {static_cast<int32_t>(met[n][0] >> 32),
+                       static_cast<int32_t>(met[n][1] >> 32)};
+    const uint32_t label[2] = {static_cast<uint32_t>(met[n][0]), static_cast<uint32_t>(met[n][1])};
+    PhaseKind kind[2];
+    for (int k = 0; k < 2; ++k) {
+      if (label[k] >= mesh->phases.size()) return false;
+      kind[k] = mesh->phases[label[k]].kind;
+    }
+    int which = -1;
+    bool shell = false;
+    if (id[0] == id[1]) {
+      which = id[0];  // a core and its shell
+    } else if (kind[0] == PhaseKind::kMatrix || kind[1] == PhaseKind::kMatrix) {
+      const int k = kind[0] == PhaseKind::kMatrix ? 1 : 0;
+      if (kind[k] != PhaseKind::kCore && kind[k] != PhaseKind::kInterphase) return false;
+      which = id[k];
+      shell = kind[k] == PhaseKind::kInterphase;
+    }
+    const auto it = by_id.find(which);
+    if (it == by_id.end()) return false;
+    *inc = it->second;
+    *grown = shell ? set.inclusions[it->second].mod.coating : 0.0;
+    return true;
+  };
   std::vector<double> least(ne);
   for (size_t e = 0; e < ne; ++e) least[e] = least_dihedral(*mesh, mesh->tets[e]);
   long long moved = 0;
   for (int round = 0; round < 4; ++round) {
-    // The free nodes of the elements under the angle, and their balls.
+    // The nodes of the elements under the angle that may move, and their balls.
     std::unordered_map<int32_t, std::vector<int32_t>> ball;
     for (size_t e = 0; e < ne; ++e) {
       if (least[e] >= angle) continue;
       for (int32_t n : mesh->tets[e]) {
-        if (!fixed[n]) ball[n];
+        if (!many[n]) ball[n];
       }
     }
     if (ball.empty()) break;
@@ -796,6 +836,35 @@ long long lift_slivers(TetMesh* mesh, double angle) {
     for (int32_t n : order) {
       const std::vector<int32_t>& around = ball[n];
       Vec3& x = mesh->nodes[n];
+      // A sliding node: its surface (the periodic image nearest it) and its distance from it.
+      const bool slides = met[n][1] != kNone;
+      Shape surface;
+      double grown = 0.0, offset = 0.0;
+      if (slides) {
+        int inc;
+        if (!surface_of(n, &inc, &grown)) continue;
+        double nearest = 1e300;
+        for (int dx = -1; dx <= 1; ++dx) {
+          for (int dy = -1; dy <= 1; ++dy) {
+            for (int dz = -1; dz <= 1; ++dz) {
+              const Shape s =
+                  set.inclusions[inc].shape.translated(Vec3(dx, dy, dz).cwiseProduct(set.box.size));
+              Vec3 nrm;
+              bool feature;
+              const double d = surface_distance(s, grown, x, &nrm, &feature);
+              if (std::abs(d) < nearest && !feature) {
+                nearest = std::abs(d);
+                surface = s;
+                offset = d;
+              } else if (std::abs(d) < nearest) {
+                nearest = 0.0;  // on a flat end: stays
+                offset = std::numeric_limits<double>::quiet_NaN();
+              }
+            }
+          }
+        }
+        if (!std::isfinite(offset)) continue;
+      }
       // The ball's least angle with the node at y (-1 if an element is not positive).
       auto worst = [&](const Vec3& y) {
         const Vec3 keep = x;
@@ -808,6 +877,24 @@ long long lift_slivers(TetMesh* mesh, double angle) {
         }
         x = keep;
         return w;
+      };
+      // A step of h along d from p: in the tangent plane, then back to the offset, for a
+      // sliding node.
+      auto step = [&](const Vec3& p, const Vec3& d, double h, Vec3* y) {
+        if (!slides) {
+          *y = p + h * d;
+          return true;
+        }
+        Vec3 nrm;
+        bool feature;
+        surface_distance(surface, grown, p, &nrm, &feature);
+        const Vec3 t = d - d.dot(nrm) * nrm;
+        if (!(t.norm() > 1e-6)) return false;
+        Vec3 q = p + h * t.normalized();
+        const double off = surface_distance(surface, grown, q, &nrm, &feature) - offset;
+        if (feature) return false;
+        *y = q - off * nrm;
+        return true;
       };
       double shortest = 1e300;
       Vec3 centroid = Vec3::Zero();
@@ -832,7 +919,8 @@ long long lift_slivers(TetMesh* mesh, double angle) {
       for (double h = 0.25 * shortest; h > 1e-3 * shortest && tries < 400;) {
         bool better = false;
         for (const Vec3& d : dirs) {
-          const Vec3 y = at + h * d;
+          Vec3 y;
+          if (!step(at, d, h, &y)) continue;
           const double w = worst(y);
           ++tries;
           if (w > best) {
@@ -1207,7 +1295,7 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
   if (mesh.tets.empty()) throw MeshError("mesh_tet: the volume mesher made no elements");
   mesh.merged_nodes = merge_coincident_nodes(&mesh);
   if (options.keep_volumes) mesh.moved_nodes = keep_phase_volumes(&mesh, set);
-  mesh.relocated_nodes = lift_slivers(&mesh);
+  mesh.relocated_nodes = lift_slivers(&mesh, set);
   check_conforming(mesh);
   if (options.order == 2) add_midside_nodes(&mesh);
 

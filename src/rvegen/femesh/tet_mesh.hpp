@@ -61,7 +61,8 @@ struct TetMesh {
   /// Interface nodes moved off the exact surface to keep the phases' volumes
   /// (keep_phase_volumes).
   long long moved_nodes = 0;
-  /// Nodes inside one region moved to lift elements under 5 degrees (lift_slivers).
+  /// Nodes moved (inside one region, or along one interface) to lift elements under 5 degrees
+  /// (lift_slivers).
   long long relocated_nodes = 0;
 };
 
@@ -158,11 +159,14 @@ long long keep_phase_volumes(TetMesh* mesh, const InclusionSet& set);
 void add_midside_nodes(TetMesh* mesh);
 
 /// Moves nodes of the elements whose least dihedral angle is under `angle` degrees to raise the
-/// least angle of the elements around them: only nodes inside one region (inclusion and phase)
-/// and off the box faces, so no phase's volume, interface or face triangulation changes; a move
-/// is taken only when it raises the least angle of the elements around the node, all positive.
-/// tet_mesh calls it on every mesh, after keep_phase_volumes. Returns the number of nodes moved.
-long long lift_slivers(TetMesh* mesh, double angle = 5.0);
+/// least angle of the elements around them: nodes inside one region (inclusion and phase) move
+/// freely, nodes on one curved interface of `set`'s inclusions slide along it at their distance
+/// from the exact surface; nodes on box faces, flat ends, two interfaces or between two
+/// inclusions stay. So no interface moves off its surface, no face triangulation changes, and the
+/// phases' volumes change only by the surfaces' curvature over a step. A move is taken only when
+/// it raises the least angle of the elements around the node, all positive. tet_mesh calls it on
+/// every mesh, after keep_phase_volumes. Returns the number of nodes moved.
+long long lift_slivers(TetMesh* mesh, const InclusionSet& set, double angle = 5.0);
 
 /// Throws MeshError unless the mesh conforms (every face of an element is a face of another
 /// element or lies in a box face) and fills the box (every element positive, their volumes

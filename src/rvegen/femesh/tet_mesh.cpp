@@ -968,11 +968,9 @@ void check_tet_meshable(const InclusionSet& set) {
 
 namespace {
 
-// HXT refused the surface mesh, or the surface mesher failed (see mesh_with and tet_mesh).
+// HXT refused the surface mesh (see mesh_with).
 struct SurfacesRefused : MeshError {
-  SurfacesRefused(const std::string& what, bool surfaces)
-      : MeshError(what), in_surface_stage(surfaces) {}
-  bool in_surface_stage;
+  using MeshError::MeshError;
 };
 
 // One attempt, with Gmsh's 2D algorithm `surface_algorithm` (6: Frontal-Delaunay, 5: Delaunay).
@@ -1234,14 +1232,13 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
     stage(0.15, 0.35, "mesh_tet: meshing the surfaces");
     gmsh::model::mesh::generate(2);
     if (const std::string e = logged_error(); !e.empty()) {
-      if (surface_algorithm == 5) throw MeshError("mesh_tet: the surface mesher failed: " + e);
-      throw SurfacesRefused(e, true);
+      throw MeshError("mesh_tet: the surface mesher failed: " + e);
     }
     stage(0.35, 0.85, "mesh_tet: meshing the volumes");
     gmsh::model::mesh::generate(3);
     if (const std::string e = logged_error(); !e.empty()) {
       if (surface_algorithm == 5) throw MeshError("mesh_tet: the volume mesher failed: " + e);
-      throw SurfacesRefused(e, false);
+      throw SurfacesRefused(e);
     }
     stage(0.85, 0.95, "mesh_tet: moving nodes of the worst elements");
     // HXT's own optimiser left a few elements under 5 degrees; moving their nodes (Gmsh's
@@ -1680,11 +1677,8 @@ TetMesh tet_mesh(const InclusionSet& set_in, const TetMeshOptions& options,
     // "Found two exactly self-intersecting facets", in 3 of 12 sphere scenes of the benchmark.
     // Meshed from the start with Gmsh's Delaunay surface mesher, all three went through.
     // (Meshing the surfaces again in the same model gave no elements; Gmsh's Delaunay volume
-    // mesher on the first surfaces gave none either.) The surface mesher itself failed on the
-    // 2,500-fibre benchmark scene: "Could not find periodic counterpart of triangle nodes".
-    if (!steady(shown, std::string(e.in_surface_stage
-                                       ? "mesh_tet: the surface mesher failed ("
-                                       : "mesh_tet: the volume mesher refused the surfaces (") +
+    // mesher on the first surfaces gave none either.)
+    if (!steady(shown, std::string("mesh_tet: the volume mesher refused the surfaces (") +
                            e.what() + "); meshing them again with Delaunay"))
       throw Cancelled();
     return mesh_with(set, options, steady, 5);

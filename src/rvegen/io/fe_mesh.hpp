@@ -43,9 +43,10 @@ void write_abaqus_voxel_mesh(const VoxelImage& image, std::FILE* out);
 void write_gmsh_voxel_mesh(const VoxelImage& image, std::FILE* out);
 
 /// mesh_tet.inp: the tetrahedral mesh (C3D4, or C3D10 for a second-order mesh; node and element
-/// numbers from 1 in the mesh's order) with the node and element sets of mesh_voxel.inp: an ELSET per phase present, EALL, the
-/// faces, edges and corners (nodes within 1e-9 of the box size of those ends), ORIGIN (the node at
-/// the box's lower corner), and the reference nodes REFX, REFY, REFZ (REFS).
+/// numbers from 1 in the mesh's order) with the node and element sets of mesh_voxel.inp: an ELSET
+/// per phase present, EALL, the faces, edges and corners (nodes within 1e-9 of the box size of
+/// those ends), ORIGIN (the node at the box's lower corner), and the reference nodes REFX, REFY,
+/// REFZ (REFS).
 void write_abaqus_tet_mesh(const TetMesh& mesh, std::FILE* out);
 
 /// mesh_tet.msh: the tetrahedral mesh in Gmsh's format 4.1 as mesh_voxel.msh (physical groups

@@ -553,6 +553,70 @@ double surface_distance(const Shape& s, double t, const Vec3& x, Vec3* normal, b
 
 }  // namespace
 
+namespace {
+
+// An element's region: its inclusion (the matrix's -1 too) and its phase, as one number.
+uint64_t region_of(const TetMesh& mesh, size_t e) {
+  return (static_cast<uint64_t>(static_cast<uint32_t>(mesh.inclusion_id[e])) << 32) |
+         static_cast<uint32_t>(mesh.phase[e]);
+}
+
+// The index in set.inclusions of each inclusion id.
+std::unordered_map<int32_t, int> index_by_id(const InclusionSet& set) {
+  std::unordered_map<int32_t, int> by_id;
+  for (size_t k = 0; k < set.inclusions.size(); ++k) {
+    by_id[set.inclusions[k].id] = static_cast<int>(k);
+  }
+  return by_id;
+}
+
+// The surface between elements of inclusions id1 and id2 (-1: the matrix) of phase kinds k1 and
+// k2: 2 k for inclusion k's core (against the matrix or its own shell), 2 k + 1 for its shell's
+// outer surface (against the matrix); -1 for anything else (two inclusions, an unknown id).
+int interface_surface(const std::unordered_map<int32_t, int>& by_id, int id1, PhaseKind k1, int id2,
+                      PhaseKind k2) {
+  auto inc = [&](int id) {
+    const auto it = by_id.find(id);
+    return it == by_id.end() ? -1 : it->second;
+  };
+  if (id1 == id2) return inc(id1) >= 0 ? 2 * inc(id1) : -1;
+  if (k1 != PhaseKind::kMatrix && k2 != PhaseKind::kMatrix) return -1;
+  const int id = k1 == PhaseKind::kMatrix ? id2 : id1;
+  const PhaseKind kind = k1 == PhaseKind::kMatrix ? k2 : k1;
+  if (inc(id) < 0) return -1;
+  if (kind == PhaseKind::kCore) return 2 * inc(id);
+  if (kind == PhaseKind::kInterphase) return 2 * inc(id) + 1;
+  return -1;
+}
+
+// The translation (by -1, 0 or 1 box sizes per axis) of the periodic image of the surface of
+// `shape` grown by `grown` nearest x, with x's signed distance from it and whether x lies on a
+// flat end there (surface_distance).
+Vec3 nearest_image(const Shape& shape, double grown, const Vec3& size, const Vec3& x,
+                   double* distance, bool* feature) {
+  Vec3 best = Vec3::Zero();
+  double least = 1e300;
+  for (int dx = -1; dx <= 1; ++dx) {
+    for (int dy = -1; dy <= 1; ++dy) {
+      for (int dz = -1; dz <= 1; ++dz) {
+        const Vec3 t = Vec3(dx, dy, dz).cwiseProduct(size);
+        Vec3 nrm;
+        bool f;
+        const double d = surface_distance(shape.translated(t), grown, x, &nrm, &f);
+        if (std::abs(d) < least) {
+          least = std::abs(d);
+          best = t;
+          *distance = d;
+          *feature = f;
+        }
+      }
+    }
+  }
+  return best;
+}
+
+}  // namespace
+
 // Each interface of the mesh (a face between the matrix and an inclusion's core or shell, or
 // between a core and its shell) belongs to one exact surface. Its triangles are chords of that
 // surface, and cut off the gap between them and it: for a triangle, its area times the mean gap,
@@ -565,15 +629,8 @@ double surface_distance(const Shape& s, double t, const Vec3& x, Vec3* normal, b
 // leave one with a least dihedral angle under 5 degrees that had a larger one before.
 long long keep_phase_volumes(TetMesh* mesh, const InclusionSet& set) {
   const size_t nn = mesh->nodes.size(), ne = mesh->tets.size();
-  std::unordered_map<int32_t, int> by_id;
-  for (size_t k = 0; k < set.inclusions.size(); ++k) {
-    by_id[set.inclusions[k].id] = static_cast<int>(k);
-  }
-  // An element's region: its inclusion (the matrix's -1 too) and its phase, as one number.
-  auto region = [&](size_t e) {
-    return (static_cast<uint64_t>(static_cast<uint32_t>(mesh->inclusion_id[e])) << 32) |
-           static_cast<uint32_t>(mesh->phase[e]);
-  };
+  const std::unordered_map<int32_t, int> by_id = index_by_id(set);
+  auto region = [&](size_t e) { return region_of(*mesh, e); };
   // Nodes that elements of two regions share; faces with three such nodes are the candidates.
   constexpr uint64_t kNone = std::numeric_limits<uint64_t>::max();  // no phase label is -1
   std::vector<uint64_t> first(nn, kNone);
@@ -623,22 +680,9 @@ long long keep_phase_volumes(TetMesh* mesh, const InclusionSet& set) {
     ++k;
     if (region(e1) == region(e2)) continue;
     // Which surface: a core against the matrix or its own shell; a shell against the matrix.
-    int which = -2;
-    const int id1 = mesh->inclusion_id[e1], id2 = mesh->inclusion_id[e2];
-    const PhaseKind k1 = mesh->phases[mesh->phase[e1]].kind,
-                    k2 = mesh->phases[mesh->phase[e2]].kind;
-    auto inc = [&](int id) {
-      const auto it = by_id.find(id);
-      return it == by_id.end() ? -1 : it->second;
-    };
-    if (id1 == id2 && inc(id1) >= 0) {
-      which = 2 * inc(id1);
-    } else if (k1 == PhaseKind::kMatrix || k2 == PhaseKind::kMatrix) {
-      const int id = k1 == PhaseKind::kMatrix ? id2 : id1;
-      const PhaseKind kind = k1 == PhaseKind::kMatrix ? k2 : k1;
-      if (inc(id) >= 0 && kind == PhaseKind::kCore) which = 2 * inc(id);
-      if (inc(id) >= 0 && kind == PhaseKind::kInterphase) which = 2 * inc(id) + 1;
-    }
+    const int which =
+        interface_surface(by_id, mesh->inclusion_id[e1], mesh->phases[mesh->phase[e1]].kind,
+                          mesh->inclusion_id[e2], mesh->phases[mesh->phase[e2]].kind);
     const std::array<int32_t, 3>& n = faces[k].n;
     if (which < 0) {
       for (int32_t i : n) surface[i] = -2;
@@ -648,23 +692,11 @@ long long keep_phase_volumes(TetMesh* mesh, const InclusionSet& set) {
     const double grown = (which & 1) ? in.mod.coating : 0.0;
     const Vec3 &p0 = mesh->nodes[n[0]], &p1 = mesh->nodes[n[1]], &p2 = mesh->nodes[n[2]];
     // The inclusion's periodic image the triangle lies on: the one nearest its centre's surface.
-    const Vec3 centre = (p0 + p1 + p2) / 3.0;
-    Vec3 best = Vec3::Zero(), nrm;
+    Vec3 nrm;
     bool feature;
-    double least = 1e300;
-    for (int dx = -1; dx <= 1; ++dx) {
-      for (int dy = -1; dy <= 1; ++dy) {
-        for (int dz = -1; dz <= 1; ++dz) {
-          const Vec3 t = Vec3(dx, dy, dz).cwiseProduct(box.size);
-          const double v =
-              std::abs(surface_distance(in.shape.translated(t), grown, centre, &nrm, &feature));
-          if (v < least) {
-            least = v;
-            best = t;
-          }
-        }
-      }
-    }
+    double centre_gap;
+    const Vec3 best =
+        nearest_image(in.shape, grown, box.size, (p0 + p1 + p2) / 3.0, &centre_gap, &feature);
     const Shape s = in.shape.translated(best);
     const double a = 0.5 * (p1 - p0).cross(p2 - p0).norm();
     const double g = -(surface_distance(s, grown, 0.5 * (p0 + p1), &nrm, &feature) +
@@ -754,16 +786,12 @@ long long keep_phase_volumes(TetMesh* mesh, const InclusionSet& set) {
 // it.
 long long lift_slivers(TetMesh* mesh, const InclusionSet& set, double angle) {
   const size_t nn = mesh->nodes.size(), ne = mesh->tets.size();
-  auto region = [&](size_t e) {
-    return (static_cast<uint64_t>(static_cast<uint32_t>(mesh->inclusion_id[e])) << 32) |
-           static_cast<uint32_t>(mesh->phase[e]);
-  };
   // Per node, the first two regions met; `many` a third (or a box face).
   constexpr uint64_t kNone = std::numeric_limits<uint64_t>::max();
   std::vector<std::array<uint64_t, 2>> met(nn, {kNone, kNone});
   std::vector<uint8_t> many(nn, 0);
   for (size_t e = 0; e < ne; ++e) {
-    const uint64_t r = region(e);
+    const uint64_t r = region_of(*mesh, e);
     for (int32_t n : mesh->tets[e]) {
       auto& m = met[n];
       if (m[0] == kNone || m[0] == r) {
@@ -779,36 +807,14 @@ long long lift_slivers(TetMesh* mesh, const InclusionSet& set, double angle) {
   for (size_t i = 0; i < nn; ++i) {
     if (ends[i][0] >= 0 || ends[i][1] >= 0 || ends[i][2] >= 0) many[i] = 1;
   }
-  std::unordered_map<int32_t, int> by_id;
-  for (size_t k = 0; k < set.inclusions.size(); ++k) {
-    by_id[set.inclusions[k].id] = static_cast<int>(k);
-  }
-  // The surface a node on two regions slides on: inclusion index and growth (0 for the core,
-  // the coating for a shell's outer surface); false where it may not move.
-  auto surface_of = [&](int32_t n, int* inc, double* grown) {
-    const int id[2] = {static_cast<int32_t>(met[n][0] >> 32),
-                       static_cast<int32_t>(met[n][1] >> 32)};
+  const std::unordered_map<int32_t, int> by_id = index_by_id(set);
+  // The surface a node on two regions slides on (interface_surface); -1 where it may not move.
+  auto surface_of = [&](int32_t n) {
     const uint32_t label[2] = {static_cast<uint32_t>(met[n][0]), static_cast<uint32_t>(met[n][1])};
-    PhaseKind kind[2];
-    for (int k = 0; k < 2; ++k) {
-      if (label[k] >= mesh->phases.size()) return false;
-      kind[k] = mesh->phases[label[k]].kind;
-    }
-    int which = -1;
-    bool shell = false;
-    if (id[0] == id[1]) {
-      which = id[0];  // a core and its shell
-    } else if (kind[0] == PhaseKind::kMatrix || kind[1] == PhaseKind::kMatrix) {
-      const int k = kind[0] == PhaseKind::kMatrix ? 1 : 0;
-      if (kind[k] != PhaseKind::kCore && kind[k] != PhaseKind::kInterphase) return false;
-      which = id[k];
-      shell = kind[k] == PhaseKind::kInterphase;
-    }
-    const auto it = by_id.find(which);
-    if (it == by_id.end()) return false;
-    *inc = it->second;
-    *grown = shell ? set.inclusions[it->second].mod.coating : 0.0;
-    return true;
+    if (label[0] >= mesh->phases.size() || label[1] >= mesh->phases.size()) return -1;
+    return interface_surface(by_id, static_cast<int32_t>(met[n][0] >> 32),
+                             mesh->phases[label[0]].kind, static_cast<int32_t>(met[n][1] >> 32),
+                             mesh->phases[label[1]].kind);
   };
   std::vector<double> least(ne);
   for (size_t e = 0; e < ne; ++e) least[e] = least_dihedral(*mesh, mesh->tets[e]);
@@ -841,29 +847,14 @@ long long lift_slivers(TetMesh* mesh, const InclusionSet& set, double angle) {
       Shape surface;
       double grown = 0.0, offset = 0.0;
       if (slides) {
-        int inc;
-        if (!surface_of(n, &inc, &grown)) continue;
-        double nearest = 1e300;
-        for (int dx = -1; dx <= 1; ++dx) {
-          for (int dy = -1; dy <= 1; ++dy) {
-            for (int dz = -1; dz <= 1; ++dz) {
-              const Shape s =
-                  set.inclusions[inc].shape.translated(Vec3(dx, dy, dz).cwiseProduct(set.box.size));
-              Vec3 nrm;
-              bool feature;
-              const double d = surface_distance(s, grown, x, &nrm, &feature);
-              if (std::abs(d) < nearest && !feature) {
-                nearest = std::abs(d);
-                surface = s;
-                offset = d;
-              } else if (std::abs(d) < nearest) {
-                nearest = 0.0;  // on a flat end: stays
-                offset = std::numeric_limits<double>::quiet_NaN();
-              }
-            }
-          }
-        }
-        if (!std::isfinite(offset)) continue;
+        const int which = surface_of(n);
+        if (which < 0) continue;
+        const Inclusion& in = set.inclusions[which / 2];
+        grown = (which & 1) ? in.mod.coating : 0.0;
+        bool feature;
+        surface =
+            in.shape.translated(nearest_image(in.shape, grown, set.box.size, x, &offset, &feature));
+        if (feature) continue;  // on a flat end: stays
       }
       // The ball's least angle with the node at y (-1 if an element is not positive).
       auto worst = [&](const Vec3& y) {

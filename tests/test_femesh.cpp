@@ -277,6 +277,47 @@ TEST(TetMesh, FibreEndsCutByABoxFaceMeshPeriodically) {
   }
 }
 
+TEST(TetMesh, ACurvedTriangleLyingFlatInABoxFaceIsRaisedOffIt) {
+  // Two fibres of the 2,500-fibre scene, in the cell it was meshed in: the first one's end rim
+  // crosses the face y = 0.0503 where the mantle meets it at a small angle, and the surface
+  // mesher joined three nodes of the face's cut into one triangle of the mantle, flat in the
+  // face over the face's own triangles. The volume mesher refused the overlap ("No elements in
+  // volume"), and again on the Delaunay surface mesher's surfaces.
+  InclusionSet set;
+  set.box.origin = Vec3(-0.115234375, 0.0502703152839172, 0.267578125);
+  set.box.size = Vec3(1, 1, 1);
+  const double r = 0.0117;
+  const Vec3 c[2] = {{0.2176341763727123, 0.014808437886777144, 0.506166930498293},
+                     {0.2991096715452023, 0.07687472774911905, 0.46210618077103915}};
+  const Vec3 h[2] = {{-0.10945376987961401, -0.03220146618072999, 0.025921763731501773},
+                     {-0.10869943172291563, -0.002613965007331551, -0.04320417491464967}};
+  double exact = 0.0;
+  for (int k = 0; k < 2; ++k) {
+    Inclusion inc;
+    inc.id = k;
+    inc.shape = Shape::cylinder(c[k], r, h[k]);
+    exact += inc.shape.volume();
+    set.inclusions.push_back(inc);
+  }
+  set.family_names = {"fibres"};
+  TetMeshOptions opt;
+  opt.chord_error = 0.1;
+  opt.gap_elements = 1;
+  opt.shift_cell = false;
+  TetMesh m;
+  ASSERT_NO_THROW(m = tet_mesh(set, opt));
+  EXPECT_GE(m.raised_triangles, 1);
+  const TetQuality q = tet_quality(m);
+  EXPECT_GT(q.min_volume, 0.0);
+  EXPECT_NEAR(q.phase_volume[1], exact, 0.01 * exact);
+  const auto ends = node_ends(m);
+  for (const auto& [dep, master] : m.periodic) {
+    Vec3 shift = Vec3::Zero();
+    for (int a = 0; a < 3; ++a) shift[a] = ends[dep][a] == 1 ? m.box.size[a] : 0.0;
+    EXPECT_LT((m.nodes[dep] - shift - m.nodes[master]).norm(), 1e-9) << dep;
+  }
+}
+
 InclusionSet one_of(const Shape& shape) {
   InclusionSet set;
   set.box.size = Vec3(1, 1, 1);

@@ -217,6 +217,7 @@ nlohmann::ordered_json tet_mesh_report(const rvegen::InclusionSet& set,
   r["moved_nodes"] = mesh.moved_nodes;
   // Nodes inside one region moved to lift elements under 5 degrees.
   r["relocated_nodes"] = mesh.relocated_nodes;
+  r["raised_triangles"] = mesh.raised_triangles;
   // The cell meshed: the box, or the box moved along its axes (mesh_tet.shift_cell).
   r["cell_origin"] = {mesh.box.origin[0], mesh.box.origin[1], mesh.box.origin[2]};
   // (1 and more alike: far from grazing anything; no inclusion near an edge gives 1.)

@@ -1149,6 +1149,97 @@ void copy_face_meshes(const std::vector<FacePair>& pairs, const Vec3& len, doubl
   }
 }
 
+// A curved surface's triangle whose three nodes lie on one box face is flat in that face, over
+// the cut the face makes there (the surface meets the face along a curve, and where a strip of
+// the surface between the face and another curve is thinner than the elements, the surface
+// mesher joins three nodes of that curve). The face's own triangles then lie under it: two
+// facets that overlap, which the volume mesher refuses ("Found two exactly self-intersecting
+// facets", a 2,500-fibre scene). Each such triangle gets a node on the surface, at the point of
+// the surface nearest its centre, and is split into three about it. Returns the triangles split;
+// those whose nearest surface point is not inside the box are left.
+long long raise_flat_triangles(const Box& box, double tol) {
+  long long raised = 0;
+  std::size_t next_tag = 0;
+  gmsh::vectorpair surfaces;
+  gmsh::model::getEntities(surfaces, 2);
+  for (const auto& s : surfaces) {
+    std::string type;
+    gmsh::model::getType(2, s.second, type);
+    if (type == "Plane") continue;
+    std::vector<int> types;
+    std::vector<std::vector<std::size_t>> etags, enodes;
+    gmsh::model::mesh::getElements(types, etags, enodes, 2, s.second);
+    std::vector<std::size_t> tags;
+    std::vector<double> xyz, param;
+    gmsh::model::mesh::getNodes(tags, xyz, param, 2, s.second, true, false);
+    std::unordered_map<std::size_t, Vec3> at;
+    for (size_t i = 0; i < tags.size(); ++i) {
+      at[tags[i]] = Vec3(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
+    }
+    // A bit per box face: the faces a point lies on.
+    const auto faces_of = [&](const Vec3& p) {
+      int bits = 0;
+      for (int a = 0; a < 3; ++a) {
+        if (std::abs(p[a] - box.origin[a]) <= tol) bits |= 1 << (2 * a);
+        if (std::abs(p[a] - box.origin[a] - box.size[a]) <= tol) bits |= 2 << (2 * a);
+      }
+      return bits;
+    };
+    std::vector<size_t> flat;
+    for (size_t b = 0; b < types.size(); ++b) {
+      if (types[b] != 2) continue;
+      for (size_t e = 0; e < etags[b].size(); ++e) {
+        const std::size_t* n = &enodes[b][3 * e];
+        if (faces_of(at[n[0]]) & faces_of(at[n[1]]) & faces_of(at[n[2]])) flat.push_back(e);
+      }
+    }
+    if (flat.empty()) continue;
+    if (next_tag == 0) {
+      std::vector<std::size_t> all;
+      std::vector<double> c, p;
+      gmsh::model::mesh::getNodes(all, c, p, -1, -1, false, false);
+      for (const std::size_t t : all) next_tag = std::max(next_tag, t);
+    }
+    // The surface's own nodes, to put back after its mesh is cleared, and its triangles, with
+    // each flat one split about its new node.
+    std::vector<std::size_t> own;
+    std::vector<double> own_xyz, own_uv;
+    gmsh::model::mesh::getNodes(own, own_xyz, own_uv, 2, s.second, false, true);
+    std::vector<std::size_t> triangles;
+    size_t next_flat = 0;
+    for (size_t b = 0; b < types.size(); ++b) {
+      if (types[b] != 2) continue;
+      for (size_t e = 0; e < etags[b].size(); ++e) {
+        const std::size_t* n = &enodes[b][3 * e];
+        bool split = false;
+        if (next_flat < flat.size() && flat[next_flat] == e) {
+          ++next_flat;
+          const Vec3 c = (at[n[0]] + at[n[1]] + at[n[2]]) / 3.0;
+          std::vector<double> near, uv;
+          gmsh::model::getClosestPoint(2, s.second, {c[0], c[1], c[2]}, near, uv);
+          const Vec3 m(near[0], near[1], near[2]);
+          const Vec3 lo = m - box.origin, hi = box.origin + box.size - m;
+          if (uv.size() == 2 && std::min(lo.minCoeff(), hi.minCoeff()) > tol) {
+            own.push_back(++next_tag);
+            own_xyz.insert(own_xyz.end(), {m[0], m[1], m[2]});
+            own_uv.insert(own_uv.end(), {uv[0], uv[1]});
+            for (int k = 0; k < 3; ++k) {
+              triangles.insert(triangles.end(), {n[k], n[(k + 1) % 3], next_tag});
+            }
+            split = true;
+            ++raised;
+          }
+        }
+        if (!split) triangles.insert(triangles.end(), {n[0], n[1], n[2]});
+      }
+    }
+    gmsh::model::mesh::clear({{2, s.second}});
+    if (!own.empty()) gmsh::model::mesh::addNodes(2, s.second, own, own_xyz, own_uv);
+    gmsh::model::mesh::addElementsByType(s.second, 2, {}, triangles);
+  }
+  return raised;
+}
+
 // One attempt, with Gmsh's 2D algorithm `surface_algorithm` (6: Frontal-Delaunay, 5: Delaunay).
 TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
                   const TetMeshProgress& progress, int surface_algorithm) {
@@ -1412,6 +1503,7 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
       throw MeshError("mesh_tet: the surface mesher failed: " + e);
     }
     copy_face_meshes(face_pairs, len, tol);
+    mesh.raised_triangles = raise_flat_triangles(box, tol);
     stage(0.35, 0.85, "mesh_tet: meshing the volumes");
     gmsh::model::mesh::generate(3);
     if (const std::string e = logged_error(); !e.empty()) {

@@ -64,6 +64,9 @@ struct TetMesh {
   /// Nodes moved (inside one region, or along one interface) to lift elements under 5 degrees
   /// (lift_slivers).
   long long relocated_nodes = 0;
+  /// Triangles of curved surfaces that lay flat in a box face, split about a node on the
+  /// surface (raise_flat_triangles).
+  long long raised_triangles = 0;
 };
 
 /// A tetrahedron's edges as pairs of its corners, in the order of the midside nodes of Abaqus's

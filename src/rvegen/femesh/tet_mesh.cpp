@@ -1506,7 +1506,17 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
     mesh.raised_triangles = raise_flat_triangles(box, tol);
     stage(0.35, 0.85, "mesh_tet: meshing the volumes");
     gmsh::model::mesh::generate(3);
-    if (const std::string e = logged_error(); !e.empty()) {
+    // A volume left without elements is a failure even when the last error reads as the one
+    // before (the second attempt's refusal repeats the first's words).
+    std::string refused = logged_error();
+    gmsh::vectorpair volumes_meshed;
+    gmsh::model::getEntities(volumes_meshed, 3);
+    for (const auto& v : volumes_meshed) {
+      std::vector<int> types;
+      gmsh::model::mesh::getElementTypes(types, 3, v.second);
+      if (refused.empty() && types.empty()) refused = last_gmsh_error();
+    }
+    if (const std::string& e = refused; !e.empty()) {
       if (surface_algorithm == 5) throw MeshError("mesh_tet: the volume mesher failed: " + e);
       throw SurfacesRefused(e);
     }

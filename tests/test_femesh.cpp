@@ -225,6 +225,23 @@ TEST(TetMesh, SecondOrderMidsideNodesOnTheFacesArePairedToo) {
   EXPECT_GT(midside_pairs, static_cast<long long>(m.periodic.size()) / 2);
 }
 
+// Every node on an upper face is tied to one node, its image on the lower faces within `tol`.
+// Returns how many of them lie on the upper x face.
+size_t expect_tied_to_images(const TetMesh& m, double tol) {
+  const auto ends = node_ends(m);
+  size_t upper = 0;
+  for (const auto& e : ends) upper += (e[0] == 1 || e[1] == 1 || e[2] == 1);
+  EXPECT_EQ(m.periodic.size(), upper);
+  size_t on_x = 0;
+  for (const auto& [dep, master] : m.periodic) {
+    Vec3 shift = Vec3::Zero();
+    for (int a = 0; a < 3; ++a) shift[a] = ends[dep][a] == 1 ? m.box.size[a] : 0.0;
+    EXPECT_LT((m.nodes[dep] - shift - m.nodes[master]).norm(), tol) << dep;
+    on_x += ends[dep][0] == 1;
+  }
+  return on_x;
+}
+
 TEST(TetMesh, FibreEndsCutByABoxFaceMeshPeriodically) {
   // Twelve tilted fibres, four along each axis, whose end rims poke through the lower face by
   // a fifth of the radius: each cut leaves on the face a D bounded by a line (the end's cut)
@@ -259,18 +276,7 @@ TEST(TetMesh, FibreEndsCutByABoxFaceMeshPeriodically) {
   opt.shift_cell = false;
   TetMesh m;
   ASSERT_NO_THROW(m = tet_mesh(set, opt));
-  const auto ends = node_ends(m);
-  size_t upper = 0;
-  for (const auto& e : ends) upper += (e[0] == 1 || e[1] == 1 || e[2] == 1);
-  EXPECT_EQ(m.periodic.size(), upper);
-  size_t on_x = 0;
-  for (const auto& [dep, master] : m.periodic) {
-    Vec3 shift = Vec3::Zero();
-    for (int a = 0; a < 3; ++a) shift[a] = ends[dep][a] == 1 ? m.box.size[a] : 0.0;
-    EXPECT_LT((m.nodes[dep] - shift - m.nodes[master]).norm(), 1e-9 * 0.6) << dep;
-    on_x += ends[dep][0] == 1;
-  }
-  EXPECT_GT(on_x, 0u);
+  EXPECT_GT(expect_tied_to_images(m, 1e-9 * 0.6), 0u);
   // Every inclusion has elements: the pieces cut off at x = 0 lie at the upper face.
   for (int id = 0; id < 12; ++id) {
     EXPECT_NE(std::find(m.inclusion_id.begin(), m.inclusion_id.end(), id), m.inclusion_id.end());
@@ -310,12 +316,7 @@ TEST(TetMesh, ACurvedTriangleLyingFlatInABoxFaceIsRaisedOffIt) {
   const TetQuality q = tet_quality(m);
   EXPECT_GT(q.min_volume, 0.0);
   EXPECT_NEAR(q.phase_volume[1], exact, 0.01 * exact);
-  const auto ends = node_ends(m);
-  for (const auto& [dep, master] : m.periodic) {
-    Vec3 shift = Vec3::Zero();
-    for (int a = 0; a < 3; ++a) shift[a] = ends[dep][a] == 1 ? m.box.size[a] : 0.0;
-    EXPECT_LT((m.nodes[dep] - shift - m.nodes[master]).norm(), 1e-9) << dep;
-  }
+  expect_tied_to_images(m, 1e-9);
 }
 
 InclusionSet one_of(const Shape& shape) {

@@ -1074,17 +1074,19 @@ std::vector<std::pair<std::size_t, Vec3>> boundary_nodes(int face) {
   return out;
 }
 
+// The largest tag of the model's nodes (Gmsh 4.8 has no call for it): new nodes take the next.
+std::size_t largest_node_tag() {
+  std::vector<std::size_t> tags;
+  std::vector<double> xyz, param;
+  gmsh::model::mesh::getNodes(tags, xyz, param, -1, -1, false, false);
+  return tags.empty() ? 0 : *std::max_element(tags.begin(), tags.end());
+}
+
 // Replaces each upper patch's triangles with the translate of its lower patch's: the same
 // triangles, on the upper patch's own boundary nodes (the curves are copies of the lower ones)
 // and on new nodes translated from the lower patch's inside.
 void copy_face_meshes(const std::vector<FacePair>& pairs, const Vec3& len, double tol) {
-  std::size_t next_tag = 0;
-  {
-    std::vector<std::size_t> tags;
-    std::vector<double> xyz, param;
-    gmsh::model::mesh::getNodes(tags, xyz, param, -1, -1, false, false);
-    for (const std::size_t t : tags) next_tag = std::max(next_tag, t);
-  }
+  std::size_t next_tag = largest_node_tag();
   for (const FacePair& fp : pairs) {
     Vec3 shift = Vec3::Zero();
     shift[fp.axis] = len[fp.axis];
@@ -1185,53 +1187,44 @@ long long raise_flat_triangles(const Box& box, double tol) {
       }
       return bits;
     };
-    std::vector<size_t> flat;
-    for (size_t b = 0; b < types.size(); ++b) {
-      if (types[b] != 2) continue;
-      for (size_t e = 0; e < etags[b].size(); ++e) {
-        const std::size_t* n = &enodes[b][3 * e];
-        if (faces_of(at[n[0]]) & faces_of(at[n[1]]) & faces_of(at[n[2]])) flat.push_back(e);
-      }
+    // The surface's triangles (Gmsh gives them as one block of type 2), and which lie flat.
+    const auto block = std::find(types.begin(), types.end(), 2);
+    if (block == types.end()) continue;
+    const std::vector<std::size_t>& tri = enodes[block - types.begin()];
+    std::vector<char> flat(tri.size() / 3);
+    for (size_t e = 0; e < flat.size(); ++e) {
+      flat[e] = (faces_of(at[tri[3 * e]]) & faces_of(at[tri[3 * e + 1]]) &
+                 faces_of(at[tri[3 * e + 2]])) != 0;
     }
-    if (flat.empty()) continue;
-    if (next_tag == 0) {
-      std::vector<std::size_t> all;
-      std::vector<double> c, p;
-      gmsh::model::mesh::getNodes(all, c, p, -1, -1, false, false);
-      for (const std::size_t t : all) next_tag = std::max(next_tag, t);
-    }
+    if (std::find(flat.begin(), flat.end(), 1) == flat.end()) continue;
+    if (next_tag == 0) next_tag = largest_node_tag();
     // The surface's own nodes, to put back after its mesh is cleared, and its triangles, with
     // each flat one split about its new node.
     std::vector<std::size_t> own;
     std::vector<double> own_xyz, own_uv;
     gmsh::model::mesh::getNodes(own, own_xyz, own_uv, 2, s.second, false, true);
     std::vector<std::size_t> triangles;
-    size_t next_flat = 0;
-    for (size_t b = 0; b < types.size(); ++b) {
-      if (types[b] != 2) continue;
-      for (size_t e = 0; e < etags[b].size(); ++e) {
-        const std::size_t* n = &enodes[b][3 * e];
-        bool split = false;
-        if (next_flat < flat.size() && flat[next_flat] == e) {
-          ++next_flat;
-          const Vec3 c = (at[n[0]] + at[n[1]] + at[n[2]]) / 3.0;
-          std::vector<double> near, uv;
-          gmsh::model::getClosestPoint(2, s.second, {c[0], c[1], c[2]}, near, uv);
-          const Vec3 m(near[0], near[1], near[2]);
-          const Vec3 lo = m - box.origin, hi = box.origin + box.size - m;
-          if (uv.size() == 2 && std::min(lo.minCoeff(), hi.minCoeff()) > tol) {
-            own.push_back(++next_tag);
-            own_xyz.insert(own_xyz.end(), {m[0], m[1], m[2]});
-            own_uv.insert(own_uv.end(), {uv[0], uv[1]});
-            for (int k = 0; k < 3; ++k) {
-              triangles.insert(triangles.end(), {n[k], n[(k + 1) % 3], next_tag});
-            }
-            split = true;
-            ++raised;
+    for (size_t e = 0; e < flat.size(); ++e) {
+      const std::size_t* n = &tri[3 * e];
+      bool split = false;
+      if (flat[e]) {
+        const Vec3 c = (at[n[0]] + at[n[1]] + at[n[2]]) / 3.0;
+        std::vector<double> near, uv;
+        gmsh::model::getClosestPoint(2, s.second, {c[0], c[1], c[2]}, near, uv);
+        const Vec3 m(near[0], near[1], near[2]);
+        const Vec3 lo = m - box.origin, hi = box.origin + box.size - m;
+        if (uv.size() == 2 && std::min(lo.minCoeff(), hi.minCoeff()) > tol) {
+          own.push_back(++next_tag);
+          own_xyz.insert(own_xyz.end(), {m[0], m[1], m[2]});
+          own_uv.insert(own_uv.end(), {uv[0], uv[1]});
+          for (int k = 0; k < 3; ++k) {
+            triangles.insert(triangles.end(), {n[k], n[(k + 1) % 3], next_tag});
           }
+          split = true;
+          ++raised;
         }
-        if (!split) triangles.insert(triangles.end(), {n[0], n[1], n[2]});
       }
+      if (!split) triangles.insert(triangles.end(), {n[0], n[1], n[2]});
     }
     gmsh::model::mesh::clear({{2, s.second}});
     if (!own.empty()) gmsh::model::mesh::addNodes(2, s.second, own, own_xyz, own_uv);

@@ -166,6 +166,9 @@ InclusionSet read_inclusions_json(const std::string& text) {
       fail(p, "larger than twice the periodic box (bounding radius " + std::to_string(reach) +
                   "); such an inclusion overlaps its own images");
     }
+    if (!b.periodic && reach > 1000.0 * b.size.maxCoeff()) {
+      fail(p, "larger than 1000 box sizes (bounding radius " + std::to_string(reach) + ")");
+    }
     if (small < kMinRelativeSize * b.size.maxCoeff()) fail(p, "smaller than 1e-9 of the box");
     for (int k = 0; k < 3; ++k) {
       if (std::abs(c[k] - b.origin[k]) > 1000.0 * b.size[k])

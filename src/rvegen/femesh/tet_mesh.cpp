@@ -1265,12 +1265,19 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
   for (const Inclusion& inc : set.inclusions) least = std::min(least, inc.shape.min_size());
   const double min_size = options.min_size > 0.0 ? options.min_size : least / 50.0;
 
+  const int threads =
+      std::max(1, options.threads > 0 ? options.threads
+                                      : static_cast<int>(std::thread::hardware_concurrency()));
+
   std::lock_guard<std::mutex> lock(gmsh_mutex);
   GmshSession session;
   TetMesh mesh;
   mesh.box = box;
   mesh.phases = phase_table(set);
   try {
+    // OpenCASCADE's boolean operations (the cuts by the cells and the fragment against the box)
+    // on the mesher's threads.
+    gmsh::option::setNumber("Geometry.OCCParallel", threads > 1 ? 1 : 0);
     const Vec3 o = box.origin, len = box.size;
     const int box_tag = gmsh::model::occ::addBox(o[0], o[1], o[2], len[0], len[1], len[2]);
     // Each inclusion's solid is cut by the box and by its shifted copies, and every piece is
@@ -1472,9 +1479,7 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
     gmsh::option::setNumber("Mesh.Algorithm", surface_algorithm);
     gmsh::option::setNumber("Mesh.Algorithm3D", 10);  // HXT: parallel, with its optimiser
     gmsh::option::setNumber("Mesh.Optimize", 1);
-    const int threads = options.threads > 0 ? options.threads
-                                            : static_cast<int>(std::thread::hardware_concurrency());
-    gmsh::option::setNumber("General.NumThreads", std::max(1, threads));
+    gmsh::option::setNumber("General.NumThreads", threads);
     // Gmsh's errors are logged, not thrown, while it meshes: thrown inside its parallel loops
     // (a surface whose periodic copy fails), they would end the process. The log is read after
     // each stage.
@@ -1493,7 +1498,15 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
     stage(0.15, 0.35, "mesh_tet: meshing the surfaces");
     gmsh::model::mesh::generate(2);
     if (const std::string e = logged_error(); !e.empty()) {
-      throw MeshError("mesh_tet: the surface mesher failed: " + e);
+      // Where Gmsh fails on a curved surface it refines every curve around it and meshes it
+      // again; a curve tied to its image on the opposite face then has nodes its image lacks.
+      const bool refined_copy = e.find("periodic counterpart of node") != std::string::npos &&
+                                e.find("of curve") != std::string::npos;
+      throw MeshError("mesh_tet: the surface mesher failed: " + e +
+                      (refined_copy ? " (Gmsh refined the curves of a curved surface it could "
+                                      "not mesh, one of them a copy of a curve on the opposite "
+                                      "box face: try a smaller mesh_tet.chord_error)"
+                                    : ""));
     }
     copy_face_meshes(face_pairs, len, tol);
     mesh.raised_triangles = raise_flat_triangles(box, tol);

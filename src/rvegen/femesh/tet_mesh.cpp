@@ -1276,7 +1276,8 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
   mesh.phases = phase_table(set);
   try {
     // OpenCASCADE's boolean operations (the cuts by the cells and the fragment against the box)
-    // on the mesher's threads.
+    // in parallel when more than one thread is allowed; OpenCASCADE then uses its own pool of
+    // all cores, not `threads`.
     gmsh::option::setNumber("Geometry.OCCParallel", threads > 1 ? 1 : 0);
     const Vec3 o = box.origin, len = box.size;
     const int box_tag = gmsh::model::occ::addBox(o[0], o[1], o[2], len[0], len[1], len[2]);

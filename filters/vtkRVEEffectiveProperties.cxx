@@ -25,6 +25,7 @@
 
 vtkStandardNewMacro(vtkRVEEffectiveProperties);
 
+// clang-format off
 vtkRVEEffectiveProperties::vtkRVEEffectiveProperties()
     : Materials(R"({"matrix": {"conductivity": 1, "young": 3, "poisson": 0.35},)" "\n"
                 R"( "spheres": {"conductivity": 10, "young": 70, "poisson": 0.2},)" "\n"
@@ -32,6 +33,7 @@ vtkRVEEffectiveProperties::vtkRVEEffectiveProperties()
                 R"(            "axial_young": 230, "transverse_young": 15, "axial_shear": 27,)" "\n"
                 R"(            "axial_poisson": 0.2, "transverse_poisson": 0.4},)" "\n"
                 R"( "grains": {"conductivity": 10, "young": 70, "poisson": 0.2}})") {}
+// clang-format on
 
 int vtkRVEEffectiveProperties::FillInputPortInformation(int, vtkInformation* info) {
   info->Set(vtkAlgorithm::INPUT_REQUIRED_DATA_TYPE(), "vtkImageData");
@@ -278,4 +280,13 @@ int vtkRVEEffectiveProperties::RequestData(vtkInformation*, vtkInformationVector
   rows.AddTo(table);
   this->UpdateProgress(1.0);
   return 1;
+}
+
+void vtkRVEEffectiveProperties::PrintSelf(ostream& os, vtkIndent indent) {
+  this->Superclass::PrintSelf(os, indent);
+  os << indent << "Physics: " << this->Physics << "\n"
+     << indent << "VoxelRule: " << this->VoxelRule << "\n"
+     << indent << "Scheme: " << this->Scheme << "\n"
+     << indent << "Tolerance: " << this->Tolerance << "\n"
+     << indent << "MaxIterations: " << this->MaxIterations << "\n";
 }

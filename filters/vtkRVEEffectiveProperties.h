@@ -32,6 +32,7 @@ class RVEGENFILTERS_EXPORT vtkRVEEffectiveProperties : public vtkTableAlgorithm 
  public:
   static vtkRVEEffectiveProperties* New();
   vtkTypeMacro(vtkRVEEffectiveProperties, vtkTableAlgorithm);
+  void PrintSelf(ostream& os, vtkIndent indent) override;
 
   /// JSON object of phase properties (the scene's "materials").
   vtkSetStdStringFromCharMacro(Materials);

@@ -30,7 +30,8 @@ vtkRVETetMesh::vtkRVETetMesh()
       GapElements(kDefaults.gap_elements),
       ShiftCell(kDefaults.shift_cell),
       KeepVolumes(kDefaults.keep_volumes),
-      Order(kDefaults.order) {}
+      Order(kDefaults.order),
+      OptimizeThreshold(kDefaults.optimize_threshold) {}
 
 int vtkRVETetMesh::FillInputPortInformation(int, vtkInformation* info) {
   info->Set(vtkAlgorithm::INPUT_REQUIRED_DATA_TYPE(), "vtkDataObject");
@@ -51,7 +52,7 @@ int vtkRVETetMesh::RequestData(vtkInformation*, vtkInformationVector** in,
   rvegen::Scene scene;
   scene.box = set.box;
   scene.tet_mesh = {this->MaxSize,   this->MinSize,     this->ChordError, this->GapElements,
-                    this->ShiftCell, this->KeepVolumes, this->Order};
+                    this->ShiftCell, this->KeepVolumes, this->Order,      this->OptimizeThreshold};
   rvegen::TetMesh mesh;
   try {
     rvegen::validate_tet_mesh_spec(scene);
@@ -132,5 +133,7 @@ void vtkRVETetMesh::PrintSelf(ostream& os, vtkIndent indent) {
      << indent << "ChordError: " << this->ChordError << "\n"
      << indent << "GapElements: " << this->GapElements << "\n"
      << indent << "ShiftCell: " << this->ShiftCell << "\n"
-     << indent << "KeepVolumes: " << this->KeepVolumes << "\n";
+     << indent << "KeepVolumes: " << this->KeepVolumes << "\n"
+     << indent << "Order: " << this->Order << "\n"
+     << indent << "OptimizeThreshold: " << this->OptimizeThreshold << "\n";
 }

@@ -49,6 +49,9 @@ class RVEGENFILTERS_EXPORT vtkRVETetMesh : public vtkUnstructuredGridAlgorithm {
   /// Element order: 1 for 4-node tetrahedra, 2 for 10-node ones (VTK_QUADRATIC_TETRA).
   vtkSetClampMacro(Order, int, 1, 2);
   vtkGetMacro(Order, int);
+  /// The mesher's optimiser improves the elements of quality (0 to 1) under this (0: none).
+  vtkSetMacro(OptimizeThreshold, double);
+  vtkGetMacro(OptimizeThreshold, double);
 
  protected:
   vtkRVETetMesh();
@@ -64,6 +67,7 @@ class RVEGENFILTERS_EXPORT vtkRVETetMesh : public vtkUnstructuredGridAlgorithm {
   bool ShiftCell;
   bool KeepVolumes;
   int Order;
+  double OptimizeThreshold;
 
  private:
   vtkRVETetMesh(const vtkRVETetMesh&) = delete;

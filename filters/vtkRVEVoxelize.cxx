@@ -20,7 +20,7 @@
 
 vtkStandardNewMacro(vtkRVEVoxelize);
 
-vtkRVEVoxelize::vtkRVEVoxelize() : Resolution{64, 64, 64}, PartialVolume(true), Subsamples(4) {
+vtkRVEVoxelize::vtkRVEVoxelize() : Resolution{128, 128, 128}, PartialVolume(true), Subsamples(4) {
   this->SetNumberOfInputPorts(1);
   this->SetNumberOfOutputPorts(1);
 }
@@ -90,5 +90,7 @@ vtkTypeBool vtkRVEVoxelize::ProcessRequest(vtkInformation* request, vtkInformati
 void vtkRVEVoxelize::PrintSelf(ostream& os, vtkIndent indent) {
   this->Superclass::PrintSelf(os, indent);
   os << indent << "Resolution: " << this->Resolution[0] << " " << this->Resolution[1] << " "
-     << this->Resolution[2] << "\n";
+     << this->Resolution[2] << "\n"
+     << indent << "PartialVolume: " << this->PartialVolume << "\n"
+     << indent << "Subsamples: " << this->Subsamples << "\n";
 }

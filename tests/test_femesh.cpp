@@ -166,6 +166,25 @@ InclusionSet two_spheres() {
   return set;
 }
 
+// The optimiser's threshold reaches the volume mesher: without optimisation (0) HXT's Delaunay
+// mesh keeps many flat elements, which the default threshold (0.3) improves.
+TEST(TetMesh, TheOptimiserThresholdDecidesHowManyPoorElementsStay) {
+  const InclusionSet set = two_spheres();
+  TetMeshOptions options;
+  options.chord_error = 0.01;
+  options.threads = 1;
+  auto poor = [](const TetMesh& m) {  // the share of elements under 15 degrees
+    const TetQuality q = tet_quality(m);
+    return static_cast<double>(q.dihedral_counts[0] + q.dihedral_counts[1] + q.dihedral_counts[2]) /
+           static_cast<double>(m.tets.size());
+  };
+  const TetMesh optimised = tet_mesh(set, options);
+  options.optimize_threshold = 0.0;
+  const TetMesh raw = tet_mesh(set, options);
+  EXPECT_GT(poor(raw), 0.01);
+  EXPECT_LT(poor(optimised), 0.5 * poor(raw)) << poor(optimised) << " " << poor(raw);
+}
+
 TEST(TetMesh, ProgressRisesToOneAndAStopIsACancelThatLeavesTheMesherReusable) {
   const InclusionSet set = two_spheres();
   std::vector<double> seen;

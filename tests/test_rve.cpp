@@ -160,7 +160,7 @@ TEST(Scene, TetMeshSizesRoundTripAndBadOnesAreNamed) {
       R"({"box":{"size":[1,1,1]},"families":[{"shape":"sphere","radius":0.1,"count":3}],)";
   const Scene s = parse_scene(
       head + R"("mesh_tet":{"max_size":0.05,"min_size":0.002,"chord_error":0.01,"gap_elements":3,)"
-             R"("shift_cell":false,"keep_volumes":false,"order":2}})");
+             R"("shift_cell":false,"keep_volumes":false,"order":2,"optimize_threshold":0.15}})");
   EXPECT_EQ(s.tet_mesh.order, 2);
   EXPECT_FALSE(s.tet_mesh.shift_cell);
   EXPECT_FALSE(s.tet_mesh.keep_volumes);
@@ -168,6 +168,7 @@ TEST(Scene, TetMeshSizesRoundTripAndBadOnesAreNamed) {
   EXPECT_EQ(s.tet_mesh.min_size, 0.002);
   EXPECT_EQ(s.tet_mesh.chord_error, 0.01);
   EXPECT_EQ(s.tet_mesh.gap_elements, 3.0);
+  EXPECT_EQ(s.tet_mesh.optimize_threshold, 0.15);
   EXPECT_TRUE(parse_scene(scene_to_json(s)).tet_mesh == s.tet_mesh);
   EXPECT_TRUE(parse_scene(head + R"("outputs":["mesh_tet"]})").tet_mesh == TetMeshSpec{});
   for (const auto& [bad, named] : std::vector<std::pair<std::string, std::string>>{
@@ -181,6 +182,9 @@ TEST(Scene, TetMeshSizesRoundTripAndBadOnesAreNamed) {
            {R"({"order":3})", "mesh_tet.order"},
            {R"({"order":1.5})", "mesh_tet.order"},
            {R"({"order":"quadratic"})", "mesh_tet.order"},
+           {R"({"optimize_threshold":1})", "mesh_tet.optimize_threshold"},
+           {R"({"optimize_threshold":-0.1})", "mesh_tet.optimize_threshold"},
+           {R"({"optimize_threshold":"fast"})", "mesh_tet.optimize_threshold"},
            {R"({"chord":0.01})", "mesh_tet.chord: unknown key"}}) {
     EXPECT_NE(scene_error(head + R"("mesh_tet":)" + bad + "}").find(named), std::string::npos)
         << bad << ": " << scene_error(head + R"("mesh_tet":)" + bad + "}");

@@ -1479,7 +1479,8 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
     gmsh::option::setNumber("Mesh.MeshSizeMin", min_size);
     gmsh::option::setNumber("Mesh.Algorithm", surface_algorithm);
     gmsh::option::setNumber("Mesh.Algorithm3D", 10);  // HXT: parallel, with its optimiser
-    gmsh::option::setNumber("Mesh.Optimize", 1);
+    gmsh::option::setNumber("Mesh.Optimize", options.optimize_threshold > 0.0 ? 1 : 0);
+    gmsh::option::setNumber("Mesh.OptimizeThreshold", options.optimize_threshold);
     gmsh::option::setNumber("General.NumThreads", threads);
     // Gmsh's errors are logged, not thrown, while it meshes: thrown inside its parallel loops
     // (a surface whose periodic copy fails), they would end the process. The log is read after

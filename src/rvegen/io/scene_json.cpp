@@ -419,7 +419,7 @@ Scene parse_scene(const std::string& text) {
     const Json& m = root["mesh_tet"];
     only_keys(m,
               {"max_size", "min_size", "chord_error", "gap_elements", "shift_cell", "keep_volumes",
-               "order"},
+               "order", "optimize_threshold"},
               "mesh_tet");
     TetMeshSpec& t = s.tet_mesh;
     if (m.contains("max_size")) t.max_size = positive(m["max_size"], "mesh_tet.max_size");
@@ -437,6 +437,8 @@ Scene parse_scene(const std::string& text) {
         fail("mesh_tet.order", "must be 1 (4-node) or 2 (10-node tetrahedra)");
       t.order = static_cast<int>(n);
     }
+    if (m.contains("optimize_threshold"))
+      t.optimize_threshold = number(m["optimize_threshold"], "mesh_tet.optimize_threshold");
   }
   if (root.contains("materials")) parse_materials(root["materials"], &s);
   if (root.contains("homogenization")) {
@@ -603,7 +605,8 @@ std::string scene_to_json(const Scene& s) {
                         {"gap_elements", t.gap_elements},
                         {"shift_cell", t.shift_cell},
                         {"keep_volumes", t.keep_volumes},
-                        {"order", t.order}};
+                        {"order", t.order},
+                        {"optimize_threshold", t.optimize_threshold}};
     if (t.max_size > 0.0) root["mesh_tet"]["max_size"] = t.max_size;
     if (t.min_size > 0.0) root["mesh_tet"]["min_size"] = t.min_size;
   }

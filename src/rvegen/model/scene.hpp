@@ -183,10 +183,15 @@ struct TetMeshSpec {
   /// Element order: 1 for 4-node tetrahedra (C3D4), 2 for 10-node ones (C3D10: a node at the
   /// middle of each edge, the edges straight).
   int order = 1;
+  /// The volume mesher's optimiser improves the elements whose quality (Gmsh's aspect ratio,
+  /// from 0 for a flat element to 1 for a regular one) is under this; 0.3, Gmsh's own default.
+  /// Lower is faster and leaves more elements of middling quality (0: no optimisation).
+  double optimize_threshold = 0.3;
   bool operator==(const TetMeshSpec& o) const {
     return max_size == o.max_size && min_size == o.min_size && chord_error == o.chord_error &&
            gap_elements == o.gap_elements && shift_cell == o.shift_cell &&
-           keep_volumes == o.keep_volumes && order == o.order;
+           keep_volumes == o.keep_volumes && order == o.order &&
+           optimize_threshold == o.optimize_threshold;
   }
 };
 

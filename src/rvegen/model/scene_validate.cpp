@@ -251,6 +251,8 @@ void validate_tet_mesh_spec(const Scene& s) {
     fail("mesh_tet.gap_elements", "must be in [0.5, 20]");
   if (t.order != 1 && t.order != 2)
     fail("mesh_tet.order", "must be 1 (4-node) or 2 (10-node tetrahedra)");
+  if (!(t.optimize_threshold >= 0.0 && t.optimize_threshold < 1.0))
+    fail("mesh_tet.optimize_threshold", "must be in [0, 1) (an element quality)");
 }
 
 void validate_scene(const Scene& s) {

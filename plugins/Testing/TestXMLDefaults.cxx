@@ -10,6 +10,7 @@
 #include <regex>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "vtkNew.h"
@@ -130,6 +131,33 @@ int main(int argc, char** argv) {
       std::cerr << p.cls << ": " << checked << " properties checked, at least " << p.least
                 << " expected\n";
       ++failed;
+    }
+  }
+  // RVE Effective Properties' Materials: a JSON text, so its default is single-quoted in the
+  // XML (with &#10; for its line breaks) and is compared whole, character for character.
+  {
+    const std::regex materials(R"re(command="SetMaterials"[^>]*default_values='([^']*)')re");
+    std::smatch m;
+    if (!std::regex_search(all, m, materials)) {
+      std::cerr << "vtkRVEEffectiveProperties.Materials: no default_values in the XML\n";
+      ++failed;
+    } else {
+      std::string want = m[1];
+      for (const auto& [entity, text] : std::vector<std::pair<std::string, std::string>>{
+               {"&#10;", "\n"}, {"&quot;", "\""}, {"&lt;", "<"}, {"&gt;", ">"}, {"&amp;", "&"}}) {
+        for (size_t at = want.find(entity); at != std::string::npos;
+             at = want.find(entity, at + text.size())) {
+          want.replace(at, entity.size(), text);
+        }
+      }
+      if (want != effective->GetMaterials()) {
+        std::cerr << "vtkRVEEffectiveProperties.Materials: XML default\n"
+                  << want << "\nsource default\n"
+                  << effective->GetMaterials() << "\n";
+        ++failed;
+      } else {
+        std::cout << "vtkRVEEffectiveProperties: Materials checked\n";
+      }
     }
   }
   std::cout << failed << " differ\n";

@@ -3,6 +3,7 @@
 #include <nlohmann/json.hpp>
 
 #include "rvegen/model/body.hpp"
+#include "rvegen/model/shell_overlaps.hpp"
 #include "rvegen/model/stats.hpp"
 
 namespace rvegen {
@@ -26,6 +27,14 @@ std::vector<double> phase_volume_fractions(const InclusionSet& set,
       if (p.kind == PhaseKind::kCore) exact[p.label] += v.core;
       if (p.kind == PhaseKind::kInterphase) exact[p.label] += v.shell;
       if (p.kind == PhaseKind::kVoid) exact[p.label] += v.void_;
+    }
+  }
+  // Shells that may touch: a lens where two overlap belongs to the earlier inclusion's shell.
+  const ShellOverlaps overlaps = shell_overlaps(set);
+  for (const auto& p : phases) {
+    if (p.kind == PhaseKind::kInterphase && p.family >= 0 &&
+        p.family < static_cast<int>(overlaps.taken.size())) {
+      exact[p.label] -= overlaps.taken[p.family];
     }
   }
   double solid = 0.0;
@@ -132,9 +141,16 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
   }
   root["phases"] = ph;
   if (merged_shells) {
+    const ShellOverlaps overlaps = shell_overlaps(r.set);
+    root["shell_overlaps"] = {
+        {"pairs", overlaps.pairs}, {"triples", overlaps.triples}, {"exact", overlaps.exact}};
     root["phases_note"] =
-        "shells_may_touch: interphase volume fractions are the sum of the shells, an upper bound "
-        "(merged shells count once in the image)";
+        overlaps.exact
+            ? "shells_may_touch: where two shells overlap, the lens is counted once, in the "
+              "earlier inclusion's shell (exact)"
+            : "shells_may_touch: interphase volume fractions are the sum of the shells, an upper "
+              "bound (merged shells count once in the image): " +
+                  overlaps.why_not;
   }
   if (stats && stats->nearest.n > 0) {
     const Summary& nn = stats->nearest;

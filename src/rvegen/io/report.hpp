@@ -15,8 +15,10 @@ namespace rvegen {
 /// Exact (analytic) volume fraction of each family, from the inclusion volumes.
 std::vector<double> family_volume_fractions(const InclusionSet& set, int n_families);
 
-/// Exact volume fraction of each phase (phase_table order; the matrix gets the rest). Shells
-/// that merge (shells_may_touch) are counted each, so their phase is an upper bound.
+/// Exact volume fraction of each phase (phase_table order; the matrix gets the rest). Where
+/// shells that may touch overlap, the lens counts once, in the earlier inclusion's shell (as in
+/// the voxel image and the tetrahedral mesh) when shell_overlaps is exact (spheres, no point in
+/// three shells); otherwise each shell counts whole and their phase is an upper bound.
 std::vector<double> phase_volume_fractions(const InclusionSet& set,
                                            const std::vector<Phase>& phases);
 

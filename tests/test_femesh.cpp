@@ -3,6 +3,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -150,6 +152,69 @@ TEST(TetMesh, SliversAreLiftedByMovingTheNodesInsideOneRegion) {
   // On a box face (a degenerate cube: the slivers stay).
   TetMesh face = cube_around(Vec3(0.45, 0.55, 0.0));
   EXPECT_EQ(lift_slivers(&face, InclusionSet{}), 0);
+}
+
+// An octahedron cut into a sliver (its equator's four points, lifted and lowered by turns)
+// and the four elements from its apexes to the sliver's faces: every node on the region's
+// boundary, so none may move. A node at the sliver's circumcentre, joined to the octahedron's
+// eight faces, lifts it; the faces and the volume stay. Where the four elements belong to
+// another region, the sliver alone is no better with a node inside, and stays.
+TEST(TetMesh, ANodeInsertedInARegionLiftsASliverWhoseNodesCannotMove) {
+  auto octahedron = [](int apex_region) {
+    TetMesh m;
+    const double lift = 0.02;
+    m.nodes = {{1, 0, lift}, {0, 1, -lift}, {-1, 0, lift}, {0, -1, -lift}, {0, 0, 1}, {0, 0, -1}};
+    auto add = [&](std::array<int32_t, 4> t, int region) {
+      if (tet_volume(m.nodes, t) < 0.0) std::swap(t[0], t[1]);
+      m.tets.push_back(t);
+      m.phase.push_back(region < 0 ? 0 : 1);
+      m.inclusion_id.push_back(region);
+    };
+    add({0, 1, 2, 3}, -1);           // the sliver
+    add({0, 2, 1, 4}, apex_region);  // the faces the raised points share, to the upper apex
+    add({0, 2, 3, 4}, apex_region);
+    add({1, 3, 0, 5}, apex_region);  // the lowered points' faces, to the lower apex
+    add({1, 3, 2, 5}, apex_region);
+    return m;
+  };
+  auto boundary = [](const TetMesh& m) {
+    std::map<std::array<int32_t, 3>, int> seen;
+    for (const auto& t : m.tets) {
+      for (int k = 0; k < 4; ++k) {
+        std::array<int32_t, 3> f = {t[(k + 1) % 4], t[(k + 2) % 4], t[(k + 3) % 4]};
+        std::sort(f.begin(), f.end());
+        ++seen[f];
+      }
+    }
+    std::set<std::array<int32_t, 3>> once;
+    for (const auto& [f, n] : seen) {
+      if (n == 1) once.insert(f);
+    }
+    return once;
+  };
+  auto volume = [](const TetMesh& m) {
+    double v = 0.0;
+    for (const auto& t : m.tets) v += tet_volume(m.nodes, t);
+    return v;
+  };
+  TetMesh m = octahedron(-1);
+  const auto faces = boundary(m);
+  const double v = volume(m);
+  ASSERT_EQ(faces.size(), 8u);
+  ASSERT_LT(least_angle(m), 5.0);
+  EXPECT_EQ(lift_slivers(&m, InclusionSet{}), 0);  // no node inside the region
+  EXPECT_EQ(insert_nodes_in_slivers(&m), 1);
+  EXPECT_EQ(m.nodes.size(), 7u);
+  EXPECT_EQ(m.tets.size(), 8u);
+  EXPECT_GT(least_angle(m), 30.0);
+  EXPECT_EQ(boundary(m), faces);
+  EXPECT_NEAR(volume(m), v, 1e-12);
+  for (const auto& t : m.tets) EXPECT_GT(tet_volume(m.nodes, t), 0.0);
+
+  TetMesh two = octahedron(3);
+  EXPECT_EQ(insert_nodes_in_slivers(&two), 0);
+  EXPECT_EQ(two.tets.size(), 5u);
+  EXPECT_EQ(two.nodes.size(), 6u);
 }
 
 // Two spheres, one cut by a box face, in the unit box.

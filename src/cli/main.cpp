@@ -228,6 +228,8 @@ nlohmann::ordered_json tet_mesh_report(const rvegen::InclusionSet& set,
   r["moved_nodes"] = mesh.moved_nodes;
   // Nodes inside one region moved to lift elements under 5 degrees.
   r["relocated_nodes"] = mesh.relocated_nodes;
+  // Nodes added inside one region where elements under 5 degrees were left.
+  r["inserted_nodes"] = mesh.inserted_nodes;
   r["raised_triangles"] = mesh.raised_triangles;
   // The cell meshed: the box, or the box moved along its axes (mesh_tet.shift_cell).
   r["cell_origin"] = {mesh.box.origin[0], mesh.box.origin[1], mesh.box.origin[2]};

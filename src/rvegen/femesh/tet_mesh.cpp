@@ -936,6 +936,199 @@ long long lift_slivers(TetMesh* mesh, const InclusionSet& set, double angle) {
   return moved;
 }
 
+namespace {
+
+// The centre of a tetrahedron's circumscribed sphere (its centroid when the tetrahedron is flat
+// to rounding).
+Vec3 circumcentre(const Vec3 (&p)[4]) {
+  const Vec3 a = p[1] - p[0], b = p[2] - p[0], c = p[3] - p[0];
+  const double det = 2.0 * a.dot(b.cross(c));
+  const double scale = a.norm() * b.norm() * c.norm();
+  if (!(std::abs(det) > 1e-12 * scale)) return 0.25 * (p[0] + p[1] + p[2] + p[3]);
+  return p[0] + (a.squaredNorm() * b.cross(c) + b.squaredNorm() * c.cross(a) +
+                 c.squaredNorm() * a.cross(b)) /
+                    det;
+}
+
+}  // namespace
+
+long long insert_nodes_in_slivers(TetMesh* mesh, double angle) {
+  long long inserted = 0;
+  for (int round = 0; round < 3; ++round) {
+    const size_t ne = mesh->tets.size();
+    std::vector<double> least(ne);
+    std::vector<int32_t> bad;
+    for (size_t e = 0; e < ne; ++e) {
+      least[e] = least_dihedral(*mesh, mesh->tets[e]);
+      if (least[e] < angle) bad.push_back(static_cast<int32_t>(e));
+    }
+    if (bad.empty()) break;
+    // The elements around each node (offsets into one array).
+    std::vector<int32_t> start(mesh->nodes.size() + 1, 0), around(4 * ne);
+    for (const auto& t : mesh->tets) {
+      for (int32_t n : t) ++start[n + 1];
+    }
+    for (size_t i = 1; i < start.size(); ++i) start[i] += start[i - 1];
+    {
+      std::vector<int32_t> fill(start.begin(), start.end() - 1);
+      for (size_t e = 0; e < ne; ++e) {
+        for (int32_t n : mesh->tets[e]) around[fill[n]++] = static_cast<int32_t>(e);
+      }
+    }
+    // Elements replaced in this round. A face of a kept element whose other side was replaced
+    // finds the replaced element (the new ones are not in `around`), which counts as outside.
+    std::vector<uint8_t> gone(ne, 0);
+    // The element across face k of e (the face without corner k), -1 if none.
+    auto across = [&](int32_t e, int k) {
+      const auto& t = mesh->tets[e];
+      const int32_t a = t[(k + 1) % 4], b = t[(k + 2) % 4], c = t[(k + 3) % 4];
+      for (int32_t i = start[a]; i < start[a + 1]; ++i) {
+        const int32_t f = around[i];
+        if (f == e) continue;
+        const auto& u = mesh->tets[f];
+        if (std::count(u.begin(), u.end(), b) > 0 && std::count(u.begin(), u.end(), c) > 0) {
+          return f;
+        }
+      }
+      return int32_t(-1);
+    };
+    auto tet_points = [&](const std::array<int32_t, 4>& t, Vec3(&p)[4]) {
+      for (int k = 0; k < 4; ++k) p[k] = mesh->nodes[t[k]];
+    };
+    long long this_round = 0;
+    for (int32_t e : bad) {
+      if (gone[e]) continue;
+      const uint64_t region = region_of(*mesh, e);
+      Vec3 pe[4];
+      tet_points(mesh->tets[e], pe);
+      // Candidates: the circumcentre and the centroid of the element, and the centroid of its
+      // neighbours in its region.
+      std::vector<Vec3> candidates = {circumcentre(pe), 0.25 * (pe[0] + pe[1] + pe[2] + pe[3])};
+      {
+        Vec3 sum = Vec3::Zero();
+        int n = 0;
+        for (int k = 0; k < 4; ++k) {
+          const int32_t f = across(e, k);
+          if (f < 0 || gone[f] || region_of(*mesh, f) != region) continue;
+          for (int32_t m : mesh->tets[f]) sum += mesh->nodes[m];
+          n += 4;
+        }
+        if (n > 0) candidates.push_back(sum / n);
+      }
+      struct Best {
+        double worst = -1.0;
+        int below = 0;
+        std::vector<int32_t> cavity;
+        std::vector<std::array<int32_t, 4>> tets;
+        Vec3 p;
+      } best;
+      double old_worst = 0.0;
+      int old_below = 0;
+      for (const Vec3& p : candidates) {
+        // The cavity: the elements of the region connected to e whose circumscribed sphere
+        // holds p (e always).
+        std::vector<int32_t> cavity = {e};
+        std::set<int32_t> in(cavity.begin(), cavity.end());
+        for (size_t q = 0; q < cavity.size() && cavity.size() < 200; ++q) {
+          for (int k = 0; k < 4; ++k) {
+            const int32_t f = across(cavity[q], k);
+            if (f < 0 || gone[f] || in.count(f) || region_of(*mesh, f) != region) continue;
+            Vec3 pf[4];
+            tet_points(mesh->tets[f], pf);
+            const Vec3 cc = circumcentre(pf);
+            if ((p - cc).squaredNorm() < (pf[0] - cc).squaredNorm() * (1.0 - 1e-12)) {
+              cavity.push_back(f);
+              in.insert(f);
+            }
+          }
+        }
+        // Each face of the cavity's boundary with p: its element with the opposite corner
+        // replaced by p (positive when p sees the face from inside). An element with a face
+        // that p does not see leaves the cavity (unless it is e), until p sees every face.
+        const int32_t pn = static_cast<int32_t>(mesh->nodes.size());
+        mesh->nodes.push_back(p);
+        std::vector<std::array<int32_t, 4>> made;
+        double volume_old = 0.0, volume_new = 0.0, worst = 180.0, was = 180.0;
+        int below = 0, was_below = 0;
+        bool ok = false;
+        for (int pass = 0; pass < 64 && !ok; ++pass) {
+          made.clear();
+          volume_old = volume_new = 0.0;
+          worst = was = 180.0;
+          below = was_below = 0;
+          std::vector<int32_t> blind;
+          for (int32_t c : cavity) {
+            volume_old += tet_volume(mesh->nodes, mesh->tets[c]);
+            was = std::min(was, least[c]);
+            was_below += least[c] < angle;
+            for (int k = 0; k < 4; ++k) {
+              const int32_t f = across(c, k);
+              if (f >= 0 && in.count(f)) continue;
+              std::array<int32_t, 4> t = mesh->tets[c];
+              t[k] = pn;
+              const double v = tet_volume(mesh->nodes, t);
+              if (!(v > 0.0)) {
+                blind.push_back(c);
+                break;
+              }
+              volume_new += v;
+              const double a = least_dihedral(*mesh, t);
+              worst = std::min(worst, a);
+              below += a < angle;
+              made.push_back(t);
+            }
+          }
+          if (blind.empty()) {
+            ok = true;
+            break;
+          }
+          if (std::count(blind.begin(), blind.end(), e)) break;
+          for (int32_t c : blind) in.erase(c);
+          cavity.erase(
+              std::remove_if(cavity.begin(), cavity.end(), [&](int32_t c) { return !in.count(c); }),
+              cavity.end());
+        }
+        mesh->nodes.pop_back();
+        ok = ok && std::abs(volume_new - volume_old) <= 1e-9 * volume_old;
+        if (!ok) continue;
+        if (best.worst < 0.0 || worst > best.worst) {
+          best = {worst, below, cavity, made, p};
+          old_worst = was;
+          old_below = was_below;
+        }
+      }
+      if (best.worst < 0.0) continue;
+      // Taken when it lifts every element over the angle, or raises the least angle with no
+      // more elements under it.
+      if (!(best.worst >= angle || (best.worst > old_worst && best.below < old_below))) continue;
+      mesh->nodes.push_back(best.p);
+      for (int32_t c : best.cavity) gone[c] = 1;
+      const int32_t phase = mesh->phase[e], id = mesh->inclusion_id[e];
+      for (const auto& t : best.tets) {  // made with the node at its index now
+        mesh->tets.push_back(t);
+        mesh->phase.push_back(phase);
+        mesh->inclusion_id.push_back(id);
+      }
+      ++this_round;
+    }
+    // Drop the elements replaced, keeping the order of the rest.
+    size_t w = 0;
+    for (size_t e = 0; e < mesh->tets.size(); ++e) {
+      if (e < ne && gone[e]) continue;
+      mesh->tets[w] = mesh->tets[e];
+      mesh->phase[w] = mesh->phase[e];
+      mesh->inclusion_id[w] = mesh->inclusion_id[e];
+      ++w;
+    }
+    mesh->tets.resize(w);
+    mesh->phase.resize(w);
+    mesh->inclusion_id.resize(w);
+    inserted += this_round;
+    if (this_round == 0) break;
+  }
+  return inserted;
+}
+
 void check_tet_meshable(const InclusionSet& set) {
   if (!set.box.periodic) {
     throw InputError("outputs: mesh_tet needs a periodic box (box.periodic false)");
@@ -1584,6 +1777,7 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
   mesh.merged_nodes = merge_coincident_nodes(&mesh);
   if (options.keep_volumes) mesh.moved_nodes = keep_phase_volumes(&mesh, set);
   mesh.relocated_nodes = lift_slivers(&mesh, set);
+  mesh.inserted_nodes = insert_nodes_in_slivers(&mesh);
   check_conforming(mesh);
   if (options.order == 2) add_midside_nodes(&mesh);
 

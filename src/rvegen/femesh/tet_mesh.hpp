@@ -64,6 +64,9 @@ struct TetMesh {
   /// Nodes moved (inside one region, or along one interface) to lift elements under 5 degrees
   /// (lift_slivers).
   long long relocated_nodes = 0;
+  /// Nodes added inside one region, each with the elements about it remade, to lift elements
+  /// under 5 degrees that moving nodes did not (insert_nodes_in_slivers).
+  long long inserted_nodes = 0;
   /// Triangles of curved surfaces that lay flat in a box face, split about a node on the
   /// surface (raise_flat_triangles).
   long long raised_triangles = 0;
@@ -170,6 +173,18 @@ void add_midside_nodes(TetMesh* mesh);
 /// it raises the least angle of the elements around the node, all positive. tet_mesh calls it on
 /// every mesh, after keep_phase_volumes. Returns the number of nodes moved.
 long long lift_slivers(TetMesh* mesh, const InclusionSet& set, double angle = 5.0);
+
+/// Adds a node inside one region (inclusion and phase) at each element whose least dihedral
+/// angle is under `angle` degrees, where that lifts it: at the element's circumcentre, its
+/// centroid or the centroid of its neighbours in the region, the one that does best. The
+/// elements of the region whose circumscribed spheres hold the node (a Delaunay cavity, connected
+/// to the element) are replaced by the node joined to the cavity's boundary faces; taken when
+/// every new element is positive, they fill the cavity's volume exactly, and their least angle is
+/// at least `angle`, or higher than the cavity's with fewer elements under `angle`. The boundary
+/// faces stay, so no interface, box face or phase volume changes. For elements whose nodes all
+/// lie on surfaces, which lift_slivers cannot move. tet_mesh calls it after lift_slivers.
+/// Returns the number of nodes added.
+long long insert_nodes_in_slivers(TetMesh* mesh, double angle = 5.0);
 
 /// Throws MeshError unless the mesh conforms (every face of an element is a face of another
 /// element or lies in a box face) and fills the box (every element positive, their volumes

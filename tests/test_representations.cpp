@@ -509,6 +509,20 @@ TEST(ShellOverlaps, MergedShellsCountOnceInThePhaseVolumes) {
   EXPECT_NEAR(upper[4], 2.0 * shell, 1e-12);
 }
 
+// A shell wider than the box meets its own periodic images: each such pair (the image along +x,
+// +y and +z; the diagonal ones are out of reach) counts once.
+TEST(ShellOverlaps, AShellMeetsItsOwnImagesOncePerPair) {
+  InclusionSet set;
+  set.box.size = Vec3(0.3, 0.3, 0.3);
+  set.family_names = {"a"};
+  set.inclusions = {coated_sphere(0, {0.1, 0.2, 0.15}, 0.1, 0.06)};
+  const ShellOverlaps o = shell_overlaps(set);
+  ASSERT_TRUE(o.exact) << o.why_not;
+  EXPECT_EQ(o.pairs, 3);
+  EXPECT_EQ(o.triples, 0);
+  EXPECT_NEAR(o.taken[0], 3.0 * ball_lens_volume(0.16, 0.16, 0.3), 1e-15);
+}
+
 TEST(Modifiers, SameSeedSameModifiedRve) {
   const PackingResult again = generate(modified_scene());
   EXPECT_EQ(write_inclusions_json(again.set), write_inclusions_json(modified_rve().set));

@@ -178,7 +178,8 @@ long long lift_slivers(TetMesh* mesh, const InclusionSet& set, double angle = 5.
 /// angle is under `angle` degrees, where that lifts it: at the element's circumcentre, its
 /// centroid or the centroid of its neighbours in the region, the one that does best. The
 /// elements of the region whose circumscribed spheres hold the node (a Delaunay cavity, connected
-/// to the element) are replaced by the node joined to the cavity's boundary faces; taken when
+/// to the element; those with a boundary face the node does not see leave it) are replaced by
+/// the node joined to the cavity's boundary faces; taken when
 /// every new element is positive, they fill the cavity's volume exactly, and their least angle is
 /// at least `angle`, or higher than the cavity's with fewer elements under `angle`. The boundary
 /// faces stay, so no interface, box face or phase volume changes. For elements whose nodes all

@@ -101,10 +101,9 @@ ShellOverlaps shell_overlaps(const InclusionSet& set) {
       const Vec3& cj = near[a].second;
       const double rj = outer(j);
       // Each pair once: from its lower index; a ball and its own image, by the image's shift.
-      const Vec3 shift = cj - si.center;
-      if (j < i ||
-          (j == i && std::lexicographical_compare(shift.data(), shift.data() + 3,
-                                                  Vec3(-shift).data(), Vec3(-shift).data() + 3))) {
+      const Vec3 shift = cj - si.center, back = -shift;
+      if (j < i || (j == i && std::lexicographical_compare(shift.data(), shift.data() + 3,
+                                                           back.data(), back.data() + 3))) {
         continue;
       }
       ++out.pairs;

@@ -1098,8 +1098,8 @@ long long insert_nodes_in_slivers(TetMesh* mesh, double angle) {
         }
       }
       if (best.worst < 0.0) continue;
-      // Taken when it lifts every element over the angle, or raises the least angle with no
-      // more elements under it.
+      // Taken when it lifts every element over the angle, or raises the least angle with
+      // fewer elements under it.
       if (!(best.worst >= angle || (best.worst > old_worst && best.below < old_below))) continue;
       mesh->nodes.push_back(best.p);
       for (int32_t c : best.cavity) gone[c] = 1;

@@ -3,7 +3,6 @@
 #include <nlohmann/json.hpp>
 
 #include "rvegen/model/body.hpp"
-#include "rvegen/model/shell_overlaps.hpp"
 #include "rvegen/model/stats.hpp"
 
 namespace rvegen {
@@ -19,6 +18,12 @@ std::vector<double> family_volume_fractions(const InclusionSet& set, int n_famil
 
 std::vector<double> phase_volume_fractions(const InclusionSet& set,
                                            const std::vector<Phase>& phases) {
+  return phase_volume_fractions(set, phases, shell_overlaps(set));
+}
+
+std::vector<double> phase_volume_fractions(const InclusionSet& set,
+                                           const std::vector<Phase>& phases,
+                                           const ShellOverlaps& overlaps) {
   std::vector<double> exact(phases.size(), 0.0);
   for (const auto& inc : set.inclusions) {
     const RegionVolumes v = region_volumes(inc);
@@ -30,7 +35,6 @@ std::vector<double> phase_volume_fractions(const InclusionSet& set,
     }
   }
   // Shells that may touch: a lens where two overlap belongs to the earlier inclusion's shell.
-  const ShellOverlaps overlaps = shell_overlaps(set);
   for (const auto& p : phases) {
     if (p.kind == PhaseKind::kInterphase && p.family >= 0 &&
         p.family < static_cast<int>(overlaps.taken.size())) {
@@ -123,7 +127,8 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
   // Every phase: the exact volume fraction from the geometry and, with an image, the share of
   // voxel centres carrying the label.
   const std::vector<Phase> phases = image ? image->phases : phase_table(r.set);
-  const std::vector<double> exact = phase_volume_fractions(r.set, phases);
+  const ShellOverlaps overlaps = shell_overlaps(r.set);
+  const std::vector<double> exact = phase_volume_fractions(r.set, phases, overlaps);
   bool merged_shells = false;
   for (const auto& inc : r.set.inclusions) {
     merged_shells = merged_shells || (inc.mod.coated() && inc.mod.shells_may_touch);
@@ -141,7 +146,6 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
   }
   root["phases"] = ph;
   if (merged_shells) {
-    const ShellOverlaps overlaps = shell_overlaps(r.set);
     root["shell_overlaps"] = {
         {"pairs", overlaps.pairs}, {"triples", overlaps.triples}, {"exact", overlaps.exact}};
     root["phases_note"] =

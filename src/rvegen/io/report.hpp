@@ -5,6 +5,7 @@
 #include <utility>
 #include <vector>
 
+#include "rvegen/model/shell_overlaps.hpp"
 #include "rvegen/model/stats.hpp"
 #include "rvegen/packing/packing.hpp"
 #include "rvegen/raster/levelset_info.hpp"
@@ -21,6 +22,10 @@ std::vector<double> family_volume_fractions(const InclusionSet& set, int n_famil
 /// three shells); otherwise each shell counts whole and their phase is an upper bound.
 std::vector<double> phase_volume_fractions(const InclusionSet& set,
                                            const std::vector<Phase>& phases);
+/// The same with the set's shell_overlaps already computed.
+std::vector<double> phase_volume_fractions(const InclusionSet& set,
+                                           const std::vector<Phase>& phases,
+                                           const ShellOverlaps& overlaps);
 
 /// Wall-clock seconds of a whole run: each phase in the order it ran (packing, audit, voxels,
 /// each writer, ...), the total, and the peak resident memory of the process.

@@ -107,7 +107,7 @@ ShellOverlaps shell_overlaps(const InclusionSet& set) {
         continue;
       }
       ++out.pairs;
-      const double d = (cj - si.center).norm();
+      const double d = shift.norm();
       const double ci = set.inclusions[i].shape.radius, cr = set.inclusions[j].shape.radius;
       const double t = std::max(set.inclusions[i].mod.coating, set.inclusions[j].mod.coating);
       if (d < (ci + cr + t) * (1.0 - 1e-9)) {  // a core within reach of the other shell

@@ -57,12 +57,14 @@ int vtkRVETetMesh::RequestData(vtkInformation*, vtkInformationVector** in,
   try {
     rvegen::validate_tet_mesh_spec(scene);
     // A mesh the machine cannot hold is refused before it starts (as the command line does).
-    const double need = rvegen::tet_mesh_bytes(set, scene.tet_mesh);
+    rvegen::check_tet_meshable(set);
     const double have = rvegen::available_memory_bytes();
-    if (have > 0.0 && need > have) {
-      vtkErrorMacro(<< "the tetrahedral mesh would need about " << rvegen::format_bytes(need)
-                    << ", more than the " << rvegen::format_bytes(have)
-                    << " available: raise ChordError or MaxSize");
+    const rvegen::TetMeshNeed need = rvegen::tet_mesh_need(set, scene.tet_mesh, have);
+    if (have > 0.0 && need.bytes > have) {
+      vtkErrorMacro(<< "the tetrahedral mesh (" << (need.capped ? "more than " : "about ")
+                    << static_cast<long long>(need.elements) << " elements) would need about "
+                    << rvegen::format_bytes(need.bytes) << ", more than the "
+                    << rvegen::format_bytes(have) << " available: raise ChordError or MaxSize");
       return 0;
     }
     rvegen::TetMeshOptions opt;

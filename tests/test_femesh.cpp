@@ -690,5 +690,43 @@ TEST(TetMesh, OverlappingShellsAreMeshedOnceAndTheirVolumesAreExact) {
   EXPECT_GT(shell / meshed[4], 1.05);
 }
 
+// The element estimate (the memory check's) integrates the mesher's own size field: it follows
+// the count of real meshes, with a near contact as without one, and a near contact costs
+// elements in both (the gap asks for gap_elements across it).
+TEST(TetMesh, TheElementEstimateFollowsTheMeshesNearContactsIncluded) {
+  TetMeshOptions options;
+  options.chord_error = 0.02;
+  options.shift_cell = false;
+  auto pair_at = [](double gap) {
+    InclusionSet set = one_of(Shape::sphere(Vec3(0.3, 0.5, 0.5), 0.18));
+    Inclusion b;
+    b.shape = Shape::sphere(Vec3(0.66 + gap, 0.5, 0.5), 0.18);
+    b.id = 1;
+    set.inclusions.push_back(b);
+    return set;
+  };
+  const InclusionSet apart = pair_at(0.1), near = pair_at(0.004);
+  const double est_apart = tet_elements_estimate(apart, options);
+  const double est_near = tet_elements_estimate(near, options);
+  const double got_apart = static_cast<double>(tet_mesh(apart, options).tets.size());
+  const double got_near = static_cast<double>(tet_mesh(near, options).tets.size());
+  EXPECT_GT(est_apart / got_apart, 0.65);
+  EXPECT_LT(est_apart / got_apart, 1.5);
+  EXPECT_GT(est_near / got_near, 0.65);
+  EXPECT_LT(est_near / got_near, 1.5);
+  EXPECT_GT(got_near, 1.2 * got_apart);
+  EXPECT_GT(est_near, 1.2 * est_apart);
+  // Finer sizes, more elements: the chord bound's size scales with its square root.
+  options.chord_error /= 4.0;
+  EXPECT_GT(tet_elements_estimate(apart, options), 2.5 * est_apart);
+  // Past its cap the estimate stops early, with a count above the cap and below the whole
+  // (a chord error of 1e-7 asks for the least size all along the surfaces).
+  options.chord_error = 1e-7;
+  const double whole = tet_elements_estimate(apart, options);
+  const double capped = tet_elements_estimate(apart, options, 0.1 * whole);
+  EXPECT_GT(capped, 0.1 * whole);
+  EXPECT_LT(capped, 0.5 * whole);
+}
+
 }  // namespace
 }  // namespace rvegen

@@ -160,6 +160,20 @@ expect_rc 2 "$RVEGEN" generate "$WORK/wavy.json" -o "$WORK/w" -q
 grep -q 'family "wavy"' "$WORK/last.err" || fail "the refused family is not named: $(cat "$WORK/last.err")"
 [ -e "$WORK/w" ] && fail "a refused mesh left a directory"
 
+# A mesh too large for the memory is refused once the inclusions are packed, before anything is
+# written: touching spheres (min_gap 0) pass the check on the scene (about 0.1 GB: their gaps
+# are not known before packing), and the packed set's thin gaps, which take the smallest
+# elements, bring the estimate from the mesher's size field to about 0.3 GB.
+cat >"$WORK/touching.json" <<'JSON'
+{"box":{"size":[0.6,0.6,0.6]},"seed":5,"families":[
+ {"name":"spheres","shape":"sphere","radius":0.1,"volume_fraction":0.5}],
+ "outputs":["inclusions","mesh_tet"],"mesh_tet":{"chord_error":0.03}}
+JSON
+expect_rc 2 "$RVEGEN" generate "$WORK/touching.json" -o "$WORK/t" -q --max-memory 200M
+grep -Eq 'mesh_tet: the tetrahedral mesh of this RVE needs (about|more than) [0-9]+ elements' "$WORK/last.err" ||
+  fail "the mesh's estimate is not named: $(cat "$WORK/last.err")"
+[ -e "$WORK/t" ] && fail "a mesh refused after packing left a directory"
+
 # Coated spheres and rods (their interphase shells, offsets of the cores) and ellipsoids (spline
 # surfaces in OpenCASCADE), some cut by the cell's faces: the same checks.
 cat >"$WORK/mixed.json" <<'JSON'

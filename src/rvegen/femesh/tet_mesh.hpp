@@ -111,6 +111,24 @@ using TetMeshProgress = std::function<bool(double fraction, const std::string& l
 TetMesh tet_mesh(const InclusionSet& set, const TetMeshOptions& options = {},
                  const TetMeshProgress& progress = {});
 
+/// The elements tet_mesh makes of the set with these sizes, estimated before it runs: its size
+/// field h (gaps, curvature, growth away from surfaces, the least and largest sizes) integrated
+/// as a constant times the integral of 1 / h^3 over the box (an octree refined to the local
+/// size), the constant fitted on meshes of spheres, fibres and the default scene. The work grows
+/// with the count (about one evaluation of the size field per 5 elements): past `cap` it stops
+/// and returns a count above the cap (the memory check asks no more than whether it fits).
+double tet_elements_estimate(const InclusionSet& set, const TetMeshSpec& spec, double cap = 1e8);
+
+/// What meshing the set needs: tet_elements_estimate's elements, stopped once they pass what
+/// `limit` bytes can hold (0: no limit; `capped` then says the count is only a lower bound), and
+/// their peak bytes (tet_mesh_bytes, OpenCASCADE's solids included).
+struct TetMeshNeed {
+  double elements = 0.0;
+  double bytes = 0.0;
+  bool capped = false;
+};
+TetMeshNeed tet_mesh_need(const InclusionSet& set, const TetMeshSpec& spec, double limit);
+
 /// The face clearance of a cell with lower corner `origin` (and the box's size): the least
 /// distance from a box face (any periodic copy of it) to an extreme point along the face's
 /// normal of a sphere or ellipsoid, over its least size (Shape::min_size), or of a cylinder's

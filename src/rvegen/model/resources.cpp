@@ -18,18 +18,23 @@ constexpr double kBytesPerFibrePiece = 400.0;  // per bounding sub-sphere of a l
 constexpr double kBytesPerTriangle = 300.0;    // mesh, .vtp text and arrays
 constexpr double kBytesPerBandVoxel = 40.0;    // values, OpenVDB leaves, the build's buffers
 constexpr double kBytesPerGlyphPoint = 600.0;  // arrays and file, periodic images (x 1.3)
-// The tetrahedral mesh: elements per (surface area / element size^2) of the inclusions, with
-// the size from the chord error, grown by 0.2 away from the surface (fitted: 0.22 M elements
-// for the analyst's sample, 24 per unit, against 0.28 M estimated), the peak bytes per element
-// of the whole command (2.2 GB for 10.9 M elements), and per inclusion OpenCASCADE's solids and
-// their fragments (the default scene at chord error 0.03: 5.4 GB for 946 inclusions and 6.7 M
-// elements, 4 MB an inclusion beyond the elements).
+// The tetrahedral mesh before packing: elements per (surface area / element size^2) of the
+// inclusions, with the size from the chord error, grown by 0.2 away from the surface (fitted:
+// 0.22 M elements for the analyst's sample, 24 per unit, against 0.28 M estimated); the gaps
+// are not known yet (after packing, tet_elements_estimate counts them). The peak bytes per
+// element of the whole command, its base and packing aside (first order, one run each: spheres
+// of radius 0.1 in a box of 0.6, 738-857 B on four meshes of 85,000-315,000 elements; 40 fibres
+// of L/D 10, 583 B on 3.7 M): 900 B, the most measured rounded up, since the check refuses what
+// would not fit and should not fall short (fibres' meshes get 50 % more). Per inclusion,
+// OpenCASCADE's solids and their fragments: the default scene (946 inclusions, 10-node
+// elements, 2.19 GB for 2.05 M elements) leaves 0.04-0.26 MB an inclusion beyond the elements at
+// 800-900 B an element; 0.3 MB counted.
 constexpr double kTetsPerArea = 24.0;
-constexpr double kBytesPerMeshedInclusion = 4.0e6;
+constexpr double kBytesPerMeshedInclusion = 0.3e6;
 // Ellipsoids' spline surfaces get more elements than the curvature asks for (1.5 on three
 // ellipsoids of 0.1 x 0.07 x 0.05 in a box of 0.6).
 constexpr double kEllipsoidExtra = 1.5;
-constexpr double kBytesPerTet = 220.0;
+constexpr double kBytesPerTet = 900.0;
 // Second order: the midside nodes (about 1.2 an element) and their numbers, and the sorted
 // edge keys that find them (8 bytes for each of an element's six edges, while they are made).
 constexpr double kSecondOrderBytesPerTet = 24.0 + 1.2 * 24.0 + 48.0;
@@ -159,14 +164,9 @@ double tet_elements_near(const Shape& s, double coating, const TetMeshSpec& t, d
   return n;
 }
 
-double tet_mesh_bytes(const InclusionSet& set, const TetMeshSpec& t) {
-  const double largest = t.max_size > 0.0 ? t.max_size : set.box.size.minCoeff() / 10.0;
-  double n = tet_elements_away(set.box, largest);
-  for (const Inclusion& inc : set.inclusions) {
-    n += tet_elements_near(inc.shape, inc.mod.coating, t, largest);
-  }
-  return n * (kBytesPerTet + (t.order == 2 ? kSecondOrderBytesPerTet : 0.0)) +
-         set.inclusions.size() * kBytesPerMeshedInclusion;
+double tet_mesh_bytes(double elements, double inclusions, int order) {
+  return elements * (kBytesPerTet + (order == 2 ? kSecondOrderBytesPerTet : 0.0)) +
+         inclusions * kBytesPerMeshedInclusion;
 }
 
 double ResourceEstimate::total_bytes() const {
@@ -216,9 +216,7 @@ ResourceEstimate estimate_resources(const Scene& scene) {
     const TetMeshSpec& t = scene.tet_mesh;
     const double largest = t.max_size > 0.0 ? t.max_size : scene.box.size.minCoeff() / 10.0;
     e.tetrahedra += tet_elements_away(scene.box, largest);
-    e.tet_mesh_bytes =
-        e.tetrahedra * (kBytesPerTet + (t.order == 2 ? kSecondOrderBytesPerTet : 0.0)) +
-        e.inclusions * kBytesPerMeshedInclusion;
+    e.tet_mesh_bytes = tet_mesh_bytes(e.tetrahedra, e.inclusions, t.order);
   }
   e.voxels = static_cast<double>(scene.resolution[0]) * scene.resolution[1] * scene.resolution[2];
   e.voxel_bytes = e.voxels * (scene.partial_volume ? 9.0 : 5.0) * 1.1;

@@ -35,8 +35,10 @@ ResourceEstimate estimate_resources(const Scene& scene);
 /// grows away from it) and, when coated, in its shell (gap_elements across the coating).
 double tet_elements_near(const Shape& s, double coating, const TetMeshSpec& t, double largest);
 
-/// Peak bytes of meshing an inclusion set with these sizes (the inclusions as they are).
-double tet_mesh_bytes(const InclusionSet& set, const TetMeshSpec& t);
+/// Peak bytes of a tetrahedral mesh of `elements` elements of a set of `inclusions` inclusions
+/// (of first or second order): the mesher's model and mesh, rvegen's copy and the writers, and
+/// OpenCASCADE's solids and fragments for each inclusion.
+double tet_mesh_bytes(double elements, double inclusions, int order);
 
 /// Memory this process may still take: the smaller of MemAvailable (/proc/meminfo) and what
 /// its cgroup allows; 0 when unknown.

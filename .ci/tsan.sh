@@ -8,7 +8,8 @@ cd "$(dirname "$0")/.."
 B=build-tsan
 cmake -S . -B "$B" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DRVEGEN_WITH_PARAVIEW=OFF \
   -DRVEGEN_BUILD_BENCHMARKS=OFF -DRVEGEN_TSAN=ON \
-  -DCMAKE_C_COMPILER=clang-14 -DCMAKE_CXX_COMPILER=clang++-14
+  -DCMAKE_C_COMPILER=clang-14 -DCMAKE_CXX_COMPILER=clang++-14 \
+  "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O2 -gline-tables-only -DNDEBUG"
 cmake --build "$B" -j"$(nproc)" --target rvegen_packing_tests
 TSAN_OPTIONS="halt_on_error=1 exitcode=66" "$B/bin/rvegen_packing_tests" \
   --gtest_filter='Threads.*:Md.*:MdParts.*:Neighbours.*:Chains.*:Audit.*:-Md.MixedShapesWithLawsNonPeriodicAndGap'

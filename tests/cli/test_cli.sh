@@ -85,6 +85,19 @@ echo "{$BOX,\"families\":[{\"shape\":\"sphere\",\"radius\":0.1,\"count\":5}],\"o
 expect_rc 0 "$RVEGEN" generate -q "$WORK/amitex_mesh.json" -o "$WORK/out_amitex_mesh"
 [ "$(ls "$WORK/out_amitex_mesh" | tr '\n' ' ')" = "amitex_algorithm.xml amitex_loading.xml amitex_materials.xml amitex_run.sh material.vtk report.json surfaces.vtp zoneID.vtk " ] \
   || fail "outputs [amitex, mesh] wrote: $(ls "$WORK/out_amitex_mesh" | tr '\n' ' ')"
+# The tetrahedral mesh from the command line (its full checks are test_tet_mesh.sh's, in the main
+# build): the mesh files, the conductivity deck (only conductivities given: no elasticity deck),
+# and the report's count beside the estimate the memory check made.
+echo "{$BOX,\"seed\":2,\"families\":[{\"name\":\"beads\",\"shape\":\"sphere\",\"radius\":0.15,\"count\":3}],\"materials\":{\"matrix\":{\"conductivity\":1},\"beads\":{\"conductivity\":5}},\"outputs\":[\"mesh_tet\"],\"mesh_tet\":{\"chord_error\":0.05}}" >"$WORK/tet_small.json"
+expect_rc 0 "$RVEGEN" generate -q "$WORK/tet_small.json" -o "$WORK/out_tet"
+[ "$(ls "$WORK/out_tet" | tr '\n' ' ')" = "mesh_tet.inp mesh_tet.msh mesh_tet.vtu report.json run_tet_conductivity.inp " ] \
+  || fail "outputs [mesh_tet] wrote: $(ls "$WORK/out_tet" | tr '\n' ' ')"
+$py - "$WORK/out_tet/report.json" <<'PY' || fail "mesh_tet report"
+import json, sys
+m = json.load(open(sys.argv[1]))["mesh_tet"]
+assert m["tetrahedra"] > 1000, m["tetrahedra"]
+assert 0.6 < m["estimated_tetrahedra"] / m["tetrahedra"] < 1.6, (m["estimated_tetrahedra"], m["tetrahedra"])
+PY
 # Default outputs: one voxel file (voxels.vti, compressed), no rve.h5 or material.vtk; the last
 # line gives the bytes written, which are the directory's.
 expect_rc 0 "$RVEGEN" generate "$WORK/only_inclusions.json" --outputs inclusions,voxels -o "$WORK/out_cli_list"

@@ -59,6 +59,21 @@ def mesh_row(report):
     return m["tetrahedra"], q["min"], q["below_5_degrees"], worst, m.get("merged_nodes", 0)
 
 
+def least_gap(out):
+    """The least surface gap between two spheres of an RVE (periodic images included)."""
+    with open(os.path.join(out, "inclusions.json")) as f:
+        incs = json.load(f)
+    size = incs["box"]["size"]
+    balls = [(i["center"], i["radius"]) for i in incs["inclusions"]]
+    least = math.inf
+    for a in range(len(balls)):
+        for b in range(a + 1, len(balls)):
+            d = [balls[b][0][k] - balls[a][0][k] for k in range(3)]
+            d = [x - size[k] * round(x / size[k]) for k, x in enumerate(d)]
+            least = min(least, math.sqrt(sum(x * x for x in d)) - balls[a][1] - balls[b][1])
+    return least
+
+
 def clearance(report):
     """The cell's move and its least face and edge clearances, as a table cell."""
     m = report["mesh_tet"]
@@ -69,12 +84,14 @@ def clearance(report):
 
 # 1. Spheres: volume fraction against min_gap.
 fractions = [0.15, 0.35] if quick else [0.15, 0.25, 0.35, 0.45, 0.55, 0.64]
-gaps = [0.01, 0.03] if quick else [0.005, 0.01, 0.03]
+# min_gap 0: the packer's own gaps, down to where the spheres all but touch (pinch points).
+gaps = [0.01, 0.03] if quick else [0.0, 0.005, 0.01, 0.03]
 say("## Spheres of radius 0.1, box 0.6: volume fraction against min_gap")
 say()
-say("| volume fraction | min_gap | spheres | exit | wall s | peak MiB | tetrahedra | "
-    "tets/s | least angle | under 5 deg | worst volume error | cell, clearance face / edge |")
-say("|---|---|---|---|---|---|---|---|---|---|---|---|")
+say("| volume fraction | min_gap | spheres | exit | wall s | peak MiB | tetrahedra | estimated "
+    "| tets/s | least angle | under 5 deg | worst volume error | cell, clearance face / edge "
+    "| least gap / radius |")
+say("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 sweep = {}
 for gap in gaps:
     for vf in fractions:
@@ -92,7 +109,7 @@ for gap in gaps:
         reached = os.path.exists(os.path.join(work, name, "report.json"))
         if rc != 0 and not (rc == 3 and reached):  # 3: the packing stopped short, RVE written
             why = [ln for ln in err.strip().splitlines() if ln.startswith("rvegen:")]
-            say("| %.2f | %g | %d | %d | %.1f | %.0f | failed: %s | | | | | |"
+            say("| %.2f | %g | %d | %d | %.1f | %.0f | failed: %s | | | | | | | |"
                 % (vf, gap, count, rc, wall, peak, (why or ["?"])[-1][:120]))
             continue
         with open(os.path.join(work, name, "report.json")) as f:
@@ -100,9 +117,12 @@ for gap in gaps:
         tets, least, below, worst, merged = mesh_row(report)
         sweep.setdefault(gap, []).append((vf, wall, least, tets))
         got = report["volume_fraction"]
-        say("| %.2f%s | %g | %d | %d | %.1f | %.0f | %d | %.0f | %.2f | %d | %.3f %% | %s |"
+        estimated = report["mesh_tet"]["estimated_tetrahedra"]
+        say("| %.2f%s | %g | %d | %d | %.1f | %.0f | %d | %d (%+.0f %%) | %.0f | %.2f | %d | %.3f %% "
+            "| %s | %.4f |"
             % (vf, " (packed %.3f)" % got if rc == 3 else "", gap, count, rc, wall, peak, tets,
-               tets / wall, least, below, 100 * worst, clearance(report)))
+               estimated, 100 * (estimated / tets - 1), tets / wall, least, below, 100 * worst,
+               clearance(report), least_gap(os.path.join(work, name)) / 0.1))
         shutil.rmtree(os.path.join(work, name), ignore_errors=True)
 
 fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.2))

@@ -205,12 +205,15 @@ double least_size(const InclusionSet& set, const TetMeshSpec& spec) {
 // kEstimateLeaf times the size at its centre (and the least size). Each leaf's share is also
 // added to `running` (in units of 1e-3), and the recursion stops once that passes `stop`.
 constexpr double kEstimateLeaf = 1.0;
-// Elements per unit of that integral: Gmsh's HXT made 4.5-6.4 (fitted 5.5: 40 fibres of L/D 10
-// 4.5; spheres of radius 0.1 in a box of 0.6 at 0.15, 0.35 and 0.59 with min_gap 0.005 or
-// 0.01, 4.9, 5.1 and 6.1, and touching at 0.5, 6.3; the default scene with 10-node elements
-// and one across the gaps, 6.4: the more near contacts, the more, as HXT's elements in thin
-// gaps come smaller than the size asked there).
-constexpr double kTetsPerInverseCube = 5.5;
+// Elements per unit of that integral, 3.5 + 4 / gap_elements (5.5 for two across the gaps, the
+// default, 7.5 for one). With two, Gmsh's HXT made 4.5-6.3: 40 fibres of L/D 10, 4.5; spheres of
+// radius 0.1 in a box of 0.6 from 0.15 to 0.64 with min_gap 0 to 0.03, 4.9-6.3 (24 meshes:
+// the more near contacts, the more, as HXT's elements in thin gaps come smaller than the size
+// asked there). With one, more: 6.4 for the default scene (10-node), 7.6 for 2,484 fibres of
+// L/D 10 at chord error 0.1, 9.1 for spheres a twelfth of their radius apart (10-node).
+double tets_per_inverse_cube(const TetMeshSpec& spec) {
+  return 3.5 + 4.0 / std::max(spec.gap_elements, 1.0);
+}
 double inverse_cube_integral(const SizeField& size, const Vec3& lo, const Vec3& len, double least,
                              std::atomic<long long>* running, long long stop) {
   if (running->load(std::memory_order_relaxed) > stop) return 0.0;
@@ -2254,18 +2257,19 @@ double tet_elements_estimate(const InclusionSet& set, const TetMeshSpec& spec, d
   // The running total (all threads) only decides when to stop; below the cap the count is the
   // sum of the top cells' integrals in their order, the same on any number of threads.
   std::atomic<long long> running{0};
+  const double per_unit = tets_per_inverse_cube(spec);
   const long long stop =
-      static_cast<long long>(std::min(9e15, 1e3 * std::max(cap, 0.0) / kTetsPerInverseCube));
+      static_cast<long long>(std::min(9e15, 1e3 * std::max(cap, 0.0) / per_unit));
   std::vector<double> part(static_cast<size_t>(n[0]) * n[1] * n[2], 0.0);
   parallel_for(size_t{0}, part.size(), [&](size_t c) {
     const size_t i = c % n[0], j = (c / n[0]) % n[1], k = c / (static_cast<size_t>(n[0]) * n[1]);
     const Vec3 lo = set.box.origin + Vec3(i * len[0], j * len[1], k * len[2]);
     part[c] = inverse_cube_integral(size, lo, len, least, &running, stop);
   });
-  if (running.load() > stop) return std::max(cap, 1e-3 * kTetsPerInverseCube * running.load());
+  if (running.load() > stop) return std::max(cap, 1e-3 * per_unit * running.load());
   double sum = 0.0;
   for (double v : part) sum += v;
-  return kTetsPerInverseCube * sum;
+  return per_unit * sum;
 }
 
 TetMeshNeed tet_mesh_need(const InclusionSet& set, const TetMeshSpec& spec, double limit) {

@@ -354,12 +354,10 @@ int cmd_generate(const std::vector<std::string>& args) {
     timings.phases.emplace_back("audit", result.audit_seconds);
     // The tetrahedral mesh of the packed set, from the mesher's own size field (the gaps between
     // the inclusions are known now), against the same limit, before anything is written.
-    double tet_elements = 0.0;
+    rvegen::TetMeshNeed mesh_need;
     if (scene.outputs.mesh_tet) {
       rvegen::check_tet_meshable(result.set);
-      const rvegen::TetMeshNeed mesh_need =
-          rvegen::tet_mesh_need(result.set, scene.tet_mesh, limit);
-      tet_elements = mesh_need.elements;
+      mesh_need = rvegen::tet_mesh_need(result.set, scene.tet_mesh, limit);
       rvegen::ResourceEstimate packed = need;
       packed.tetrahedra = mesh_need.elements;
       packed.tet_mesh_bytes = mesh_need.bytes;
@@ -495,7 +493,7 @@ int cmd_generate(const std::vector<std::string>& args) {
       });
       tet_report = tet_mesh_report(result.set, tets);
       // The estimate the memory check used, beside the count it estimated.
-      tet_report["estimated_tetrahedra"] = std::llround(tet_elements);
+      tet_report["estimated_tetrahedra"] = std::llround(mesh_need.elements);
       const auto& angles = tet_report["min_dihedral_degrees"];
       if (angles["below_5_degrees"].get<long long>() > 0) {
         // Written all the same (the mesh conforms and fills the box); the analyst decides.

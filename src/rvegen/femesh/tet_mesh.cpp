@@ -188,11 +188,8 @@ class SizeField {
   std::vector<std::vector<int>> grid_;
 };
 
-// The largest and least element sizes of a mesh of the set (the options', or a tenth of the
-// box's least side and a fiftieth of the least inclusion size).
-double largest_size(const InclusionSet& set, const TetMeshSpec& spec) {
-  return spec.max_size > 0.0 ? spec.max_size : set.box.size.minCoeff() / 10.0;
-}
+// The least element size of a mesh of the set: the options', or a fiftieth of the least
+// inclusion size.
 double least_size(const InclusionSet& set, const TetMeshSpec& spec) {
   if (spec.min_size > 0.0) return spec.min_size;
   double least = set.box.size.minCoeff();
@@ -1502,7 +1499,7 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
   };
   const Box& box = set.box;
   const double side = box.size.minCoeff();
-  const double max_size = largest_size(set, options), min_size = least_size(set, options);
+  const double max_size = options.largest_size(set.box), min_size = least_size(set, options);
 
   const int threads =
       std::max(1, options.threads > 0 ? options.threads
@@ -2246,7 +2243,7 @@ TetQuality tet_quality(const TetMesh& mesh) {
 double tet_elements_estimate(const InclusionSet& set, const TetMeshSpec& spec, double cap) {
   TetMeshOptions options;
   static_cast<TetMeshSpec&>(options) = spec;
-  const double largest = largest_size(set, spec), least = least_size(set, spec);
+  const double largest = spec.largest_size(set.box), least = least_size(set, spec);
   const SizeField size(set, options, largest, least);
   int n[3];
   Vec3 len;
@@ -2274,7 +2271,7 @@ double tet_elements_estimate(const InclusionSet& set, const TetMeshSpec& spec, d
 
 TetMeshNeed tet_mesh_need(const InclusionSet& set, const TetMeshSpec& spec, double limit) {
   TetMeshNeed need;
-  const double cap = limit > 0.0 ? limit / tet_mesh_bytes(1.0, 0.0, spec.order) : 1e8;
+  const double cap = limit > 0.0 ? limit / tet_mesh_bytes(1.0, 0.0, spec.order) : kTetEstimateCap;
   need.elements = tet_elements_estimate(set, spec, cap);
   need.capped = need.elements > cap;
   need.bytes =

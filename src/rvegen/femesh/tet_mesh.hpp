@@ -117,7 +117,9 @@ TetMesh tet_mesh(const InclusionSet& set, const TetMeshOptions& options = {},
 /// size), the constant fitted on meshes of spheres, fibres and the default scene. The work grows
 /// with the count (about one evaluation of the size field per 5 elements): past `cap` it stops
 /// and returns a count above the cap (the memory check asks no more than whether it fits).
-double tet_elements_estimate(const InclusionSet& set, const TetMeshSpec& spec, double cap = 1e8);
+inline constexpr double kTetEstimateCap = 1e8;  // elements: about 90 GB of mesh
+double tet_elements_estimate(const InclusionSet& set, const TetMeshSpec& spec,
+                             double cap = kTetEstimateCap);
 
 /// What meshing the set needs: tet_elements_estimate's elements, stopped once they pass what
 /// `limit` bytes can hold (0: no limit; `capped` then says the count is only a lower bound), and

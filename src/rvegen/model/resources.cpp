@@ -207,14 +207,14 @@ ResourceEstimate estimate_resources(const Scene& scene) {
       e.band_voxels += n * surfaces * area * 2.0 * scene.levelset_half_width / (vs * vs);
     if (scene.outputs.mesh_tet) {
       const TetMeshSpec& t = scene.tet_mesh;
-      const double largest = t.max_size > 0.0 ? t.max_size : scene.box.size.minCoeff() / 10.0;
+      const double largest = t.largest_size(scene.box);
       e.tetrahedra += n * tet_elements_near(mean_shape(f), m.coating, t, largest);
     }
   }
   if (scene.outputs.mesh_tet) {
     // The matrix away from the inclusions, at the largest size (six elements a cube).
     const TetMeshSpec& t = scene.tet_mesh;
-    const double largest = t.max_size > 0.0 ? t.max_size : scene.box.size.minCoeff() / 10.0;
+    const double largest = t.largest_size(scene.box);
     e.tetrahedra += tet_elements_away(scene.box, largest);
     e.tet_mesh_bytes = tet_mesh_bytes(e.tetrahedra, e.inclusions, t.order);
   }

@@ -11,7 +11,8 @@ PKGS=(
   libglew-dev libgl2ps-dev libgdal-dev libfreetype-dev libavcodec-dev libavformat-dev libswscale-dev
   libexpat1-dev libboost-dev python3-mpi4py libx11-dev libgl-dev mpi-default-dev
   libhdf5-openmpi-dev libeigen3-dev libtbb-dev libopenvdb-dev libboost-iostreams-dev
-  libboost-system-dev libfftw3-dev libfftw3-mpi-dev libgmsh-dev nlohmann-json3-dev xvfb xauth python3-numpy python3-matplotlib python3-h5py clang-format
+  libboost-system-dev libfftw3-dev libfftw3-mpi-dev libgmsh-dev libocct-foundation-dev libocct-modeling-data-dev
+  libocct-modeling-algorithms-dev nlohmann-json3-dev xvfb xauth python3-numpy python3-matplotlib python3-h5py clang-format
   clang-14 libclang-rt-14-dev calculix-ccx python3-meshio gmsh
 )
 missing=()

@@ -13,6 +13,7 @@
 #include <thread>
 #include <unordered_map>
 
+#include "rvegen/femesh/offset_solid.hpp"
 #include "rvegen/model/body.hpp"
 #include "rvegen/model/errors.hpp"
 #include "rvegen/model/parallel.hpp"
@@ -309,7 +310,7 @@ double frame_score(const Shape& s, const Seam& seam, const Box& box) {
 }
 
 // The OCC solid of a shape grown by `offset` (every point within it of the shape: an
-// interphase shell's outer surface; spheres and cylinders), built in the frame that keeps its
+// interphase shell's outer surface), built in the frame that keeps its
 // seam and poles off the faces of `box` it crosses (the shape's own, whatever the offset); its
 // tag.
 int add_solid(const Shape& s, const Box& box, double offset = 0.0) {
@@ -366,9 +367,10 @@ int add_solid(const Shape& s, const Box& box, double offset = 0.0) {
     }
     case ShapeKind::Ellipsoid: {
       // A unit sphere mapped by x -> c + R diag(semi-axes) P x (a spline surface in
-      // OpenCASCADE).
-      const int tag = gmsh::model::occ::addSphere(0, 0, 0, 1);
+      // OpenCASCADE); grown, that surface's offset.
       const Mat3 M = s.rotation * s.semi_axes.asDiagonal() * P;
+      if (offset > 0.0) return add_ellipsoid_offset(M, c, offset);
+      const int tag = gmsh::model::occ::addSphere(0, 0, 0, 1);
       std::vector<double> a(12);
       for (int i = 0; i < 3; ++i) {
         for (int j = 0; j < 3; ++j) a[4 * i + j] = M(i, j);
@@ -554,7 +556,8 @@ double least_dihedral(const TetMesh& mesh, const std::array<int32_t, 4>& t) {
 
 // The signed distance of x from the surface of shape s grown by t (negative inside), and the
 // outward normal there: exact for spheres and for cylinders (flat ends; grown, their rims are
-// rounded), to first order for ellipsoids ((f - 1) / |grad f| with f the ellipsoidal radius;
+// rounded) and for grown ellipsoids outside the ellipsoid (the distance from its nearest point,
+// less t), to first order for ellipsoids ((f - 1) / |grad f| with f the ellipsoidal radius;
 // its error near the surface is of the order of the squared distance over the radius of
 // curvature). `feature`: x lies on a flat end's plane of an ungrown cylinder (its rim and end
 // disk), where the normal has no single direction.
@@ -586,13 +589,24 @@ double surface_distance(const Shape& s, double t, const Vec3& x, Vec3* normal, b
       return std::max(dr, dz) - t;
     }
     case ShapeKind::Ellipsoid: {
+      if (t > 0.0) {
+        // A shell's outer surface lies t out from the ellipsoid: exact there, where the first
+        // order would err by t^2 over the radius of curvature (a third of t for a shell a third
+        // as thick as that radius).
+        Vec3 z;
+        const double out = ellipsoid_distance(s, x, &z);
+        if (out > 0.0) {
+          *normal = (x - z) / out;
+          return out - t;
+        }
+      }
       const Vec3 y = s.rotation.transpose() * d;
       const Vec3 q = y.cwiseQuotient(s.semi_axes);
       const double f = q.norm();
       const Vec3 g = s.rotation * (q.cwiseQuotient(s.semi_axes) / std::max(f, 1e-300));
       const double gn = g.norm();
       *normal = gn > 0.0 ? Vec3(g / gn) : Vec3::UnitZ();
-      return gn > 0.0 ? (f - 1.0) / gn : -s.semi_axes.minCoeff();
+      return (gn > 0.0 ? (f - 1.0) / gn : -s.semi_axes.minCoeff()) - t;
     }
   }
   return 0.0;
@@ -1188,11 +1202,6 @@ void check_tet_meshable(const InclusionSet& set) {
       throw InputError(
           "outputs: mesh_tet meshes spheres, cylinders and ellipsoids, coated or not; family \"" +
           name + "\" has wavy, bent, deformed or debonded inclusions (use mesh_voxel for them)");
-    }
-    if (m.coated() && inc.shape.kind == ShapeKind::Ellipsoid) {
-      throw InputError("outputs: mesh_tet meshes coated spheres and cylinders; family \"" + name +
-                       "\" has coated ellipsoids, whose shells (offsets of an ellipsoid) it cannot "
-                       "build (use mesh_voxel for them)");
     }
   }
 }
@@ -2067,11 +2076,15 @@ double edge_clearance(const InclusionSet& set, const Vec3& origin) {
     Vec3 lo, hi;
     outer_aabb(inc, &lo, &hi);
     // A shell's outer surface, as a shape: the sphere grown by t; for a cylinder, the one of
-    // radius r + t and half length l + t that holds it (its rims are rounded).
+    // radius r + t and half length l + t that holds it (its rims are rounded); for an
+    // ellipsoid, the one of semi-axes a + t.
     Shape grown = s;
     if (t > 0.0) {
       grown.radius += t;
       if (s.kind == ShapeKind::Cylinder) grown.half_axis *= 1.0 + t / s.half_axis.norm();
+      // An ellipsoid's offset, by the ellipsoid of semi-axes a + t: they agree at the ends of
+      // the axes, and its shadow's outline is within t of the offset's (a clearance, not a size).
+      if (s.kind == ShapeKind::Ellipsoid) grown.semi_axes.array() += t;
     }
     std::vector<double> at[3];
     for (int a = 0; a < 3; ++a) at[a] = positions(origin[a], len[a], lo[a], hi[a]);

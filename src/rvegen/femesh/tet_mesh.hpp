@@ -10,9 +10,10 @@
 // the inclusions (a bound on the chord error, grown away from the surface), between a least and
 // a largest size. Second order (options.order 2) adds a node in the middle of each edge.
 //
-// Spheres, cylinders (flat ends) and ellipsoids; coated spheres and cylinders with their
-// interphase shells (the exact offsets of the cores). Coated ellipsoids, wavy, bent, deformed and
-// debonded inclusions are refused (InputError), and so are closed boxes.
+// Spheres, cylinders (flat ends) and ellipsoids, coated or not, with their interphase shells (the
+// exact offsets of the cores; an ellipsoid's, which is no ellipsoid, built by OpenCASCADE:
+// offset_solid.hpp). Wavy, bent, deformed and debonded inclusions are refused (InputError), and
+// so are closed boxes.
 #pragma once
 
 #include <array>

@@ -197,10 +197,13 @@ Vec3 principal_axis(const Shape& s) {
   return Vec3::Zero();
 }
 
-double ellipsoid_distance(const Shape& e, const Vec3& x) {
+double ellipsoid_distance(const Shape& e, const Vec3& x, Vec3* nearest) {
   const Vec3 y = e.rotation.transpose() * (x - e.center);
   const Vec3& a = e.semi_axes;
-  if (y.cwiseQuotient(a).squaredNorm() <= 1.0) return 0.0;
+  if (y.cwiseQuotient(a).squaredNorm() <= 1.0) {
+    if (nearest) *nearest = x;
+    return 0.0;
+  }
   // The closest point is z_i = a_i^2 y_i / (s + a_i^2) with s > 0 the root of
   // F(s) = sum (a_i y_i / (s + a_i^2))^2 - 1, decreasing in s (bisection, then exact point).
   auto F = [&](double s) {
@@ -216,6 +219,7 @@ double ellipsoid_distance(const Shape& e, const Vec3& x) {
   const double s = 0.5 * (lo + hi);
   Vec3 z;
   for (int i = 0; i < 3; ++i) z[i] = a[i] * a[i] * y[i] / (s + a[i] * a[i]);
+  if (nearest) *nearest = e.center + e.rotation * z;
   return (y - z).norm();
 }
 

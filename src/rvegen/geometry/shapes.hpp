@@ -71,8 +71,9 @@ Vec3 any_orthogonal(const Vec3& u);
 /// zero for spheres.
 Vec3 principal_axis(const Shape& s);
 
-/// Exact Euclidean distance from x to an ellipsoid (0 inside).
-double ellipsoid_distance(const Shape& e, const Vec3& x);
+/// Exact Euclidean distance from x to an ellipsoid (0 inside), and the point of the ellipsoid
+/// nearest x when `nearest` is given (x itself inside).
+double ellipsoid_distance(const Shape& e, const Vec3& x, Vec3* nearest = nullptr);
 
 /// The least principal radius of curvature of the surface of the ellipsoid of semi-axes `a`
 /// (principal frame) at the radial projection of p != 0 onto it.

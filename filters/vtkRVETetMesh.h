@@ -7,7 +7,7 @@
  * vtkUnstructuredGrid of tetrahedra following every interface, with opposite box faces meshed
  * alike (cell data phase and inclusion_id; field data phase_names, and merged_nodes, the nodes
  * the mesher left at one position and rvegen merged). Spheres, cylinders and ellipsoids,
- * coated or not; other inclusions give an error naming the family. The sizes are
+ * coated or not, and debonded spheres; other inclusions give an error naming the family. The sizes are
  * those of a scene's "mesh_tet" object (0: the default). Progress follows the mesher's stages;
  * Abort stops it (within a stage it first finishes with coarse elements) and leaves the output
  * empty.

@@ -759,6 +759,87 @@ TEST(TetMesh, CoatedEllipsoidsAreMeshedWithTheExactOffsetsAsShells) {
   EXPECT_GT(tet_quality(mesh).min_volume, 0.0);
 }
 
+// Debonded spheres: the void (between the sphere and the sphere grown by the gap, over the cap
+// of the debonded fraction about the axis) is a phase of its own, bounded by the core's cap, the
+// outer sphere and the cone where the cap ends. One inside the box (a third of the surface), one
+// across the face z = 1 (more than half of it, so the cone opens the other way), one debonded
+// all round.
+TEST(TetMesh, DebondedSpheresAreMeshedWithTheirVoidsAsAPhase) {
+  InclusionSet set;
+  set.box.size = Vec3(1, 1, 1);
+  set.family_names = {"beads"};
+  for (const auto& [c, r, f, g, axis] : std::vector<std::tuple<Vec3, double, double, double, Vec3>>{
+           {{0.3, 0.35, 0.45}, 0.15, 0.3, 0.04, Vec3(1, 2, 3)},
+           {{0.72, 0.62, 0.93}, 0.12, 0.65, 0.03, Vec3(0, 1, -1)},
+           {{0.28, 0.75, 0.8}, 0.09, 1.0, 0.025, Vec3(0, 0, 1)}}) {
+    Inclusion inc;
+    inc.id = static_cast<int>(set.inclusions.size());
+    inc.shape = Shape::sphere(c, r);
+    inc.mod.debond_fraction = f;
+    inc.mod.debond_gap = g;
+    inc.mod.debond_axis = axis.normalized();
+    set.inclusions.push_back(inc);
+  }
+  EXPECT_NO_THROW(check_tet_meshable(set));
+  TetMeshOptions options;
+  options.chord_error = 0.02;
+  options.shift_cell = false;  // the second stays cut by the face z = 1
+  const TetMesh mesh = tet_mesh(set, options);
+  const auto [meshed, exact] = volumes(set, mesh);
+  ASSERT_EQ(exact.size(), 3u);  // matrix, cores, voids
+  ASSERT_EQ(mesh.phases[2].kind, PhaseKind::kVoid);
+  for (size_t p = 0; p < exact.size(); ++p) {
+    EXPECT_NEAR(meshed[p] / exact[p], 1.0, 0.002) << mesh.phases[p].name;
+  }
+  // Every void element lies in its inclusion's void: between the two spheres, in the cap's cone.
+  const auto at = [&](const Inclusion& inc, const Vec3& x) {
+    Vec3 d = x - inc.shape.center;
+    for (int a = 0; a < 3; ++a) d[a] -= std::round(d[a]);  // the nearest periodic image
+    return d;
+  };
+  double void_volume[3] = {0, 0, 0};
+  for (size_t e = 0; e < mesh.tets.size(); ++e) {
+    if (mesh.phase[e] != 2) continue;
+    const Inclusion& inc = set.inclusions[mesh.inclusion_id[e]];
+    Vec3 centroid = Vec3::Zero();
+    for (int32_t n : mesh.tets[e]) centroid += 0.25 * mesh.nodes[n];
+    const Vec3 d = at(inc, centroid);
+    const double rho = d.norm(), cos_cap = 1.0 - 2.0 * inc.mod.debond_fraction;
+    EXPECT_GT(rho, inc.shape.radius * 0.99);
+    EXPECT_LT(rho, inc.shape.radius + inc.mod.debond_gap * 1.01);
+    EXPECT_GE(d.dot(inc.mod.debond_axis) / rho, cos_cap - 0.05);
+    void_volume[inc.id] += tet_volume(mesh.nodes, mesh.tets[e]);
+  }
+  for (const Inclusion& inc : set.inclusions) {
+    EXPECT_NEAR(void_volume[inc.id] / region_volumes(inc).void_, 1.0, 0.002) << inc.id;
+  }
+  // The nodes between a void and the matrix, off the cone, lie on the outer sphere (moved off it
+  // only by the volume-keeping moves).
+  std::vector<int> side(mesh.nodes.size(), 0), owner(mesh.nodes.size(), -1);
+  for (size_t e = 0; e < mesh.tets.size(); ++e) {
+    const int bit = mesh.inclusion_id[e] < 0 ? 1 : (mesh.phase[e] == 2 ? 2 : 4);
+    for (int32_t n : mesh.tets[e]) {
+      side[n] |= bit;
+      if (mesh.inclusion_id[e] >= 0) owner[n] = mesh.inclusion_id[e];
+    }
+  }
+  int on_cap = 0;
+  for (size_t i = 0; i < mesh.nodes.size(); ++i) {
+    if (side[i] != 3) continue;
+    const Inclusion& inc = set.inclusions[owner[i]];
+    const Vec3 d = at(inc, mesh.nodes[i]);
+    const double rho = d.norm();
+    if (std::abs(d.dot(inc.mod.debond_axis) / rho - (1.0 - 2.0 * inc.mod.debond_fraction)) < 1e-6) {
+      continue;  // on the cone
+    }
+    EXPECT_NEAR(rho, inc.shape.radius + inc.mod.debond_gap, 0.05 * inc.mod.debond_gap);
+    ++on_cap;
+  }
+  EXPECT_GT(on_cap, 300);
+  EXPECT_NO_THROW(check_conforming(mesh));
+  EXPECT_GT(tet_quality(mesh).min_volume, 0.0);
+}
+
 // The element estimate (the memory check's) integrates the mesher's own size field: it follows
 // the count of real meshes, with a near contact as without one, and a near contact costs
 // elements in both (the gap asks for gap_elements across it).

@@ -1,6 +1,7 @@
 """Checks a directory's tetrahedral mesh (mesh_tet.vtu, .inp) against inclusions.json, with
 numpy and meshio only: positive elements filling the box, each phase's volume within 1 % of the
-exact one (spheres, cylinders, ellipsoids; the interphase shells of coated ones),
+exact one (spheres, cylinders, ellipsoids; the interphase shells of coated ones and the voids
+of debonded spheres),
 conforming (no two nodes at one position; every
 element face shared by two elements or lying in a box face), every least dihedral angle at least
 5 degrees and as report.json gives it (its estimated count within -40 % and +60 %), opposite faces carrying the same nodes within 1e-9 of the
@@ -36,7 +37,9 @@ def clearance(incs, o, L):
         return max(0.0, min(d, L - d) - half)
     for i in incs["inclusions"]:
         c = np.asarray(i["center"], float)
-        t = i.get("modifiers", {}).get("coating", 0.0)  # a shell's outer surface: the extremes moved out by t
+        mods = i.get("modifiers", {})
+        # A shell's or a debonding void's outer surface: the extremes moved out by t.
+        t = mods.get("coating", 0.0) or mods.get("debond_gap", 0.0)
         for a in range(3):
             if i["shape"] == "sphere":
                 r = i["radius"]
@@ -44,6 +47,9 @@ def clearance(incs, o, L):
                 if t > 0:
                     least = min(least, dist(c[a] - r - t, a) / (r + t),
                                 dist(c[a] + r + t, a) / (r + t))
+                if 0 < mods.get("debond_fraction", 0.0) < 1:
+                    # A void's cone has its apex at the centre: faces are kept off it.
+                    least = min(least, dist(c[a], a) / r)
             elif i["shape"] == "ellipsoid":
                 A = np.asarray(i["rotation"]) * np.asarray(i["semi_axes"])[None, :]
                 ext, unit = np.linalg.norm(A[a]), min(i["semi_axes"])
@@ -95,10 +101,18 @@ if kind == "tetra10":
 P = pts[tets]
 vol = np.einsum("ij,ij->i", P[:, 1] - P[:, 0], np.cross(P[:, 2] - P[:, 0], P[:, 3] - P[:, 0])) / 6
 assert vol.min() > 0, "an element has volume %g" % vol.min()
-# Interphase labels: after the cores (1..F), one per family with coated inclusions, in order.
+# Interphase and void labels: after the cores (1..F), family by family, one for the family's
+# shells when it has coated inclusions, then one for its voids when it has debonded ones.
 families = len(incs["family_names"])
-coated = sorted({i["family"] for i in incs["inclusions"] if i.get("modifiers", {}).get("coating", 0) > 0})
-shell_label = {f: families + 1 + k for k, f in enumerate(coated)}
+def has(f, key):
+    return any(i["family"] == f and i.get("modifiers", {}).get(key, 0) > 0 for i in incs["inclusions"])
+shell_label, void_label = {}, {}
+label = families + 1
+for f in range(families):
+    if has(f, "coating"):
+        shell_label[f], label = label, label + 1
+    if has(f, "debond_fraction"):
+        void_label[f], label = label, label + 1
 
 
 def ellipsoid_shell(a, t):
@@ -139,6 +153,11 @@ for i in incs["inclusions"]:
     exact[i["family"] + 1] = exact.get(i["family"] + 1, 0.0) + v
     if t > 0:
         exact[shell_label[i["family"]]] = exact.get(shell_label[i["family"]], 0.0) + shell
+    f, g = i.get("modifiers", {}).get("debond_fraction", 0.0), i.get("modifiers", {}).get("debond_gap", 0.0)
+    if f > 0:  # the spherical shell between r and r + g, over the fraction f of the directions
+        r = i["radius"]
+        exact[void_label[i["family"]]] = (exact.get(void_label[i["family"]], 0.0)
+                                         + f * 4 / 3 * math.pi * ((r + g) ** 3 - r ** 3))
 exact[0] = L ** 3 - sum(exact.values())
 for label, v in exact.items():
     got = vol[phase == label].sum()

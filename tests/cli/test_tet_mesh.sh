@@ -13,8 +13,8 @@
 #    agrees with rvegen's FFT solver (laminate voxels, 32^3: 0.2 % from 64^3) within 2 %, with
 #    spheres and transversely isotropic rods, each in its own orientation;
 #  - the scene's "mesh_tet" sizes reach the mesher (a coarser chord error, fewer elements);
-#  - coated spheres, rods and ellipsoids (their shells), cut by the cell's faces, pass the same
-#    checks;
+#  - coated spheres, rods and ellipsoids (their shells) and debonded spheres (their voids), cut
+#    by the cell's faces, pass the same checks;
 #  - inclusions the mesher cannot take (wavy fibres) are refused.
 # (The mesh is not the same from run to run: Gmsh's HXT mesher varies, with one thread too.)
 # usage: test_tet_mesh.sh RVEGEN_BINARY WORK_DIR SAMPLES_DIR
@@ -175,19 +175,20 @@ grep -Eq 'mesh_tet: the tetrahedral mesh of this RVE needs (about|more than) [0-
 [ -e "$WORK/t" ] && fail "a mesh refused after packing left a directory"
 
 # Coated spheres, rods and ellipsoids (their interphase shells, offsets of the cores; an
-# ellipsoid's is no ellipsoid) and the ellipsoids' spline surfaces in OpenCASCADE, some cut by
-# the cell's faces: the same checks.
+# ellipsoid's is no ellipsoid), the ellipsoids' spline surfaces in OpenCASCADE and debonded
+# spheres (their voids a phase), some cut by the cell's faces: the same checks.
 cat >"$WORK/mixed.json" <<'JSON'
 {"box":{"size":[0.6,0.6,0.6]},"seed":1,"min_gap":0.01,"families":[
  {"name":"beads","shape":"sphere","radius":0.08,"count":3,"coating":{"thickness":0.01}},
  {"name":"rods","shape":"cylinder","radius":0.03,"aspect_ratio":3,"count":2,
   "coating":{"thickness":0.008},"orientation":{"law":"isotropic"}},
  {"name":"grains","shape":"ellipsoid","semi_axes":[0.1,0.07,0.05],"count":2,
-  "coating":{"thickness":0.008},"orientation":{"law":"isotropic"}}],
+  "coating":{"thickness":0.008},"orientation":{"law":"isotropic"}},
+ {"name":"loose","shape":"sphere","radius":0.07,"count":2,"debonding":{"fraction":0.4,"gap":0.015}}],
  "outputs":["inclusions","mesh_tet"]}
 JSON
 expect_rc 0 "$RVEGEN" generate "$WORK/mixed.json" -o "$WORK/m" -q
-$py "$(dirname "$0")/check_tet_mesh.py" "$WORK/m" 0.002 || fail "tetrahedral mesh of coated spheres, rods and ellipsoids"
+$py "$(dirname "$0")/check_tet_mesh.py" "$WORK/m" 0.002 || fail "tetrahedral mesh of coated spheres, rods and ellipsoids and debonded spheres"
 $py - "$WORK/m" <<'PY' || fail "few inclusions cross the cell's faces: the test lost its point"
 import json, sys
 import numpy as np

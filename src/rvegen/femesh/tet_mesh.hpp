@@ -12,8 +12,9 @@
 //
 // Spheres, cylinders (flat ends) and ellipsoids, coated or not, with their interphase shells (the
 // exact offsets of the cores; an ellipsoid's, which is no ellipsoid, built by OpenCASCADE:
-// offset_solid.hpp). Wavy, bent, deformed and debonded inclusions are refused (InputError), and
-// so are closed boxes.
+// offset_solid.hpp); debonded spheres with their voids (a phase: the spherical shell of the gap
+// over the cap, ended by a cone). Wavy, bent and deformed inclusions are refused (InputError),
+// and so are closed boxes.
 #pragma once
 
 #include <array>

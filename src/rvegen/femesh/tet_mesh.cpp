@@ -6,6 +6,7 @@
 #include <array>
 #include <atomic>
 #include <cmath>
+#include <initializer_list>
 #include <limits>
 #include <map>
 #include <mutex>
@@ -333,6 +334,23 @@ double frame_score(const Shape& s, const Seam& seam, const Box& box) {
   return score;
 }
 
+// The solid swept by a profile (a plane surface in the half plane x >= 0 of y = 0) turned about
+// z, its seam at +x; the profile and the points that only served its arcs as centres go.
+int revolved_solid(int profile, std::initializer_list<int> centres) {
+  namespace occ = gmsh::model::occ;
+  gmsh::vectorpair out;
+  occ::revolve({{2, profile}}, 0, 0, 0, 0, 0, 1, 2.0 * M_PI, out);
+  int solid = -1;
+  for (const auto& dt : out) {
+    if (dt.first == 3) solid = dt.second;
+  }
+  occ::remove({{2, profile}}, true);
+  gmsh::vectorpair points;
+  for (const int c : centres) points.push_back({0, c});
+  occ::remove(points);
+  return solid;
+}
+
 // The OCC solid of a shape grown by `offset` (every point within it of the shape: an
 // interphase shell's outer surface), built in the frame that keeps its
 // seam and poles off the faces of `box` it crosses (the shape's own, whatever the offset); its
@@ -378,16 +396,7 @@ int add_solid(const Shape& s, const Box& box, double offset = 0.0) {
       const int loop = occ::addCurveLoop({occ::addLine(a0, a1), occ::addCircleArc(a1, rim0, a2),
                                           occ::addLine(a2, a3), occ::addCircleArc(a3, rim1, a4),
                                           occ::addLine(a4, a5), occ::addLine(a5, a0)});
-      const int profile = occ::addPlaneSurface({loop});
-      gmsh::vectorpair out;
-      occ::revolve({{2, profile}}, 0, 0, 0, 0, 0, 1, 2.0 * M_PI, out);
-      int solid = -1;
-      for (const auto& dt : out) {
-        if (dt.first == 3) solid = dt.second;
-      }
-      occ::remove({{2, profile}}, true);
-      occ::remove({{0, rim0}, {0, rim1}});
-      return turn(solid, P);
+      return turn(revolved_solid(occ::addPlaneSurface({loop}), {rim0, rim1}), P);
     }
     case ShapeKind::Ellipsoid: {
       // A unit sphere mapped by x -> c + R diag(semi-axes) P x (a spline surface in
@@ -453,15 +462,7 @@ int add_void_solid(const Inclusion& in, const Box& box) {
   const int loop = occ::addCurveLoop(
       {occ::addCircleArc(pole_in, centre, rim_in), occ::addLine(rim_in, rim_out),
        occ::addCircleArc(rim_out, centre, pole_out), occ::addLine(pole_out, pole_in)});
-  const int profile = occ::addPlaneSurface({loop});
-  gmsh::vectorpair out;
-  occ::revolve({{2, profile}}, 0, 0, 0, 0, 0, 1, 2.0 * M_PI, out);
-  int solid = -1;
-  for (const auto& dt : out) {
-    if (dt.first == 3) solid = dt.second;
-  }
-  occ::remove({{2, profile}}, true);
-  occ::remove({{0, centre}});
+  const int solid = revolved_solid(occ::addPlaneSurface({loop}), {centre});
   const Eigen::AngleAxisd aa(P);
   if (aa.angle() > 0.0) {
     occ::rotate({{3, solid}}, 0, 0, 0, aa.axis()[0], aa.axis()[1], aa.axis()[2], aa.angle());

@@ -48,8 +48,17 @@ def clearance(incs, o, L):
                     least = min(least, dist(c[a] - r - t, a) / (r + t),
                                 dist(c[a] + r + t, a) / (r + t))
                 if 0 < mods.get("debond_fraction", 0.0) < 1:
-                    # A void's cone has its apex at the centre: faces are kept off it.
+                    # A void's cone has its apex at the centre, and two rims (circles at r and
+                    # r + gap): faces are kept off them.
                     least = min(least, dist(c[a], a) / r)
+                    u = np.asarray(mods["debond_axis"], float)
+                    cos_cap = 1 - 2 * mods["debond_fraction"]
+                    sin_cap = math.sqrt(max(0.0, 1 - cos_cap ** 2))
+                    across = math.sqrt(max(0.0, 1 - u[a] ** 2))
+                    for rho in (r, r + t):
+                        for side in (-1, 1):
+                            least = min(least, dist(c[a] + rho * cos_cap * u[a]
+                                                    + side * rho * sin_cap * across, a) / r)
             elif i["shape"] == "ellipsoid":
                 A = np.asarray(i["rotation"]) * np.asarray(i["semi_axes"])[None, :]
                 ext, unit = np.linalg.norm(A[a]), min(i["semi_axes"])

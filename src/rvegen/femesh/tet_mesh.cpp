@@ -355,9 +355,9 @@ int revolved_solid(int profile, std::initializer_list<int> centres) {
 // interphase shell's outer surface), built in the frame that keeps its
 // seam and poles off the faces of `box` it crosses (the shape's own, whatever the offset); its
 // tag.
-int add_solid(const Shape& s, const Box& box, double offset = 0.0) {
+int add_solid(const Shape& s, const Box& box, double offset = 0.0, const Mat3* given = nullptr) {
   int best = 0;
-  double best_score = frame_score(s, seam_of(s, frame(s, 0)), box);
+  double best_score = given ? 1e300 : frame_score(s, seam_of(s, frame(s, 0)), box);
   for (int k = 1; k < kFrames && best_score < 1e300; ++k) {
     const double score = frame_score(s, seam_of(s, frame(s, k)), box);
     if (score > best_score) {
@@ -365,7 +365,7 @@ int add_solid(const Shape& s, const Box& box, double offset = 0.0) {
       best_score = score;
     }
   }
-  const Mat3 P = frame(s, best);
+  const Mat3 P = given ? *given : frame(s, best);
   const Vec3 c = s.center;
   auto turn = [&](int tag, const Mat3& R) {
     const Eigen::AngleAxisd aa(R);
@@ -421,12 +421,14 @@ int add_solid(const Shape& s, const Box& box, double offset = 0.0) {
 // 1 - 2 f), the profile in the half plane of its seam turned about the axis; when the cap is the
 // whole sphere, the sphere of radius r + g (the fragment against the core leaves the shell).
 // Built in the turn about the axis that keeps the seam off the faces of `box` it crosses.
-int add_void_solid(const Inclusion& in, const Box& box) {
+// The frame of a debonded sphere's void and core: z along the debonding axis (the core's poles
+// on it, so that its meridians, its seam among them, cross the cap's rim square: a seam
+// grazing the rim left a sliver of surface along it, and elements under 2 degrees), and the
+// seam turned about the axis off the faces of `box` it crosses.
+Mat3 void_frame(const Inclusion& in, const Box& box) {
   const Shape& s = in.shape;
   const Modifiers& m = in.mod;
   const double r = s.radius, g = m.debond_gap, cos_cap = 1.0 - 2.0 * m.debond_fraction;
-  if (cos_cap <= -1.0 + 1e-9) return add_solid(s, box, g);
-  const double sin_cap = std::sqrt(std::max(0.0, 1.0 - cos_cap * cos_cap));
   const double theta = std::acos(std::clamp(cos_cap, -1.0, 1.0));
   const Vec3 u = m.debond_axis.normalized(), w = any_orthogonal(u), v = u.cross(w);
   Shape outer = s;
@@ -439,13 +441,15 @@ int add_void_solid(const Inclusion& in, const Box& box) {
     F.col(0) = std::cos(psi) * w + std::sin(psi) * v;
     F.col(1) = u.cross(F.col(0));
     F.col(2) = u;
-    Seam seam;  // the profile's arcs, from the pole to the cap's rim, and its rim line
+    Seam seam;  // the core's meridian from pole to pole, and the void's to the cap's rim
     for (const double rho : {r, r + g}) {
+      const double end = rho == r ? M_PI : theta;
       for (int j = 0; j < kSeamPoints; ++j) {
-        const double phi = theta * j / (kSeamPoints - 1);
+        const double phi = end * j / (kSeamPoints - 1);
         seam.at.push_back(s.center + rho * (std::sin(phi) * F.col(0) + std::cos(phi) * u));
-        seam.tangent.push_back(j == 0 ? Vec3::Zero()
-                                      : Vec3(std::cos(phi) * F.col(0) - std::sin(phi) * u));
+        const bool pole = j == 0 || (rho == r && j == kSeamPoints - 1);
+        seam.tangent.push_back(pole ? Vec3::Zero()
+                                    : Vec3(std::cos(phi) * F.col(0) - std::sin(phi) * u));
       }
     }
     const double score = frame_score(outer, seam, box);
@@ -454,6 +458,16 @@ int add_void_solid(const Inclusion& in, const Box& box) {
       P = F;
     }
   }
+  return P;
+}
+
+int add_void_solid(const Inclusion& in, const Box& box) {
+  const Shape& s = in.shape;
+  const Modifiers& m = in.mod;
+  const double r = s.radius, g = m.debond_gap, cos_cap = 1.0 - 2.0 * m.debond_fraction;
+  if (cos_cap <= -1.0 + 1e-9) return add_solid(s, box, g);
+  const double sin_cap = std::sqrt(std::max(0.0, 1.0 - cos_cap * cos_cap));
+  const Mat3 P = void_frame(in, box);
   namespace occ = gmsh::model::occ;
   const int centre = occ::addPoint(0, 0, 0), pole_in = occ::addPoint(0, 0, r),
             pole_out = occ::addPoint(0, 0, r + g),
@@ -1677,7 +1691,9 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
     std::vector<Vec3> cell_shift;
     for (const auto& [inc, shifts] : shifts_of) {
       const Inclusion& in = set.inclusions[inc];
-      const int core = add_solid(in.shape, box);
+      const bool cone = in.mod.debonded() && in.mod.debond_fraction < 1.0;
+      const Mat3 axis_frame = cone ? void_frame(in, box) : Mat3::Identity();
+      const int core = add_solid(in.shape, box, 0.0, cone ? &axis_frame : nullptr);
       Vec3 lo, hi;
       outer_aabb(in, &lo, &hi);
       const bool inside = shifts.size() == 1 && shifts.front().isZero() &&
@@ -2072,7 +2088,19 @@ Extremes extremes(const InclusionSet& set, int a, bool disks = true,
       // apex at the cone's angle would lie along it (a face nearly so, through the centre of a
       // sphere debonded over 0.3 of its surface, left 78 elements under 5 degrees, least 1.4,
       // along the cut); a face kept off the centre cuts the cone at an angle.
-      if (inc.mod.debonded() && inc.mod.debond_fraction < 1.0) add(s.center[a], 0.0, s.radius);
+      // Its two rims (the cone's circles at r and r + gap) too: a face grazing a rim leaves a
+      // sliver of surface between them (0.001 r from the inner rim, elements of 1.5 degrees).
+      if (inc.mod.debonded() && inc.mod.debond_fraction < 1.0) {
+        add(s.center[a], 0.0, s.radius);
+        const Vec3& u = inc.mod.debond_axis;
+        const double cos_cap = 1.0 - 2.0 * inc.mod.debond_fraction;
+        const double sin_cap = std::sqrt(std::max(0.0, 1.0 - cos_cap * cos_cap));
+        const double across = std::sqrt(std::max(0.0, 1.0 - u[a] * u[a]));
+        for (const double rho : {s.radius, s.radius + t}) {
+          add(s.center[a] + rho * cos_cap * u[a] - rho * sin_cap * across, 0.0, s.radius);
+          add(s.center[a] + rho * cos_cap * u[a] + rho * sin_cap * across, 0.0, s.radius);
+        }
+      }
       continue;
     }
     const Vec3 u = s.half_axis.normalized();

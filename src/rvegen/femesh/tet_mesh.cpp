@@ -1327,8 +1327,8 @@ void check_tet_meshable(const InclusionSet& set) {
     const Modifiers& m = inc.mod;
     if (m.curved() || m.deformed()) {
       throw InputError(
-          "outputs: mesh_tet meshes spheres, cylinders and ellipsoids, coated or debonded or "
-          "plain; family \"" +
+          "outputs: mesh_tet meshes spheres, cylinders and ellipsoids, plain, coated or (spheres) "
+          "debonded; family \"" +
           name + "\" has wavy, bent or deformed inclusions (use mesh_voxel for them)");
     }
   }

@@ -15,6 +15,8 @@
 5. Order 2 on the filter (a coarse mesh): quadratic tetrahedra whose corners fill the box and
    whose midside nodes lie in the middle of their edges; ParaView reads the command line's
    10-node mesh_tet.vtu.
+6. Debonded spheres and coated ellipsoids: their voids and shells are phases of the mesh, the
+   voids' volume within 1 % of the exact one.
 
 usage: pvpython test_tet_mesh.py PLUGIN.so SAMPLES_DIR RVEGEN WORK_DIR
 """
@@ -168,6 +170,35 @@ reader.UpdatePipeline()
 read = servermanager.Fetch(reader)
 check(read.GetNumberOfCells() > 1000 and read.GetCellType(0) == 24,
       "10-node mesh_tet.vtu: %d cells of type %d" % (read.GetNumberOfCells(), read.GetCellType(0)))
+
+# 6. Debonded spheres and coated ellipsoids, through the generator's inclusion list (which
+#    carries the debonding axes): the voids and the shells are phases of their own.
+mixed = {"box": {"size": [0.6, 0.6, 0.6]}, "seed": 2, "min_gap": 0.01, "families": [
+    {"name": "loose", "shape": "sphere", "radius": 0.1, "count": 2,
+     "debonding": {"fraction": 0.4, "gap": 0.02}},
+    {"name": "grains", "shape": "ellipsoid", "semi_axes": [0.1, 0.07, 0.05], "count": 2,
+     "coating": {"thickness": 0.01}, "orientation": {"law": "isotropic"}}]}
+with open(os.path.join(work, "mixed.json"), "w") as f:
+    json.dump(mixed, f)
+gen6 = RVEGenerator(SceneFile=os.path.join(work, "mixed.json"))
+mesh6 = RVETetrahedralMesh(Input=OutputPort(gen6, 0), ChordError=0.03)
+mesh6.UpdatePipeline()
+grid6 = servermanager.Fetch(mesh6)
+check(grid6.GetNumberOfCells() > 1000, "debonded spheres and coated ellipsoids were not meshed")
+if grid6.GetNumberOfCells() > 1000:
+    vol, phase = volumes(grid6)
+    arr = grid6.GetFieldData().GetAbstractArray("phase_names")
+    names = [arr.GetValue(k) for k in range(arr.GetNumberOfValues())]
+    check(names == ["matrix", "loose", "grains", "loose void", "grains interphase"], "phases: %s" % names)
+    check(vol.min() > 0 and abs(vol.sum() / 0.6 ** 3 - 1) < 1e-9, "the mixed mesh does not fill the box")
+    incs6 = json.loads(servermanager.Fetch(gen6).GetFieldData().GetAbstractArray("rvegen_inclusions").GetValue(0))
+    voids = sum(0.4 * 4 / 3 * math.pi * ((i["radius"] + 0.02) ** 3 - i["radius"] ** 3)
+                for i in incs6["inclusions"] if i["shape"] == "sphere")
+    if "loose void" in names:
+        got = vol[phase == names.index("loose void")].sum()
+        check(abs(got / voids - 1) < 0.01, "voids: volume %g, exact %g" % (got, voids))
+    if "grains interphase" in names:
+        check(vol[phase == names.index("grains interphase")].sum() > 0, "no interphase volume")
 
 if failures:
     print("%d failure(s)" % len(failures))

@@ -416,11 +416,6 @@ int add_solid(const Shape& s, const Box& box, double offset = 0.0, const Mat3* g
   return -1;
 }
 
-// The OCC solid of a debonded sphere's void: the points between the sphere (radius r) and the
-// sphere of radius r + g over the cap of half-angle theta about the debonding axis (cos theta =
-// 1 - 2 f), the profile in the half plane of its seam turned about the axis; when the cap is the
-// whole sphere, the sphere of radius r + g (the fragment against the core leaves the shell).
-// Built in the turn about the axis that keeps the seam off the faces of `box` it crosses.
 // The frame of a debonded sphere's void and core: z along the debonding axis (the core's poles
 // on it, so that its meridians, its seam among them, cross the cap's rim square: a seam
 // grazing the rim left a sliver of surface along it, and elements under 2 degrees), and the
@@ -461,6 +456,11 @@ Mat3 void_frame(const Inclusion& in, const Box& box) {
   return P;
 }
 
+// The OCC solid of a debonded sphere's void: the points between the sphere (radius r) and the
+// sphere of radius r + g over the cap of half-angle theta about the debonding axis (cos theta =
+// 1 - 2 f), the profile in the half plane of its seam turned about the axis; when the cap is the
+// whole sphere, the sphere of radius r + g (the fragment against the core leaves the shell).
+// Built in void_frame.
 int add_void_solid(const Inclusion& in, const Box& box) {
   const Shape& s = in.shape;
   const Modifiers& m = in.mod;

@@ -167,7 +167,7 @@ class SizeField {
       double outer = std::abs(dc - t);
       if (m.debonded()) {
         const Vec3 from_centre = x - s.center;
-        const double rho = from_centre.norm(), cos_cap = 1.0 - 2.0 * m.debond_fraction;
+        const double rho = from_centre.norm(), cos_cap = m.debond_cos_cap();
         const double beyond =
             rho > 0.0 ? std::acos(std::clamp(from_centre.dot(m.debond_axis) / rho, -1.0, 1.0)) -
                             std::acos(std::clamp(cos_cap, -1.0, 1.0))
@@ -423,7 +423,7 @@ int add_solid(const Shape& s, const Box& box, double offset = 0.0, const Mat3* g
 Mat3 void_frame(const Inclusion& in, const Box& box) {
   const Shape& s = in.shape;
   const Modifiers& m = in.mod;
-  const double r = s.radius, g = m.debond_gap, cos_cap = 1.0 - 2.0 * m.debond_fraction;
+  const double r = s.radius, g = m.debond_gap, cos_cap = m.debond_cos_cap();
   const double theta = std::acos(std::clamp(cos_cap, -1.0, 1.0));
   const Vec3 u = m.debond_axis.normalized(), w = any_orthogonal(u), v = u.cross(w);
   Shape outer = s;
@@ -464,7 +464,7 @@ Mat3 void_frame(const Inclusion& in, const Box& box) {
 int add_void_solid(const Inclusion& in, const Box& box) {
   const Shape& s = in.shape;
   const Modifiers& m = in.mod;
-  const double r = s.radius, g = m.debond_gap, cos_cap = 1.0 - 2.0 * m.debond_fraction;
+  const double r = s.radius, g = m.debond_gap, cos_cap = m.debond_cos_cap();
   if (cos_cap <= -1.0 + 1e-9) return add_solid(s, box, g);
   const double sin_cap = std::sqrt(std::max(0.0, 1.0 - cos_cap * cos_cap));
   const Mat3 P = void_frame(in, box);
@@ -794,8 +794,7 @@ bool on_void_cone(const Inclusion& in, const Vec3& shift, const Vec3& x) {
   if (!in.mod.debonded()) return false;
   const Vec3 d = x - in.shape.center - shift;
   const double rho = d.norm();
-  return rho > 0.0 &&
-         std::abs(d.dot(in.mod.debond_axis) / rho - (1.0 - 2.0 * in.mod.debond_fraction)) < 1e-7;
+  return rho > 0.0 && std::abs(d.dot(in.mod.debond_axis) / rho - in.mod.debond_cos_cap()) < 1e-7;
 }
 
 }  // namespace
@@ -1679,12 +1678,8 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
     std::vector<int32_t> tool_label;  // the phase of each piece
     const std::vector<int> shell_label =
         interphase_labels(mesh.phases, static_cast<int>(set.family_names.size()));
-    std::vector<int> void_label(set.family_names.size() + 1, -1);
-    for (const Phase& ph : mesh.phases) {
-      if (ph.kind != PhaseKind::kVoid || ph.family < 0) continue;
-      if (ph.family >= static_cast<int>(void_label.size())) void_label.resize(ph.family + 1, -1);
-      void_label[ph.family] = ph.label;
-    }
+    const std::vector<int> void_label =
+        void_labels(mesh.phases, static_cast<int>(set.family_names.size()));
     gmsh::vectorpair objects;
     std::vector<int> object_inc;
     std::vector<char> object_core;
@@ -2093,7 +2088,7 @@ Extremes extremes(const InclusionSet& set, int a, bool disks = true,
       if (inc.mod.debonded() && inc.mod.debond_fraction < 1.0) {
         add(s.center[a], 0.0, s.radius);
         const Vec3& u = inc.mod.debond_axis;
-        const double cos_cap = 1.0 - 2.0 * inc.mod.debond_fraction;
+        const double cos_cap = inc.mod.debond_cos_cap();
         const double sin_cap = std::sqrt(std::max(0.0, 1.0 - cos_cap * cos_cap));
         const double across = std::sqrt(std::max(0.0, 1.0 - u[a] * u[a]));
         for (const double rho : {s.radius, s.radius + t}) {

@@ -245,7 +245,7 @@ BodyQuery::BodyQuery(const Inclusion& inc) : m_(inc.mod), s_(inc.shape), line_(i
   }
   for (const auto& wv : m_.deform_waves) kmax_ = std::max(kmax_, wv.wavenumber);
   if (m_.debonded()) {
-    cos_cap_ = 1.0 - 2.0 * m_.debond_fraction;
+    cos_cap_ = m_.debond_cos_cap();
     theta_cap_ = std::acos(cos_cap_);
   }
 }

@@ -72,6 +72,9 @@ struct Modifiers {
   bool curved() const { return wavy() || bent(); }
   bool deformed() const { return deform_amplitude > 0.0; }
   bool debonded() const { return debond_fraction > 0.0 && debond_gap > 0.0; }
+  /// The cosine of the debonded cap's half-angle about debond_axis (the cap covers
+  /// debond_fraction of the sphere: 1 - 2 f).
+  double debond_cos_cap() const { return 1.0 - 2.0 * debond_fraction; }
   bool any() const { return coated() || curved() || deformed() || debonded(); }
 };
 

@@ -45,14 +45,26 @@ std::vector<Phase> phase_table(const InclusionSet& set) {
   return out;
 }
 
-std::vector<int> interphase_labels(const std::vector<Phase>& phases, int families) {
+namespace {
+
+std::vector<int> labels_of(const std::vector<Phase>& phases, int families, PhaseKind kind) {
   std::vector<int> out(static_cast<size_t>(std::max(families, 0)), -1);
   for (const Phase& p : phases) {
-    if (p.kind != PhaseKind::kInterphase) continue;
+    if (p.kind != kind || p.family < 0) continue;
     if (p.family >= static_cast<int>(out.size())) out.resize(p.family + 1, -1);
     out[p.family] = p.label;
   }
   return out;
+}
+
+}  // namespace
+
+std::vector<int> interphase_labels(const std::vector<Phase>& phases, int families) {
+  return labels_of(phases, families, PhaseKind::kInterphase);
+}
+
+std::vector<int> void_labels(const std::vector<Phase>& phases, int families) {
+  return labels_of(phases, families, PhaseKind::kVoid);
 }
 
 }  // namespace rvegen

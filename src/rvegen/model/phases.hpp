@@ -31,6 +31,8 @@ std::vector<Phase> phase_table(const InclusionSet& set);
 /// Per family (0..F-1, or more if a phase names a later one), the label of its interphase
 /// shells in `phases`; -1 for a family without.
 std::vector<int> interphase_labels(const std::vector<Phase>& phases, int families);
+/// The same for the debonding voids.
+std::vector<int> void_labels(const std::vector<Phase>& phases, int families);
 
 /// The label of family f's cores (the numbering above).
 constexpr int core_label(int family) {

@@ -61,10 +61,22 @@ int vtkRVETetMesh::RequestData(vtkInformation*, vtkInformationVector** in,
     const double have = rvegen::available_memory_bytes();
     const rvegen::TetMeshNeed need = rvegen::tet_mesh_need(set, scene.tet_mesh, have);
     if (have > 0.0 && need.bytes > have) {
+      rvegen::TetMeshSpec fit;
+      rvegen::TetMeshNeed fit_need;
+      std::string instead;
+      if (rvegen::coarser_tet_mesh_that_fits(
+              set, scene.tet_mesh, have,
+              [have](const rvegen::TetMeshNeed& n) { return n.bytes <= have; }, &fit, &fit_need)) {
+        instead = "; with " +
+                  rvegen::describe_tet_mesh_change(scene.tet_mesh, fit,
+                                                   rvegen::SettingNames::kProperties) +
+                  " it would need about " + rvegen::format_bytes(fit_need.bytes);
+      }
       vtkErrorMacro(<< "the tetrahedral mesh (" << (need.capped ? "more than " : "about ")
                     << static_cast<long long>(need.elements) << " elements) would need about "
                     << rvegen::format_bytes(need.bytes) << ", more than the "
-                    << rvegen::format_bytes(have) << " available: raise ChordError or MaxSize");
+                    << rvegen::format_bytes(have) << " available" << instead
+                    << " (raise ChordError or MaxSize, or lower GapElements)");
       return 0;
     }
     rvegen::TetMeshOptions opt;

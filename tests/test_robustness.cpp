@@ -391,6 +391,40 @@ TEST(Budgets, MemoryEstimateGrowsWithWhatTheSceneAsks) {
   EXPECT_NE(describe(estimate_resources(m)).find("tetrahedral mesh"), std::string::npos);
 }
 
+TEST(Budgets, AMeshThatDoesNotFitIsOfferedCoarserSettingsLeastLossFirst) {
+  Scene m = small_scene();
+  m.outputs.mesh_tet = true;
+  const std::vector<TetMeshSpec> offers = coarser_tet_meshes(m.tet_mesh);
+  ASSERT_FALSE(offers.empty());
+  double last = -1.0;
+  for (const TetMeshSpec& t : offers) {
+    // Each coarser in every setting, none the spec itself, and each cheaper to the scene's
+    // estimate than the spec.
+    EXPECT_FALSE(t == m.tet_mesh);
+    EXPECT_GE(t.chord_error, m.tet_mesh.chord_error);
+    EXPECT_LE(t.gap_elements, m.tet_mesh.gap_elements);
+    Scene c = m;
+    c.tet_mesh = t;
+    EXPECT_LT(estimate_resources(c).tetrahedra, estimate_resources(m).tetrahedra);
+    // Gap elements only drop with 10-node elements (the accuracy kept across the gap).
+    if (t.gap_elements < m.tet_mesh.gap_elements) EXPECT_EQ(t.order, 2);
+    EXPECT_GE(t.chord_error, last);
+    last = t.chord_error;
+  }
+  // The chord error alone first.
+  EXPECT_GT(offers.front().chord_error, m.tet_mesh.chord_error);
+  EXPECT_EQ(offers.front().gap_elements, m.tet_mesh.gap_elements);
+  EXPECT_EQ(describe_tet_mesh_change(m.tet_mesh, offers.front()),
+            "\"mesh_tet\": {\"chord_error\": 0.01}");
+  // Nothing coarser than the coarsest offered.
+  EXPECT_TRUE(coarser_tet_meshes(offers.back()).empty());
+  // Named as the filter's properties, too.
+  TetMeshSpec one = m.tet_mesh;
+  one.gap_elements = 1.0;
+  one.order = 2;
+  EXPECT_EQ(describe_tet_mesh_change(m.tet_mesh, one, SettingNames::kProperties),
+            "GapElements 1, Order 2");
+}
 // --- Level sets -----------------------------------------------------------------------
 
 TEST(LevelSetNames, FamiliesWhoseNamesCollideGetDistinctGrids) {

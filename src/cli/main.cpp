@@ -333,7 +333,22 @@ int cmd_generate(const std::vector<std::string>& args) {
   if (limit > 0.0 && need.total_bytes() > limit) {
     std::cerr << "rvegen: the scene needs about " << rvegen::describe(need) << ", above the "
               << (max_memory > 0.0 ? "--max-memory limit of " : "memory available, ")
-              << rvegen::format_bytes(limit) << "\n";
+              << rvegen::format_bytes(limit);
+    // When the tetrahedral mesh is what does not fit: the first coarser mesh that would.
+    if (scene.outputs.mesh_tet) {
+      rvegen::Scene coarser = scene;
+      for (const rvegen::TetMeshSpec& t : rvegen::coarser_tet_meshes(scene.tet_mesh)) {
+        coarser.tet_mesh = t;
+        const rvegen::ResourceEstimate e = rvegen::estimate_resources(coarser);
+        if (e.total_bytes() > limit) continue;
+        std::cerr << "; with " << rvegen::describe_tet_mesh_change(scene.tet_mesh, t)
+                  << " it would need about " << rvegen::format_bytes(e.total_bytes()) << " (about "
+                  << static_cast<long long>(e.tetrahedra)
+                  << " elements before packing; the gaps are counted after it)";
+        break;
+      }
+    }
+    std::cerr << "\n";
     return kExitInvalid;
   }
   // --threads: every parallel phase (packing, voxels, FFT) on at most that many cores; the same
@@ -365,10 +380,28 @@ int cmd_generate(const std::vector<std::string>& args) {
                                 std::to_string(static_cast<long long>(mesh_need.elements)) +
                                 " elements, " + rvegen::format_bytes(packed.total_bytes());
       if (limit > 0.0 && packed.total_bytes() > limit) {
+        // The first coarser mesh of this RVE that would fit, if any.
+        rvegen::TetMeshSpec fit;
+        rvegen::TetMeshNeed fit_need;
+        std::string instead;
+        if (rvegen::coarser_tet_mesh_that_fits(
+                result.set, scene.tet_mesh, limit,
+                [&](const rvegen::TetMeshNeed& n) {
+                  rvegen::ResourceEstimate e = packed;
+                  e.tet_mesh_bytes = n.bytes;
+                  return e.total_bytes() <= limit;
+                },
+                &fit, &fit_need)) {
+          packed.tet_mesh_bytes = fit_need.bytes;
+          instead = "; with " + rvegen::describe_tet_mesh_change(scene.tet_mesh, fit) +
+                    " this RVE's mesh would need about " +
+                    std::to_string(static_cast<long long>(fit_need.elements)) + " elements, " +
+                    rvegen::format_bytes(packed.total_bytes());
+        }
         throw rvegen::InputError(
             "mesh_tet: the tetrahedral mesh of this RVE needs " + about + " at peak, above the " +
             (max_memory > 0.0 ? "--max-memory limit of " : "memory available, ") +
-            rvegen::format_bytes(limit) +
+            rvegen::format_bytes(limit) + instead +
             " (raise mesh_tet.chord_error or max_size, lower gap_elements, or give a larger "
             "min_gap: thin gaps take the smallest elements)");
       }

@@ -173,6 +173,25 @@ expect_rc 2 "$RVEGEN" generate "$WORK/touching.json" -o "$WORK/t" -q --max-memor
 grep -Eq 'mesh_tet: the tetrahedral mesh of this RVE needs (about|more than) [0-9]+ elements' "$WORK/last.err" ||
   fail "the mesh's estimate is not named: $(cat "$WORK/last.err")"
 [ -e "$WORK/t" ] && fail "a mesh refused after packing left a directory"
+# The refusal offers a coarser mesh of this RVE that fits ("mesh_tet": {...}); taken into the
+# scene, the same limit lets it through, and the mesh made is within the estimate's band.
+$py - "$WORK/last.err" "$WORK/touching.json" "$WORK/touching_fit.json" <<'PY' ||
+import json, re, sys
+err = open(sys.argv[1]).read()
+m = re.search(r'with ("mesh_tet": \{[^}]*\}) this RVE\'s mesh would need about [0-9]+ elements', err)
+if not m:
+    sys.exit("no coarser mesh offered: " + err)
+offer = json.loads("{" + m.group(1) + "}")["mesh_tet"]
+scene = json.load(open(sys.argv[2]))
+before = dict(scene["mesh_tet"])
+scene["mesh_tet"].update(offer)
+if scene["mesh_tet"] == before:
+    sys.exit("the offer changes nothing: " + m.group(1))
+json.dump(scene, open(sys.argv[3], "w"))
+PY
+  fail "the refusal's offer"
+expect_rc 0 "$RVEGEN" generate "$WORK/touching_fit.json" -o "$WORK/tf" -q --max-memory 200M
+$py "$(dirname "$0")/check_tet_mesh.py" "$WORK/tf" 0.01 0 || fail "the offered mesh"
 
 # Coated spheres, rods and ellipsoids (their interphase shells, offsets of the cores; an
 # ellipsoid's is no ellipsoid), the ellipsoids' spline surfaces in OpenCASCADE and debonded

@@ -228,14 +228,18 @@ double least_size(const InclusionSet& set, const TetMeshSpec& spec) {
 // kEstimateLeaf times the size at its centre (and the least size). Each leaf's share is also
 // added to `running` (in units of 1e-3), and the recursion stops once that passes `stop`.
 constexpr double kEstimateLeaf = 1.0;
-// Elements per unit of that integral, 3.5 + 4 / gap_elements (5.5 for two across the gaps, the
-// default, 7.5 for one). With two, Gmsh's HXT made 4.5-6.3: 40 fibres of L/D 10, 4.5; spheres of
-// radius 0.1 in a box of 0.6 from 0.15 to 0.64 with min_gap 0 to 0.03, 4.9-6.3 (24 meshes:
-// the more near contacts, the more, as HXT's elements in thin gaps come smaller than the size
-// asked there). With one, more: 6.4 for the default scene (10-node), 7.6 for 2,484 fibres of
-// L/D 10 at chord error 0.1, 9.1 for spheres a twelfth of their radius apart (10-node).
+// Elements per unit of that integral: 5.5 for two across the gaps (the default), 9 for one
+// (3.5 + 4 / gap_elements, plus 1.5 (2 / gap_elements - 1) under two). With two, Gmsh's HXT made
+// 4.5-6.3: 40 fibres of L/D 10, 4.5; spheres of radius 0.1 in a box of 0.6 from 0.15 to 0.64
+// with min_gap 0 to 0.03, 4.9-6.3 (24 meshes: the more near contacts, the more, as HXT's
+// elements in thin gaps come smaller than the size asked there). With one, more, and more
+// spread: 6.4 for the default scene (10-node), 7.6 for 2,484 fibres of L/D 10 at chord error
+// 0.1, 9.1 for spheres a twelfth of their radius apart (10-node), 12.2 for touching spheres
+// (min_gap 0, radius 0.1 at 0.5 in a box of 0.6, 10-node); the check guards memory, so one
+// across takes the upper middle of that range.
 double tets_per_inverse_cube(const TetMeshSpec& spec) {
-  return 3.5 + 4.0 / std::max(spec.gap_elements, 1.0);
+  const double g = std::max(spec.gap_elements, 1.0);
+  return 3.5 + 4.0 / g + 1.5 * std::max(0.0, 2.0 / g - 1.0);
 }
 double inverse_cube_integral(const SizeField& size, const Vec3& lo, const Vec3& len, double least,
                              std::atomic<long long>* running, long long stop) {
@@ -2455,6 +2459,19 @@ TetMeshNeed tet_mesh_need(const InclusionSet& set, const TetMeshSpec& spec, doub
   need.bytes =
       tet_mesh_bytes(need.elements, static_cast<double>(set.inclusions.size()), spec.order);
   return need;
+}
+
+bool coarser_tet_mesh_that_fits(const InclusionSet& set, const TetMeshSpec& spec, double limit,
+                                const std::function<bool(const TetMeshNeed&)>& fits,
+                                TetMeshSpec* fit, TetMeshNeed* need) {
+  for (const TetMeshSpec& t : coarser_tet_meshes(spec)) {
+    const TetMeshNeed n = tet_mesh_need(set, t, limit);
+    if (n.capped || !fits(n)) continue;
+    *fit = t;
+    *need = n;
+    return true;
+  }
+  return false;
 }
 
 }  // namespace rvegen

@@ -133,6 +133,13 @@ struct TetMeshNeed {
 };
 TetMeshNeed tet_mesh_need(const InclusionSet& set, const TetMeshSpec& spec, double limit);
 
+/// The first of coarser_tet_meshes(spec) (resources.hpp: the least loss of accuracy first)
+/// whose need on the set (tet_mesh_need, stopped past `limit` bytes) `fits` accepts; false when
+/// none does. A mesh refused for its memory is refused with a setting that would be taken.
+bool coarser_tet_mesh_that_fits(const InclusionSet& set, const TetMeshSpec& spec, double limit,
+                                const std::function<bool(const TetMeshNeed&)>& fits,
+                                TetMeshSpec* fit, TetMeshNeed* need);
+
 /// The face clearance of a cell with lower corner `origin` (and the box's size): the least
 /// distance from a box face (any periodic copy of it) to an extreme point along the face's
 /// normal of a sphere or ellipsoid, over its least size (Shape::min_size), or of a cylinder's

@@ -259,6 +259,47 @@ double available_memory_bytes() {
   return avail;
 }
 
+std::vector<TetMeshSpec> coarser_tet_meshes(const TetMeshSpec& spec) {
+  std::vector<TetMeshSpec> out;
+  auto offer = [&](double chord, bool one_across) {
+    TetMeshSpec t = spec;
+    t.chord_error = std::max(spec.chord_error, chord);
+    if (one_across) {
+      t.gap_elements = std::min(spec.gap_elements, 1.0);
+      t.order = 2;
+    }
+    if (t == spec) return;
+    for (const TetMeshSpec& o : out) {
+      if (o == t) return;
+    }
+    out.push_back(t);
+  };
+  offer(0.01, false);
+  offer(0.03, false);
+  offer(0.03, true);
+  offer(0.1, false);
+  offer(0.1, true);
+  return out;
+}
+
+std::string describe_tet_mesh_change(const TetMeshSpec& from, const TetMeshSpec& to,
+                                     SettingNames names) {
+  const bool scene = names == SettingNames::kScene;
+  std::string keys;
+  char buf[64];
+  auto add = [&](const char* key, const char* property, double value) {
+    std::snprintf(buf, sizeof buf, scene ? "%s\"%s\": %.10g" : "%s%s %.10g",
+                  keys.empty() ? "" : ", ", scene ? key : property, value);
+    keys += buf;
+  };
+  if (to.chord_error != from.chord_error) add("chord_error", "ChordError", to.chord_error);
+  if (to.gap_elements != from.gap_elements) add("gap_elements", "GapElements", to.gap_elements);
+  if (to.order != from.order) add("order", "Order", to.order);
+  if (to.max_size != from.max_size) add("max_size", "MaxSize", to.max_size);
+  if (to.min_size != from.min_size) add("min_size", "MinSize", to.min_size);
+  return scene ? "\"mesh_tet\": {" + keys + "}" : keys;
+}
+
 std::string format_bytes(double bytes) {
   char buf[64];
   if (bytes >= 1e9) {

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "rvegen/model/inclusion_set.hpp"
 #include "rvegen/model/scene.hpp"
@@ -39,6 +40,20 @@ double tet_elements_near(const Shape& s, double coating, const TetMeshSpec& t, d
 /// (of first or second order): the mesher's model and mesh, rvegen's copy and the writers, and
 /// OpenCASCADE's solids and fragments for each inclusion.
 double tet_mesh_bytes(double elements, double inclusions, int order);
+
+/// Coarser tetrahedral meshes than `spec`, to offer when its mesh does not fit, in the order
+/// to try them: the least loss of accuracy first. A larger chord error (0.01, 0.03, 0.1), and
+/// at 0.03 and 0.1 one element across the gaps with 10-node elements (on near-touching
+/// spheres these came within 0.6 % of the FFT, against 10.9 % for 4-node ones, two across:
+/// docs/analyst.md). Each is at least as coarse as `spec` in every setting; none equal to it.
+std::vector<TetMeshSpec> coarser_tet_meshes(const TetMeshSpec& spec);
+
+/// The settings of `to` that differ from `from`: as the scene's object,
+/// "\"mesh_tet\": {\"chord_error\": 0.03, \"gap_elements\": 1, \"order\": 2}", or as the
+/// ParaView filter's properties, "ChordError 0.03, GapElements 1, Order 2".
+enum class SettingNames { kScene, kProperties };
+std::string describe_tet_mesh_change(const TetMeshSpec& from, const TetMeshSpec& to,
+                                     SettingNames names = SettingNames::kScene);
 
 /// Memory this process may still take: the smaller of MemAvailable (/proc/meminfo) and what
 /// its cgroup allows; 0 when unknown.

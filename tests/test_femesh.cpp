@@ -159,6 +159,85 @@ TEST(TetMesh, SliversAreLiftedByMovingTheNodesInsideOneRegion) {
   EXPECT_EQ(lift_slivers(&face, InclusionSet{}), 0);
 }
 
+// The unit cube as tetrahedra from its centre to its faces' triangles: the faces z = 0 and
+// z = 1 fanned about a node at (x, y) on each (images of each other), the others halved.
+TetMesh cube_with_face_node(double x, double y) {
+  TetMesh m;
+  m.box.origin = Vec3(0, 0, 0);
+  m.box.size = Vec3(1, 1, 1);
+  for (int k = 0; k < 8; ++k) m.nodes.push_back(Vec3(k & 1, (k >> 1) & 1, (k >> 2) & 1));
+  m.nodes.push_back(Vec3(0.5, 0.5, 0.5));  // 8: the centre
+  m.nodes.push_back(Vec3(x, y, 0.0));      // 9: on the face z = 0
+  m.nodes.push_back(Vec3(x, y, 1.0));      // 10: its image
+  auto add = [&](std::array<int32_t, 4> t) {
+    if (tet_volume(m.nodes, t) < 0.0) std::swap(t[0], t[1]);
+    m.tets.push_back(t);
+    m.phase.push_back(0);
+    m.inclusion_id.push_back(-1);
+  };
+  for (int a = 0; a < 3; ++a) {
+    const int b = 1 << ((a + 1) % 3), c = 1 << ((a + 2) % 3);
+    for (int end : {0, 1 << a}) {
+      const int q[4] = {end, end | b, end | b | c, end | c};
+      if (a == 2) {
+        const int32_t f = end ? 10 : 9;
+        for (int k = 0; k < 4; ++k) add({q[k], q[(k + 1) % 4], f, 8});
+      } else {
+        add({q[0], q[1], q[2], 8});
+        add({q[0], q[2], q[3], 8});
+      }
+    }
+  }
+  return m;
+}
+
+// A node on a box face near one of its edges flattens the elements there to slivers: it moves
+// in the face, and its image on the opposite face with it (the faces stay translates of each
+// other); on a curved interface, along the face's cut of that surface.
+TEST(TetMesh, ANodeOnABoxFaceSlidesInItWithItsImage) {
+  TetMesh m = cube_with_face_node(0.5, 0.01);
+  ASSERT_NO_THROW(check_conforming(m));
+  ASSERT_LT(least_angle(m), 5.0);
+  EXPECT_GE(lift_slivers(&m, InclusionSet{}), 1);
+  EXPECT_GE(least_angle(m), 5.0);
+  EXPECT_NO_THROW(check_conforming(m));
+  EXPECT_EQ(m.nodes[9].z(), 0.0);
+  EXPECT_EQ(m.nodes[10].z(), 1.0);
+  EXPECT_EQ(m.nodes[9].x(), m.nodes[10].x());
+  EXPECT_EQ(m.nodes[9].y(), m.nodes[10].y());
+  EXPECT_GT(m.nodes[9].y(), 0.01);
+  for (int k = 0; k < 8; ++k) EXPECT_EQ(m.nodes[k], Vec3(k & 1, (k >> 1) & 1, (k >> 2) & 1));
+
+  // The node where the face cuts a sphere (centre (0.5, 0.5, 0), radius 0.49): the elements
+  // of the fan's two triangles on the side of x = 1 are the sphere's. It slides along the
+  // circle, away from the edge.
+  InclusionSet set;
+  set.box = m.box;
+  Inclusion ball;
+  ball.id = 0;
+  ball.shape = Shape::sphere(Vec3(0.5, 0.5, 0.0), 0.49);
+  set.inclusions.push_back(ball);
+  TetMesh cut = cube_with_face_node(0.5, 0.01);
+  cut.phases = phase_table(set);
+  for (size_t e = 0; e < cut.tets.size(); ++e) {
+    const auto& t = cut.tets[e];
+    const bool fan = std::count(t.begin(), t.end(), 9) || std::count(t.begin(), t.end(), 10);
+    bool right = false;
+    for (int32_t n : t) right = right || (n < 8 && (n & 1) && !((n >> 1) & 1));
+    if (fan && right) cut.inclusion_id[e] = 0, cut.phase[e] = 1;
+  }
+  ASSERT_LT(least_angle(cut), 5.0);
+  EXPECT_GE(lift_slivers(&cut, set), 1);
+  EXPECT_GT(least_angle(cut), least_angle(cube_with_face_node(0.5, 0.01)));
+  EXPECT_NO_THROW(check_conforming(cut));
+  EXPECT_NEAR((cut.nodes[9] - Vec3(0.5, 0.5, 0.0)).norm(), 0.49, 1e-12);
+  EXPECT_EQ(cut.nodes[9].z(), 0.0);
+  EXPECT_EQ(cut.nodes[10].z(), 1.0);
+  EXPECT_EQ(cut.nodes[9].x(), cut.nodes[10].x());
+  EXPECT_EQ(cut.nodes[9].y(), cut.nodes[10].y());
+  EXPECT_GT(cut.nodes[9].y(), 0.01);
+}
+
 // An octahedron cut into a sliver (its equator's four points, lifted and lowered by turns)
 // and the four elements from its apexes to the sliver's faces: every node on the region's
 // boundary, so none may move. A node at the sliver's circumcentre, joined to the octahedron's

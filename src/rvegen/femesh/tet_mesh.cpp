@@ -6,6 +6,8 @@
 #include <array>
 #include <atomic>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <initializer_list>
 #include <limits>
 #include <map>
@@ -965,15 +967,18 @@ long long keep_phase_volumes(TetMesh* mesh, const InclusionSet& set) {
 // one inclusion and phase) moves freely: no phase's volume or interface changes. A node on one
 // curved interface (a core against the matrix or its shell, a shell against the matrix) slides
 // along it, at its signed distance from the exact surface (keep_phase_volumes set it): the
-// phases' volumes change only by the surface's curvature over a step. Nodes on box faces (whose
-// triangulations must stay translates of each other), on flat ends, on two interfaces or
-// between two inclusions stay. Elements under `angle` have each such node moved where the least
-// angle of its ball (the elements around it) is largest: a pattern search from where it is,
-// along the axes and towards the centroid of its neighbours (in the surface's tangent plane for a
-// sliding node), in steps from a quarter of its shortest edge down to a thousandth of it; a step
-// is taken only when it raises the ball's least angle, every element positive. Rounds until none
-// is left under `angle` or a round moves nothing (at most 4): a move can help an element next to
-// it.
+// phases' volumes change only by the surface's curvature over a step. A node on one box face
+// moves with its image on the opposite face (the faces' triangulations stay translates of each
+// other): in the face, or along the face's cut of one curved interface (a cut's own vertex,
+// where the geometry kernel starts a closed curve, can lie a hair from a rim's crossing, and
+// its elements are slivers: seen in a debonded sphere cut by a face). Nodes on box edges, on
+// flat ends, on two interfaces or between two inclusions stay. Elements under `angle` have each
+// such node moved where the least angle of its ball (the elements around it) is largest: a pattern
+// search from where it is, along the axes and towards the centroid of its neighbours (in the
+// surface's tangent plane for a sliding node), in steps from a quarter of its shortest edge down to
+// a thousandth of it; a step is taken only when it raises the ball's least angle, every element
+// positive. Rounds until none is left under `angle` or a round moves nothing (at most 4): a move
+// can help an element next to it.
 long long lift_slivers(TetMesh* mesh, const InclusionSet& set, double angle) {
   const size_t nn = mesh->nodes.size(), ne = mesh->tets.size();
   // Per node, the first two regions met; `many` a third (or a box face).
@@ -993,9 +998,58 @@ long long lift_slivers(TetMesh* mesh, const InclusionSet& set, double angle) {
       }
     }
   }
+  // A node on one box face (not an edge) moves with its image on the opposite face: in the
+  // face, or along the face's cut of one curved interface. The lower one leads (`image`: each
+  // node's image, -1 if none; `face`: the face's axis). Nodes on edges stay.
   const std::vector<std::array<int8_t, 3>> ends = node_ends(*mesh);
+  std::vector<int32_t> image(nn, -1);
+  std::vector<int8_t> face(nn, -1);
+  {
+    const double tol = 1e-9 * mesh->box.size.minCoeff();
+    std::map<std::array<long long, 3>, int32_t> lower;
+    auto key = [&](size_t i, int a) {
+      const Vec3& x = mesh->nodes[i];
+      return std::array<long long, 3>{a, std::llround(x[(a + 1) % 3] / tol),
+                                      std::llround(x[(a + 2) % 3] / tol)};
+    };
+    auto one_face = [&](size_t i) {
+      int a = -1, count = 0;
+      for (int b = 0; b < 3; ++b) {
+        if (ends[i][b] >= 0) a = b, ++count;
+      }
+      return count == 1 ? a : -1;
+    };
+    for (size_t i = 0; i < nn; ++i) {
+      const int a = one_face(i);
+      if (a >= 0 && ends[i][a] == 0) lower[key(i, a)] = static_cast<int32_t>(i);
+    }
+    for (size_t i = 0; i < nn; ++i) {
+      const int a = one_face(i);
+      if (a < 0 || ends[i][a] != 1) continue;
+      // (Within the rounding of the key: the neighbouring keys too.)
+      const std::array<long long, 3> k = key(i, a);
+      int32_t j = -1;
+      for (int d1 = -1; d1 <= 1 && j < 0; ++d1) {
+        for (int d2 = -1; d2 <= 1 && j < 0; ++d2) {
+          const auto it = lower.find({k[0], k[1] + d1, k[2] + d2});
+          if (it != lower.end()) j = it->second;
+        }
+      }
+      if (j < 0) continue;
+      // The same regions on both sides (an inclusion's image keeps its id).
+      if (met[i] != met[j] && !(met[i][0] == met[j][1] && met[i][1] == met[j][0])) continue;
+      image[i] = j;
+      image[j] = static_cast<int32_t>(i);
+      face[i] = face[j] = static_cast<int8_t>(a);
+    }
+  }
   for (size_t i = 0; i < nn; ++i) {
-    if (ends[i][0] >= 0 || ends[i][1] >= 0 || ends[i][2] >= 0) many[i] = 1;
+    if (ends[i][0] >= 0 || ends[i][1] >= 0 || ends[i][2] >= 0) {
+      if (image[i] < 0) many[i] = 1;
+    }
+  }
+  for (size_t i = 0; i < nn; ++i) {
+    if (image[i] >= 0 && (many[i] || many[image[i]])) many[i] = many[image[i]] = 1;
   }
   const std::unordered_map<int32_t, int> by_id = index_by_id(set);
   // The surface a node on two regions slides on (interface_surface); -1 where it may not move.
@@ -1011,17 +1065,19 @@ long long lift_slivers(TetMesh* mesh, const InclusionSet& set, double angle) {
   long long moved = 0;
   for (int round = 0; round < 4; ++round) {
     // The nodes of the elements under the angle that may move, and their balls.
+    // (A node on a box face is moved by the lower of it and its image; its ball holds both's.)
+    auto leader = [&](int32_t n) { return image[n] >= 0 && ends[n][face[n]] == 1 ? image[n] : n; };
     std::unordered_map<int32_t, std::vector<int32_t>> ball;
     for (size_t e = 0; e < ne; ++e) {
       if (least[e] >= angle) continue;
       for (int32_t n : mesh->tets[e]) {
-        if (!many[n]) ball[n];
+        if (!many[n]) ball[leader(n)];
       }
     }
     if (ball.empty()) break;
     for (size_t e = 0; e < ne; ++e) {
       for (int32_t n : mesh->tets[e]) {
-        const auto it = ball.find(n);
+        const auto it = ball.find(leader(n));
         if (it != ball.end()) it->second.push_back(static_cast<int32_t>(e));
       }
     }
@@ -1032,6 +1088,17 @@ long long lift_slivers(TetMesh* mesh, const InclusionSet& set, double angle) {
     for (int32_t n : order) {
       const std::vector<int32_t>& around = ball[n];
       Vec3& x = mesh->nodes[n];
+      // On a box face: the axis, and the image, which follows x on the other coordinates.
+      const int a = face[n];
+      Vec3* follower = image[n] >= 0 ? &mesh->nodes[image[n]] : nullptr;
+      auto place = [&](const Vec3& y) {
+        x = y;
+        if (follower) {
+          const double keep = (*follower)[a];
+          *follower = y;
+          (*follower)[a] = keep;
+        }
+      };
       // A sliding node: its surface (the periodic image nearest it) and its distance from it.
       const bool slides = met[n][1] != kNone;
       Shape surface;
@@ -1049,8 +1116,8 @@ long long lift_slivers(TetMesh* mesh, const InclusionSet& set, double angle) {
       }
       // The ball's least angle with the node at y (-1 if an element is not positive).
       auto worst = [&](const Vec3& y) {
-        const Vec3 keep = x;
-        x = y;
+        const Vec3 keep = x, keep_image = follower ? *follower : x;
+        place(y);
         double w = 180.0;
         for (int32_t e : around) {
           const auto& t = mesh->tets[e];
@@ -1058,11 +1125,45 @@ long long lift_slivers(TetMesh* mesh, const InclusionSet& set, double angle) {
           if (w < 0.0) break;
         }
         x = keep;
+        if (follower) *follower = keep_image;
         return w;
       };
       // A step of h along d from p: in the tangent plane, then back to the offset, for a
       // sliding node.
       auto step = [&](const Vec3& p, const Vec3& d, double h, Vec3* y) {
+        if (a >= 0) {
+          // In the face: the direction's part in it; along the face's cut of the surface when
+          // sliding, brought back to both (the surface, then the face) until they agree.
+          Vec3 t = d;
+          t[a] = 0.0;
+          Vec3 nrm;
+          bool feature = false;
+          if (slides) {
+            surface_distance(surface, grown, p, &nrm, &feature);
+            const Vec3 along = Vec3::Unit(a).cross(nrm);
+            if (!(along.norm() > 1e-3)) return false;  // the face nearly tangent to it
+            t = along.normalized() * (along.normalized().dot(t) >= 0.0 ? 1.0 : -1.0);
+          }
+          if (!(t.norm() > 1e-6)) return false;
+          Vec3 q = p + h * t.normalized();
+          if (slides) {
+            // Newton's steps in the face, along the normal's part in it.
+            double off = 1.0;
+            for (int k = 0; k < 8 && std::abs(off) > 1e-12 * h; ++k) {
+              off = surface_distance(surface, grown, q, &nrm, &feature) - offset;
+              if (feature) return false;
+              Vec3 m = nrm;
+              m[a] = 0.0;
+              if (!(m.squaredNorm() > 1e-6)) return false;
+              q -= (off / m.squaredNorm()) * m;
+              q[a] = p[a];
+            }
+            if (!(std::abs(off) <= 1e-9 * h)) return false;
+          }
+          q[a] = p[a];
+          *y = q;
+          return true;
+        }
         if (!slides) {
           *y = p + h * d;
           return true;
@@ -1082,7 +1183,9 @@ long long lift_slivers(TetMesh* mesh, const InclusionSet& set, double angle) {
       Vec3 centroid = Vec3::Zero();
       int neighbours = 0;
       for (int32_t e : around) {
-        for (int32_t m : mesh->tets[e]) {
+        const auto& t = mesh->tets[e];
+        if (std::find(t.begin(), t.end(), n) == t.end()) continue;  // the image's
+        for (int32_t m : t) {
           if (m == n) continue;
           shortest = std::min(shortest, (mesh->nodes[m] - x).norm());
           centroid += mesh->nodes[m];
@@ -1115,7 +1218,7 @@ long long lift_slivers(TetMesh* mesh, const InclusionSet& set, double angle) {
         if (!better) h *= 0.5;
       }
       if (best > start) {
-        x = at;
+        place(at);
         ++this_round;
         for (int32_t e : around) least[e] = least_dihedral(*mesh, mesh->tets[e]);
       }

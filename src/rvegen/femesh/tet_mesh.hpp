@@ -196,9 +196,11 @@ void add_midside_nodes(TetMesh* mesh);
 /// Moves nodes of the elements whose least dihedral angle is under `angle` degrees to raise the
 /// least angle of the elements around them: nodes inside one region (inclusion and phase) move
 /// freely, nodes on one curved interface of `set`'s inclusions slide along it at their distance
-/// from the exact surface; nodes on box faces, flat ends, two interfaces or between two
-/// inclusions stay. So no interface moves off its surface, no face triangulation changes, and the
-/// phases' volumes change only by the surfaces' curvature over a step. A move is taken only when
+/// from the exact surface; a node on one box face (not an edge) whose image is on the opposite
+/// face moves with it, in the face or along the face's cut of one curved interface; nodes on
+/// box edges, flat ends, two interfaces or between two inclusions stay. So no interface moves off
+/// its surface, the faces' triangulations stay translates of each other, and the phases' volumes
+/// change only by the surfaces' curvature over a step. A move is taken only when
 /// it raises the least angle of the elements around the node, all positive. tet_mesh calls it on
 /// every mesh, after keep_phase_volumes. Returns the number of nodes moved.
 long long lift_slivers(TetMesh* mesh, const InclusionSet& set, double angle = 5.0);

@@ -230,6 +230,7 @@ nlohmann::ordered_json tet_mesh_report(const rvegen::InclusionSet& set,
   r["relocated_nodes"] = mesh.relocated_nodes;
   // Nodes added inside one region where elements under 5 degrees were left.
   r["inserted_nodes"] = mesh.inserted_nodes;
+  r["flat_elements_removed"] = mesh.flat_elements_removed;
   r["raised_triangles"] = mesh.raised_triangles;
   // The cell meshed: the box, or the box moved along its axes (mesh_tet.shift_cell).
   r["cell_origin"] = {mesh.box.origin[0], mesh.box.origin[1], mesh.box.origin[2]};

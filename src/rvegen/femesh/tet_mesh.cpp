@@ -963,6 +963,149 @@ long long keep_phase_volumes(TetMesh* mesh, const InclusionSet& set) {
   return count;
 }
 
+namespace {
+
+// Drops the elements marked in `gone` (the first gone.size() elements; those after it stay),
+// keeping the order of the rest.
+void drop_elements(TetMesh* mesh, const std::vector<uint8_t>& gone) {
+  size_t w = 0;
+  for (size_t e = 0; e < mesh->tets.size(); ++e) {
+    if (e < gone.size() && gone[e]) continue;
+    mesh->tets[w] = mesh->tets[e];
+    mesh->phase[w] = mesh->phase[e];
+    mesh->inclusion_id[w] = mesh->inclusion_id[e];
+    ++w;
+  }
+  mesh->tets.resize(w);
+  mesh->phase.resize(w);
+  mesh->inclusion_id.resize(w);
+}
+
+}  // namespace
+
+long long remove_flat_face_elements(TetMesh* mesh) {
+  const size_t nn = mesh->nodes.size(), ne = mesh->tets.size();
+  const std::vector<std::array<int8_t, 3>> ends = node_ends(*mesh);
+  // The box face (axis, end) all four nodes of e lie on, or -1.
+  auto flat_face = [&](size_t e) {
+    const auto& t = mesh->tets[e];
+    for (int a = 0; a < 3; ++a) {
+      const int8_t end = ends[t[0]][a];
+      if (end < 0) continue;
+      if (ends[t[1]][a] == end && ends[t[2]][a] == end && ends[t[3]][a] == end) return 2 * a + end;
+    }
+    return -1;
+  };
+  std::vector<size_t> flat;
+  for (size_t e = 0; e < ne; ++e) {
+    if (flat_face(e) >= 0) flat.push_back(e);
+  }
+  if (flat.empty()) return 0;
+  // The elements around each node.
+  std::vector<std::vector<int32_t>> around(nn);
+  for (size_t e = 0; e < ne; ++e) {
+    for (int32_t n : mesh->tets[e]) around[n].push_back(static_cast<int32_t>(e));
+  }
+  auto has = [](const std::array<int32_t, 4>& t, int32_t n) {
+    return std::find(t.begin(), t.end(), n) != t.end();
+  };
+  // The elements other than `skip` with nodes a, b and c.
+  auto with_face = [&](int32_t a, int32_t b, int32_t c, int32_t skip) {
+    std::vector<int32_t> out;
+    for (int32_t f : around[a]) {
+      if (f != skip && has(mesh->tets[f], b) && has(mesh->tets[f], c)) out.push_back(f);
+    }
+    return out;
+  };
+  // A node's image on the opposite face of axis a: the same other coordinates (within the
+  // rounding of the key, the neighbouring keys too).
+  const double tol = 1e-9 * mesh->box.size.minCoeff();
+  auto key = [&](size_t n, int a, int end) {
+    const Vec3& x = mesh->nodes[n];
+    return std::array<long long, 4>{a, end, std::llround(x[(a + 1) % 3] / tol),
+                                    std::llround(x[(a + 2) % 3] / tol)};
+  };
+  std::map<std::array<long long, 4>, int32_t> on_face;
+  for (size_t n = 0; n < nn; ++n) {
+    for (int a = 0; a < 3; ++a) {
+      if (ends[n][a] >= 0) on_face[key(n, a, ends[n][a])] = static_cast<int32_t>(n);
+    }
+  }
+  auto image_of = [&](int32_t n, int a) {
+    const std::array<long long, 4> k = key(n, a, 1 - ends[n][a]);
+    for (int d1 = -1; d1 <= 1; ++d1) {
+      for (int d2 = -1; d2 <= 1; ++d2) {
+        const auto it = on_face.find({k[0], k[1], k[2] + d1, k[3] + d2});
+        if (it != on_face.end()) return it->second;
+      }
+    }
+    return int32_t(-1);
+  };
+  std::vector<uint8_t> gone(ne, 0);
+  long long removed = 0;
+  for (size_t e : flat) {
+    if (gone[e]) continue;
+    const auto t = mesh->tets[e];
+    const int a = flat_face(e) / 2;
+    // Its faces on the box face: those no other element shares.
+    std::vector<std::array<int32_t, 3>> outer, inner;
+    for (int k = 0; k < 4; ++k) {
+      const std::array<int32_t, 3> f = {t[(k + 1) % 4], t[(k + 2) % 4], t[(k + 3) % 4]};
+      (with_face(f[0], f[1], f[2], static_cast<int32_t>(e)).empty() ? outer : inner).push_back(f);
+    }
+    if (outer.size() != 2 || inner.size() != 2) continue;
+    // The outer diagonal (p, q) and the two other corners (u, v).
+    int32_t p = -1, q = -1, u = -1, v = -1;
+    for (int32_t n : t) {
+      const bool in0 = std::count(outer[0].begin(), outer[0].end(), n) > 0;
+      const bool in1 = std::count(outer[1].begin(), outer[1].end(), n) > 0;
+      if (in0 && in1) {
+        (p < 0 ? p : q) = n;
+      } else {
+        (u < 0 ? u : v) = n;
+      }
+    }
+    if (q < 0 || v < 0) continue;
+    // The images, and the two elements on the image triangles (p' q' u') and (p' q' v').
+    const int32_t pi = image_of(p, a), qi = image_of(q, a), ui = image_of(u, a),
+                  vi = image_of(v, a);
+    if (pi < 0 || qi < 0 || ui < 0 || vi < 0) continue;
+    const std::vector<int32_t> f1 = with_face(pi, qi, ui, -1), f2 = with_face(pi, qi, vi, -1);
+    if (f1.size() != 1 || f2.size() != 1 || gone[f1[0]] || gone[f2[0]]) continue;
+    if (region_of(*mesh, f1[0]) != region_of(*mesh, f2[0])) continue;
+    auto apex = [&](int32_t f, int32_t x) {
+      for (int32_t n : mesh->tets[f]) {
+        if (n != pi && n != qi && n != x) return n;
+      }
+      return int32_t(-1);
+    };
+    const int32_t r = apex(f1[0], ui);
+    if (r < 0 || r != apex(f2[0], vi)) continue;
+    // The flip: (p' q' u' r), (p' q' v' r) become (u' v' p' r), (u' v' q' r).
+    std::array<int32_t, 4> n1 = {ui, vi, pi, r}, n2 = {ui, vi, qi, r};
+    if (tet_volume(mesh->nodes, n1) < 0.0) std::swap(n1[0], n1[1]);
+    if (tet_volume(mesh->nodes, n2) < 0.0) std::swap(n2[0], n2[1]);
+    const double before =
+        tet_volume(mesh->nodes, mesh->tets[f1[0]]) + tet_volume(mesh->nodes, mesh->tets[f2[0]]);
+    const double v1 = tet_volume(mesh->nodes, n1), v2 = tet_volume(mesh->nodes, n2);
+    if (!(v1 > 0.0 && v2 > 0.0) || std::abs(v1 + v2 - before) > 1e-9 * before) continue;
+    mesh->tets[f1[0]] = n1;
+    mesh->tets[f2[0]] = n2;
+    // (A node's list may keep an element that no longer has it: each search checks the nodes.)
+    for (int32_t f : {f1[0], f2[0]}) {
+      for (int32_t n : mesh->tets[f]) {
+        if (std::find(around[n].begin(), around[n].end(), f) == around[n].end()) {
+          around[n].push_back(f);
+        }
+      }
+    }
+    gone[e] = 1;
+    ++removed;
+  }
+  if (removed > 0) drop_elements(mesh, gone);
+  return removed;
+}
+
 // The nodes a relocation may move, and how. A node inside one region (every element around in
 // one inclusion and phase) moves freely: no phase's volume or interface changes. A node on one
 // curved interface (a core against the matrix or its shell, a shell against the matrix) slides
@@ -1404,18 +1547,7 @@ long long insert_nodes_in_slivers(TetMesh* mesh, double angle) {
       }
       ++this_round;
     }
-    // Drop the elements replaced, keeping the order of the rest.
-    size_t w = 0;
-    for (size_t e = 0; e < mesh->tets.size(); ++e) {
-      if (e < ne && gone[e]) continue;
-      mesh->tets[w] = mesh->tets[e];
-      mesh->phase[w] = mesh->phase[e];
-      mesh->inclusion_id[w] = mesh->inclusion_id[e];
-      ++w;
-    }
-    mesh->tets.resize(w);
-    mesh->phase.resize(w);
-    mesh->inclusion_id.resize(w);
+    drop_elements(mesh, gone);  // the elements replaced
     inserted += this_round;
     if (this_round == 0) break;
   }
@@ -2081,6 +2213,7 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
   stage(0.95, 1.0, "mesh_tet: checking the mesh");
   if (mesh.tets.empty()) throw MeshError("mesh_tet: the volume mesher made no elements");
   mesh.merged_nodes = merge_coincident_nodes(&mesh);
+  mesh.flat_elements_removed = remove_flat_face_elements(&mesh);
   if (options.keep_volumes) mesh.moved_nodes = keep_phase_volumes(&mesh, set);
   mesh.relocated_nodes = lift_slivers(&mesh, set);
   mesh.inserted_nodes = insert_nodes_in_slivers(&mesh);

@@ -72,6 +72,8 @@ struct TetMesh {
   /// Triangles of curved surfaces that lay flat in a box face, split about a node on the
   /// surface (raise_flat_triangles).
   long long raised_triangles = 0;
+  /// Flat elements lying in a box face, removed (remove_flat_face_elements).
+  long long flat_elements_removed = 0;
 };
 
 /// A tetrahedron's edges as pairs of its corners, in the order of the midside nodes of Abaqus's
@@ -192,6 +194,17 @@ long long keep_phase_volumes(TetMesh* mesh, const InclusionSet& set);
 /// the image of the middle of its translate on the lower face. tet_mesh calls it when
 /// options.order is 2, before it pairs the periodic nodes.
 void add_midside_nodes(TetMesh* mesh);
+
+/// Removes the flat elements that lie in a box face (all four nodes on one face: the volume
+/// mesher leaves one now and then where a thin piece of an inclusion meets the face). Such an
+/// element's two faces on the box face are one diagonal of their quadrilateral, its two other
+/// faces (shared with the elements above) the other diagonal: without it, the box face takes the
+/// other diagonal, and the opposite face, whose triangles must stay their translates, takes it
+/// too by a flip of the two elements on its triangles (when they share their fourth node, lie in
+/// one region and come out positive; otherwise the flat element stays, as do flat elements with
+/// one node inside the triangle of the three others). No node moves, the volumes and interfaces
+/// stay. tet_mesh calls it before lift_slivers. Returns the number of elements removed.
+long long remove_flat_face_elements(TetMesh* mesh);
 
 /// Moves nodes of the elements whose least dihedral angle is under `angle` degrees to raise the
 /// least angle of the elements around them: nodes inside one region (inclusion and phase) move

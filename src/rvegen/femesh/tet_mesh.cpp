@@ -6,8 +6,6 @@
 #include <array>
 #include <atomic>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <initializer_list>
 #include <limits>
 #include <map>
@@ -981,6 +979,35 @@ void drop_elements(TetMesh* mesh, const std::vector<uint8_t>& gone) {
   mesh->inclusion_id.resize(w);
 }
 
+// For each node on a box face of axis a (ends: node_ends), the node on the opposite face of that
+// axis with the same other coordinates (within 1e-9 of the box's smallest side, the rounding of
+// the key taken into account); -1 for the others.
+std::vector<int32_t> images_across(const TetMesh& mesh,
+                                   const std::vector<std::array<int8_t, 3>>& ends, int a) {
+  const double tol = 1e-9 * mesh.box.size.minCoeff();
+  auto key = [&](size_t n, int end) {
+    const Vec3& x = mesh.nodes[n];
+    return std::array<long long, 3>{end, std::llround(x[(a + 1) % 3] / tol),
+                                    std::llround(x[(a + 2) % 3] / tol)};
+  };
+  std::map<std::array<long long, 3>, int32_t> at;
+  for (size_t n = 0; n < mesh.nodes.size(); ++n) {
+    if (ends[n][a] >= 0) at[key(n, ends[n][a])] = static_cast<int32_t>(n);
+  }
+  std::vector<int32_t> image(mesh.nodes.size(), -1);
+  for (size_t n = 0; n < mesh.nodes.size(); ++n) {
+    if (ends[n][a] < 0) continue;
+    const std::array<long long, 3> k = key(n, 1 - ends[n][a]);
+    for (int d1 = -1; d1 <= 1 && image[n] < 0; ++d1) {
+      for (int d2 = -1; d2 <= 1 && image[n] < 0; ++d2) {
+        const auto it = at.find({k[0], k[1] + d1, k[2] + d2});
+        if (it != at.end()) image[n] = it->second;
+      }
+    }
+  }
+  return image;
+}
+
 }  // namespace
 
 long long remove_flat_face_elements(TetMesh* mesh) {
@@ -1017,30 +1044,10 @@ long long remove_flat_face_elements(TetMesh* mesh) {
     }
     return out;
   };
-  // A node's image on the opposite face of axis a: the same other coordinates (within the
-  // rounding of the key, the neighbouring keys too).
-  const double tol = 1e-9 * mesh->box.size.minCoeff();
-  auto key = [&](size_t n, int a, int end) {
-    const Vec3& x = mesh->nodes[n];
-    return std::array<long long, 4>{a, end, std::llround(x[(a + 1) % 3] / tol),
-                                    std::llround(x[(a + 2) % 3] / tol)};
-  };
-  std::map<std::array<long long, 4>, int32_t> on_face;
-  for (size_t n = 0; n < nn; ++n) {
-    for (int a = 0; a < 3; ++a) {
-      if (ends[n][a] >= 0) on_face[key(n, a, ends[n][a])] = static_cast<int32_t>(n);
-    }
-  }
-  auto image_of = [&](int32_t n, int a) {
-    const std::array<long long, 4> k = key(n, a, 1 - ends[n][a]);
-    for (int d1 = -1; d1 <= 1; ++d1) {
-      for (int d2 = -1; d2 <= 1; ++d2) {
-        const auto it = on_face.find({k[0], k[1], k[2] + d1, k[3] + d2});
-        if (it != on_face.end()) return it->second;
-      }
-    }
-    return int32_t(-1);
-  };
+  // Each face node's image on the opposite face, per axis.
+  std::array<std::vector<int32_t>, 3> images;
+  for (int a = 0; a < 3; ++a) images[a] = images_across(*mesh, ends, a);
+  auto image_of = [&](int32_t n, int a) { return images[a][n]; };
   std::vector<uint8_t> gone(ne, 0);
   long long removed = 0;
   for (size_t e : flat) {
@@ -1147,43 +1154,15 @@ long long lift_slivers(TetMesh* mesh, const InclusionSet& set, double angle) {
   const std::vector<std::array<int8_t, 3>> ends = node_ends(*mesh);
   std::vector<int32_t> image(nn, -1);
   std::vector<int8_t> face(nn, -1);
-  {
-    const double tol = 1e-9 * mesh->box.size.minCoeff();
-    std::map<std::array<long long, 3>, int32_t> lower;
-    auto key = [&](size_t i, int a) {
-      const Vec3& x = mesh->nodes[i];
-      return std::array<long long, 3>{a, std::llround(x[(a + 1) % 3] / tol),
-                                      std::llround(x[(a + 2) % 3] / tol)};
-    };
-    auto one_face = [&](size_t i) {
-      int a = -1, count = 0;
-      for (int b = 0; b < 3; ++b) {
-        if (ends[i][b] >= 0) a = b, ++count;
-      }
-      return count == 1 ? a : -1;
-    };
+  for (int a = 0; a < 3; ++a) {
+    const std::vector<int32_t> across = images_across(*mesh, ends, a);
     for (size_t i = 0; i < nn; ++i) {
-      const int a = one_face(i);
-      if (a >= 0 && ends[i][a] == 0) lower[key(i, a)] = static_cast<int32_t>(i);
-    }
-    for (size_t i = 0; i < nn; ++i) {
-      const int a = one_face(i);
-      if (a < 0 || ends[i][a] != 1) continue;
-      // (Within the rounding of the key: the neighbouring keys too.)
-      const std::array<long long, 3> k = key(i, a);
-      int32_t j = -1;
-      for (int d1 = -1; d1 <= 1 && j < 0; ++d1) {
-        for (int d2 = -1; d2 <= 1 && j < 0; ++d2) {
-          const auto it = lower.find({k[0], k[1] + d1, k[2] + d2});
-          if (it != lower.end()) j = it->second;
-        }
-      }
-      if (j < 0) continue;
+      const int32_t j = across[i];
+      if (j < 0 || ends[i][(a + 1) % 3] >= 0 || ends[i][(a + 2) % 3] >= 0) continue;  // edges
       // The same regions on both sides (an inclusion's image keeps its id).
       if (met[i] != met[j] && !(met[i][0] == met[j][1] && met[i][1] == met[j][0])) continue;
       image[i] = j;
-      image[j] = static_cast<int32_t>(i);
-      face[i] = face[j] = static_cast<int8_t>(a);
+      face[i] = static_cast<int8_t>(a);
     }
   }
   for (size_t i = 0; i < nn; ++i) {

@@ -193,6 +193,31 @@ PY
 expect_rc 0 "$RVEGEN" generate "$WORK/touching_fit.json" -o "$WORK/tf" -q --max-memory 200M
 $py "$(dirname "$0")/check_tet_mesh.py" "$WORK/tf" 0.01 0 || fail "the offered mesh"
 
+# A mesh that the scene alone already shows to be too large (a chord error of 0.001: about 1 M
+# elements guessed, 0.9 GB) is not refused before packing, where its gaps are unknown and an
+# offer could only be a guess that the packed set refuses again: the spheres are packed, and the
+# refusal is the packed set's, with the same offer as above (not a chord error of 0.01, which
+# fits the guess and not this RVE). One run reaches settings that fit.
+sed 's/"chord_error":0.03/"chord_error":0.001/' "$WORK/touching.json" >"$WORK/touching_fine.json"
+expect_rc 2 "$RVEGEN" generate "$WORK/touching_fine.json" -o "$WORK/t2" --max-memory 200M
+[ -e "$WORK/t2" ] && fail "a mesh refused after packing left a directory"
+grep -q 'packing, then the packed inclusions' "$WORK/last.err" ||
+  fail "no progress line says why the inclusions are packed first: $(cat "$WORK/last.err")"
+grep -q 'the scene needs about' "$WORK/last.err" &&
+  fail "refused before packing, on a guess: $(cat "$WORK/last.err")"
+$py - "$WORK/last.err" "$WORK/touching_fit.json" <<'PY' ||
+import json, re, sys
+err = open(sys.argv[1]).read()
+m = re.search(r'with ("mesh_tet": \{[^}]*\}) this RVE\'s mesh would need about [0-9]+ elements', err)
+if not m:
+    sys.exit("no coarser mesh offered after packing: " + err[-600:])
+offer = json.loads("{" + m.group(1) + "}")["mesh_tet"]
+fit = json.load(open(sys.argv[2]))["mesh_tet"]
+if any(fit.get(k) != v for k, v in offer.items()):
+    sys.exit("offered %s, where the coarser start was offered %s" % (offer, fit))
+PY
+  fail "the offer made after packing"
+
 # Coated spheres, rods and ellipsoids (their interphase shells, offsets of the cores; an
 # ellipsoid's is no ellipsoid), the ellipsoids' spline surfaces in OpenCASCADE and debonded
 # spheres (their voids a phase), some cut by the cell's faces: the same checks.

@@ -13,10 +13,12 @@
 
 #include "rvegen/femesh/lsan_suppressions.hpp"  // in sanitizer builds
 #include "rvegen/femesh/tet_mesh.hpp"
+#include "rvegen/geometry/pair.hpp"
 #include "rvegen/io/fe_mesh.hpp"
 #include "rvegen/io/report.hpp"
 #include "rvegen/io/writers.hpp"
 #include "rvegen/model/body.hpp"
+#include "rvegen/model/neighbours.hpp"
 #include "rvegen/model/shell_overlaps.hpp"
 
 namespace rvegen {
@@ -657,6 +659,91 @@ TEST(TetMesh, WhereShallowFibresCoverTheAxisTheShallowestAreStillAvoided) {
     d = std::min(d, 1.0 - d);
     EXPECT_GT(d, span) << line;
   }
+}
+
+// A fibre 1.5 degrees off the face z = 1, its mantle's furthest line along z crossing the face
+// (a wedge of 1.5 degrees in any mesh of this cell), a sphere 0.005 below it: the fibre cannot go
+// down by the 0.006 that would take it off the face and keep 0.002 from the sphere, so it goes up
+// until the face crosses it between its lines; a second sphere above leaves it no room at all.
+TEST(TetMesh, AFibreGrazingAFaceOfTheCellIsNudgedOffItWhereThereIsRoom) {
+  const double tilt = 1.5 * M_PI / 180.0, r = 0.02, h = 0.2, gap = 0.002;
+  const Vec3 u(std::cos(tilt), 0.0, std::sin(tilt));
+  const double top = r * std::cos(tilt);
+  InclusionSet set = one_of(Shape::cylinder(Vec3(0.5, 0.5, 1.0 - top), r, h * u));
+  Inclusion below;
+  below.shape = Shape::sphere(Vec3(0.5, 0.5, 1.0 - top - r - 0.005 - 0.03), 0.03);
+  set.inclusions.push_back(below);
+  const InclusionSet before = set;
+  ASSERT_EQ(face_clearance(set, set.box.origin), 0.0);
+  const Nudged n = nudge_off_cell(&set, set.box.origin, gap);
+  EXPECT_EQ(n.moved, 1);
+  EXPECT_EQ(n.stuck, 0);
+  const Shape& f = set.inclusions[0].shape;
+  const Vec3 d = f.center - before.inclusions[0].shape.center;
+  EXPECT_EQ(d[0], 0.0);
+  EXPECT_EQ(d[1], 0.0);
+  EXPECT_GT(d[2], 0.0);  // up: down is blocked
+  EXPECT_LE(d[2], 1.5 * r);
+  EXPECT_EQ(f.half_axis, before.inclusions[0].shape.half_axis);
+  EXPECT_EQ(set.inclusions[1].shape.center, below.shape.center);
+  EXPECT_GE(std::min(face_clearance(set, set.box.origin), edge_clearance(set, set.box.origin)),
+            kGoodClearance);
+  EXPECT_TRUE(clear_of(envelope(set.inclusions[0]), envelope(set.inclusions[1]), gap));
+  // The box's own cell meshes, with no element under 5 degrees.
+  TetMeshOptions opt;
+  opt.shift_cell = false;
+  opt.chord_error = 0.01;
+  EXPECT_GE(tet_quality(tet_mesh(set, opt)).min_dihedral, 5.0);
+  // No room: nothing moves.
+  InclusionSet boxed = before;
+  Inclusion above;
+  above.shape = Shape::sphere(Vec3(0.5, 0.5, r + 0.003 + 0.03 - top), 0.03);  // (periodic)
+  boxed.inclusions.push_back(above);
+  const Nudged m = nudge_off_cell(&boxed, boxed.box.origin, gap);
+  EXPECT_EQ(m.moved, 0);
+  EXPECT_EQ(m.stuck, 1);
+  EXPECT_EQ(boxed.inclusions[0].shape.center, before.inclusions[0].shape.center);
+}
+
+// Twelve fibres 7 degrees off the z faces at heights k / 12 (as in the test above): their
+// mantle lines' spans cover every height, so every cell grazes some of them. After the rounds,
+// the cell chosen for the moved set grazes none, nothing is within min_gap of another, and
+// another round at that cell moves nothing.
+TEST(TetMesh, InclusionsEveryCellGrazesAreNudgedOffTheCellChosenAfterwards) {
+  InclusionSet set = one_of(Shape::sphere(Vec3(0.5, 0.5, 0.5), 0.01));
+  set.inclusions.clear();
+  const double r = 0.02, gap = 0.002;
+  auto fibre = [&](double degrees, double h, double z) {
+    const double t = degrees * M_PI / 180.0;
+    Inclusion inc;
+    inc.shape = Shape::cylinder(Vec3(0.5, 0.5, z), r, h * Vec3(std::cos(t), 0.0, std::sin(t)));
+    set.inclusions.push_back(inc);
+  };
+  for (int k = 0; k < 12; ++k) fibre(7.0, 0.2, k / 12.0);
+  const InclusionSet before = set;
+  const Vec3 o0 = cell_origin(set);
+  ASSERT_LT(std::min(face_clearance(set, o0), edge_clearance(set, o0)), kGoodClearance);
+  const Nudged n = nudge_off_chosen_cell(&set, gap);
+  EXPECT_GE(n.moved, 1);
+  EXPECT_EQ(n.stuck, 0);
+  const Vec3 o = cell_origin(set);
+  EXPECT_GE(std::min(face_clearance(set, o), edge_clearance(set, o)), kGoodClearance);
+  for (size_t i = 0; i < set.inclusions.size(); ++i) {
+    const Shape& a = set.inclusions[i].shape;
+    EXPECT_EQ(a.half_axis, before.inclusions[i].shape.half_axis) << i;
+    Vec3 moved = a.center - before.inclusions[i].shape.center;  // (periodic)
+    for (int k = 0; k < 3; ++k) moved[k] -= std::round(moved[k]);
+    EXPECT_LE(moved.norm(), 4 * 1.5 * r + 1e-12) << i;
+    for (size_t j = i + 1; j < set.inclusions.size(); ++j) {
+      const Shape& b = set.inclusions[j].shape;
+      for_each_image(set.box, a.center, a.bounding_radius() + gap, b.center, b.bounding_radius(),
+                     [&](const Vec3& shift) {
+                       EXPECT_TRUE(clear_of(a, b.translated(shift), gap)) << i << " " << j;
+                     });
+    }
+  }
+  InclusionSet again = set;
+  EXPECT_EQ(nudge_off_cell(&again, o, gap).moved, 0);
 }
 
 // Every phase's volume in the mesh and the exact one, by label.

@@ -80,7 +80,9 @@ const char* kGenerateUsage =
     "                faces, edges and corners; with materials, run_tet_conductivity.inp and\n"
     "                run_tet_elasticity.inp (plain spheres, cylinders, ellipsoids; sizes:\n"
     "                the scene's \"mesh_tet\" object; the cell may be the box moved along\n"
-    "                its axes, off inclusions it would graze: report.json's cell_origin)\n"
+    "                its axes, off inclusions it would graze: report.json's cell_origin;\n"
+    "                those it still grazes move off its faces where there is room, before\n"
+    "                anything is written: mesh_tet.nudge, report.json's nudged_inclusions)\n"
     "    statistics  g(r) of sphere families and nearest-neighbour distances in report.json\n"
     "  By default inclusions, voxels, levelsets and statistics; the scene's \"outputs\" list or\n"
     "  --outputs LIST (names separated by commas) chooses others. DIR is replaced as a whole:\n"
@@ -367,9 +369,31 @@ int cmd_generate(const std::vector<std::string>& args) {
                " elements guessed from the scene, " + rvegen::format_bytes(need.total_bytes()) +
                " at peak" + above_limit + ": packing, then the packed inclusions' gaps decide");
     }
-    const rvegen::PackingResult result = rvegen::generate(scene, progress, fault_hook());
+    rvegen::PackingResult result = rvegen::generate(scene, progress, fault_hook());
     timings.phases.emplace_back("packing", result.seconds);
     timings.phases.emplace_back("audit", result.audit_seconds);
+    // Inclusions that the mesh's cell cannot keep off are moved off its faces where there is
+    // room, before anything is written; the moved set is audited like the packed one (and, should
+    // that fail, the packed set is kept).
+    rvegen::Nudged nudged;
+    if (scene.outputs.mesh_tet && scene.tet_mesh.shift_cell && scene.tet_mesh.nudge) {
+      rvegen::check_tet_meshable(result.set);
+      rvegen::InclusionSet moved = result.set;
+      nudged = rvegen::nudge_off_chosen_cell(&moved, scene.min_gap);
+      if (nudged.moved > 0) {
+        if (rvegen::audit(moved, 16).clean()) {
+          result.set = std::move(moved);
+        } else {
+          nudged.stuck += nudged.moved;
+          nudged.moved = 0;
+        }
+      }
+      if (progress && (nudged.moved > 0 || nudged.stuck > 0)) {
+        progress("tetrahedral mesh: " + std::to_string(nudged.moved) +
+                 " inclusions moved off the cell's faces, " + std::to_string(nudged.stuck) +
+                 " with no room to");
+      }
+    }
     // The tetrahedral mesh of the packed set, from the mesher's own size field (the gaps between
     // the inclusions are known now), against the same limit, before anything is written.
     rvegen::TetMeshNeed mesh_need;
@@ -527,6 +551,10 @@ int cmd_generate(const std::vector<std::string>& args) {
             [&](std::FILE* f) { rvegen::write_tet_mesh_vtu(tets, f); });
       });
       tet_report = tet_mesh_report(result.set, tets);
+      // Inclusions moved off the cell's faces before anything was written (mesh_tet.nudge), and
+      // those that graze it with no room to move.
+      tet_report["nudged_inclusions"] = nudged.moved;
+      tet_report["nudge_stuck"] = nudged.stuck;
       // The estimate the memory check used, beside the count it estimated.
       tet_report["estimated_tetrahedra"] = std::llround(mesh_need.elements);
       const auto& angles = tet_report["min_dihedral_degrees"];

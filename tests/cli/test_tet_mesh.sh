@@ -35,6 +35,19 @@ done
 # (Each phase's volume within 0.2 %: the nodes inside curved interfaces are moved to give back
 # what the chords cut off, which was 0.9 % of the spheres at this chord error.)
 $py "$(dirname "$0")/check_tet_mesh.py" "$WORK/a" 0.002 || fail "tetrahedral mesh"
+# The inclusions moved off the cell's faces (mesh_tet.nudge) are counted; a bad value is named.
+$py - "$WORK/a/report.json" <<'PY' || fail "report.json's nudge counts"
+import json, sys
+m = json.load(open(sys.argv[1]))["mesh_tet"]
+for k in ("nudged_inclusions", "nudge_stuck"):
+    if not isinstance(m.get(k), int) or m[k] < 0:
+        sys.exit("%s: %r" % (k, m.get(k)))
+PY
+sed 's/"outputs":.*/"outputs":["inclusions","mesh_tet"],"mesh_tet":{"nudge":"yes"}}/' \
+  "$SAMPLES/scenes/fe_spheres_rods.json" >"$WORK/bad_nudge.json"
+expect_rc 2 "$RVEGEN" generate "$WORK/bad_nudge.json" -o "$WORK/bn" -q
+grep -q 'mesh_tet.nudge' "$WORK/last.err" || fail "mesh_tet.nudge not named: $(cat "$WORK/last.err")"
+[ -e "$WORK/bn" ] && fail "a refused scene left a directory"
 # The .msh: meshio reads it (the same nodes and elements as the .vtu, the phases as physical
 # groups), its $Periodic pairs are one box size apart on each axis, and Gmsh checks it.
 cat >"$WORK/check_msh.py" <<'PY'

@@ -15,8 +15,10 @@
 #include <unordered_map>
 
 #include "rvegen/femesh/offset_solid.hpp"
+#include "rvegen/geometry/pair.hpp"
 #include "rvegen/model/body.hpp"
 #include "rvegen/model/errors.hpp"
+#include "rvegen/model/neighbours.hpp"
 #include "rvegen/model/parallel.hpp"
 #include "rvegen/model/resources.hpp"
 
@@ -2575,6 +2577,79 @@ Vec3 cell_origin(const InclusionSet& set) {
     origin[a] = box[a] + (origin[a] - box[a]) - side * std::round((origin[a] - box[a]) / side);
   }
   return origin;
+}
+
+Nudged nudge_off_cell(InclusionSet* set, const Vec3& origin, double min_gap) {
+  Nudged out;
+  const Box& box = set->box;
+  auto own_clearance = [&](const Inclusion& inc) {
+    InclusionSet one;
+    one.box = box;
+    one.inclusions = {inc};
+    return std::min(face_clearance(one, origin), edge_clearance(one, origin));
+  };
+  auto wrapped = [&](Vec3 c) {
+    if (!box.periodic) return c;
+    for (int a = 0; a < 3; ++a) {
+      c[a] = box.origin[a] + std::fmod(c[a] - box.origin[a], box.size[a]);
+      if (c[a] < box.origin[a]) c[a] += box.size[a];
+    }
+    return c;
+  };
+  std::vector<Shape> env(set->inclusions.size());
+  std::vector<double> reach(env.size());
+  for (size_t i = 0; i < env.size(); ++i) {
+    env[i] = envelope(set->inclusions[i]);
+    reach[i] = env[i].bounding_radius();
+  }
+  constexpr int kSteps = 24;  // 1.5 sizes in sixteenths
+  for (size_t i = 0; i < set->inclusions.size(); ++i) {
+    Inclusion& inc = set->inclusions[i];
+    if (own_clearance(inc) >= kGoodClearance) continue;
+    const double size =
+        inc.shape.kind == ShapeKind::Cylinder ? inc.shape.radius : inc.shape.min_size();
+    bool done = false;
+    for (int k = 1; k <= kSteps && !done; ++k) {
+      for (int a = 0; a < 3 && !done; ++a) {
+        for (const double sign : {1.0, -1.0}) {
+          Inclusion trial = inc;
+          trial.shape.center[a] += sign * k * size / 16.0;
+          trial.shape.center = wrapped(trial.shape.center);
+          if (own_clearance(trial) < kGoodClearance) continue;
+          const Shape e = envelope(trial);
+          bool clear = true;
+          for (size_t j = 0; j < env.size() && clear; ++j) {
+            if (j == i) continue;
+            for_each_image(box, e.center, reach[i] + min_gap, env[j].center, reach[j],
+                           [&](const Vec3& shift) {
+                             if (clear && !clear_of(e, env[j].translated(shift), min_gap)) {
+                               clear = false;
+                             }
+                           });
+          }
+          if (!clear) continue;
+          inc = trial;
+          env[i] = e;
+          ++out.moved;
+          done = true;
+          break;
+        }
+      }
+    }
+    if (!done) ++out.stuck;
+  }
+  return out;
+}
+
+Nudged nudge_off_chosen_cell(InclusionSet* set, double min_gap) {
+  Nudged total;
+  for (int round = 0; round < 4; ++round) {
+    const Nudged n = nudge_off_cell(set, cell_origin(*set), min_gap);
+    total.moved += n.moved;
+    total.stuck = n.stuck;
+    if (n.moved == 0) break;
+  }
+  return total;
 }
 
 TetMesh tet_mesh(const InclusionSet& set_in, const TetMeshOptions& options,

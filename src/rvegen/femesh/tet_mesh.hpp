@@ -171,6 +171,25 @@ double edge_clearance(const InclusionSet& set, const Vec3& origin);
 Vec3 cell_origin(const InclusionSet& set);
 inline constexpr double kGoodClearance = 0.05;  // caps of 18 degrees or more
 
+/// What nudge_off_cell did: inclusions moved, and those that graze the cell and found no room.
+struct Nudged {
+  int moved = 0;
+  int stuck = 0;
+};
+/// Moves, by the least translation along one axis that does it (at most 1.5 of its least size,
+/// a cylinder's radius, in steps of a sixteenth), each inclusion whose own face or edge
+/// clearance at the cell with lower corner `origin` is under kGoodClearance, where that clears
+/// it and keeps it at least `min_gap` from every other inclusion (exact tests on the envelopes,
+/// periodic images). The inclusions stay as drawn otherwise (sizes and orientations, hence the
+/// volume fractions and the orientation tensor): only those that the faces of a dense cell
+/// (cell_origin) cannot keep off move, by a fraction of their size. In the index order, so the
+/// same set gives the same result.
+Nudged nudge_off_cell(InclusionSet* set, const Vec3& origin, double min_gap);
+/// Rounds of nudge_off_cell at cell_origin(*set) until one moves nothing (at most four), so that
+/// the cell tet_mesh chooses for the moved set is the one the last round cleared; `moved` counts
+/// every round's moves, `stuck` the last round's.
+Nudged nudge_off_chosen_cell(InclusionSet* set, double min_gap);
+
 /// Merges nodes at one position (each element then uses the lowest-numbered one), drops nodes
 /// no element uses and renumbers the rest in order. Throws MeshError if an element is left with
 /// two nodes at one position. tet_mesh calls it: the volume mesher rarely leaves a second node

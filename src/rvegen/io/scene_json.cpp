@@ -418,8 +418,8 @@ Scene parse_scene(const std::string& text) {
   if (root.contains("mesh_tet")) {
     const Json& m = root["mesh_tet"];
     only_keys(m,
-              {"max_size", "min_size", "chord_error", "gap_elements", "shift_cell", "keep_volumes",
-               "order", "optimize_threshold"},
+              {"max_size", "min_size", "chord_error", "gap_elements", "shift_cell", "nudge",
+               "keep_volumes", "order", "optimize_threshold"},
               "mesh_tet");
     TetMeshSpec& t = s.tet_mesh;
     if (m.contains("max_size")) t.max_size = positive(m["max_size"], "mesh_tet.max_size");
@@ -429,6 +429,7 @@ Scene parse_scene(const std::string& text) {
     if (m.contains("gap_elements"))
       t.gap_elements = positive(m["gap_elements"], "mesh_tet.gap_elements");
     if (m.contains("shift_cell")) t.shift_cell = boolean(m["shift_cell"], "mesh_tet.shift_cell");
+    if (m.contains("nudge")) t.nudge = boolean(m["nudge"], "mesh_tet.nudge");
     if (m.contains("keep_volumes"))
       t.keep_volumes = boolean(m["keep_volumes"], "mesh_tet.keep_volumes");
     if (m.contains("order")) {
@@ -604,6 +605,7 @@ std::string scene_to_json(const Scene& s) {
     root["mesh_tet"] = {{"chord_error", t.chord_error},
                         {"gap_elements", t.gap_elements},
                         {"shift_cell", t.shift_cell},
+                        {"nudge", t.nudge},
                         {"keep_volumes", t.keep_volumes},
                         {"order", t.order},
                         {"optimize_threshold", t.optimize_threshold}};

@@ -176,6 +176,11 @@ struct TetMeshSpec {
   /// The mesh's cell may be the box moved along its axes (the same periodic medium), so that no
   /// box face grazes an inclusion (a thin cap bounds its elements' angles); false: the box.
   bool shift_cell = true;
+  /// With shift_cell, inclusions that every cell's faces would still graze (dense scenes: long
+  /// fibres nearly along a face) move off them by a fraction of their size before anything is
+  /// written, where there is room (nudge_off_cell; report.json's mesh_tet.nudged_inclusions);
+  /// false: they stay where the packer put them.
+  bool nudge = true;
   /// The nodes inside curved interfaces move along the surface's normal so that each phase keeps
   /// its exact volume (the facets, chords of the surface, would cut it short by about three
   /// times the chord error); false: every interface node on the exact surface.
@@ -193,7 +198,7 @@ struct TetMeshSpec {
   }
   bool operator==(const TetMeshSpec& o) const {
     return max_size == o.max_size && min_size == o.min_size && chord_error == o.chord_error &&
-           gap_elements == o.gap_elements && shift_cell == o.shift_cell &&
+           gap_elements == o.gap_elements && shift_cell == o.shift_cell && nudge == o.nudge &&
            keep_volumes == o.keep_volumes && order == o.order &&
            optimize_threshold == o.optimize_threshold;
   }

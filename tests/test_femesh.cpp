@@ -632,6 +632,23 @@ TEST(TetMesh, ACellFaceAlongAFibreNearlyParallelToItIsMovedOffTheMantle) {
   }
 }
 
+// A fibre of radius r and half length h about (0.5, 0.5, z), its axis `degrees` off the z
+// faces in the xz plane.
+Inclusion tilted_fibre(double degrees, double r, double h, double z) {
+  const double t = degrees * M_PI / 180.0;
+  Inclusion inc;
+  inc.shape = Shape::cylinder(Vec3(0.5, 0.5, z), r, h * Vec3(std::cos(t), 0.0, std::sin(t)));
+  return inc;
+}
+
+// Twelve fibres of radius r and half length 0.2, 7 degrees off the z faces, at heights k / 12.
+InclusionSet shallow_fibres(double r) {
+  InclusionSet set = one_of(Shape::sphere(Vec3(0.5, 0.5, 0.5), 0.01));
+  set.inclusions.clear();
+  for (int k = 0; k < 12; ++k) set.inclusions.push_back(tilted_fibre(7.0, r, 0.2, k / 12.0));
+  return set;
+}
+
 TEST(TetMesh, WhereShallowFibresCoverTheAxisTheShallowestAreStillAvoided) {
   // Twelve fibres 7 degrees off the z faces, at heights k / 12: their mantle lines' spans cover
   // every height, and their rims leave the best room for a face about z = 0.0218, between the
@@ -639,19 +656,11 @@ TEST(TetMesh, WhereShallowFibresCoverTheAxisTheShallowestAreStillAvoided) {
   // its upper line's span about that height (its rims far from it). No face position misses
   // every span, so the least shallow are let go, and the cell's z faces miss the 3-degree
   // fibre's lines.
-  InclusionSet set = one_of(Shape::sphere(Vec3(0.5, 0.5, 0.5), 0.01));
-  set.inclusions.clear();
   const double r = 0.02;
-  auto fibre = [&](double degrees, double h, double z) {
-    const double t = degrees * M_PI / 180.0;
-    Inclusion inc;
-    inc.shape = Shape::cylinder(Vec3(0.5, 0.5, z), r, h * Vec3(std::cos(t), 0.0, std::sin(t)));
-    set.inclusions.push_back(inc);
-  };
-  for (int k = 0; k < 12; ++k) fibre(7.0, 0.2, k / 12.0);
+  InclusionSet set = shallow_fibres(r);
   const double shallow = 3.0 * M_PI / 180.0, top = r * std::cos(shallow);
   const double span = 2.0 * std::sin(shallow), room = 0.0218;
-  fibre(3.0, 2.0, room - top);
+  set.inclusions.push_back(tilted_fibre(3.0, r, 2.0, room - top));
   const Vec3 o = cell_origin(set);
   const double z = o[2] - std::floor(o[2]);
   for (const double line : {room, room - 2.0 * top}) {
@@ -710,16 +719,8 @@ TEST(TetMesh, AFibreGrazingAFaceOfTheCellIsNudgedOffItWhereThereIsRoom) {
 // the cell chosen for the moved set grazes none, nothing is within min_gap of another, and
 // another round at that cell moves nothing.
 TEST(TetMesh, InclusionsEveryCellGrazesAreNudgedOffTheCellChosenAfterwards) {
-  InclusionSet set = one_of(Shape::sphere(Vec3(0.5, 0.5, 0.5), 0.01));
-  set.inclusions.clear();
   const double r = 0.02, gap = 0.002;
-  auto fibre = [&](double degrees, double h, double z) {
-    const double t = degrees * M_PI / 180.0;
-    Inclusion inc;
-    inc.shape = Shape::cylinder(Vec3(0.5, 0.5, z), r, h * Vec3(std::cos(t), 0.0, std::sin(t)));
-    set.inclusions.push_back(inc);
-  };
-  for (int k = 0; k < 12; ++k) fibre(7.0, 0.2, k / 12.0);
+  InclusionSet set = shallow_fibres(r);
   const InclusionSet before = set;
   const Vec3 o0 = cell_origin(set);
   ASSERT_LT(std::min(face_clearance(set, o0), edge_clearance(set, o0)), kGoodClearance);

@@ -51,8 +51,15 @@ int vtkRVETetMesh::RequestData(vtkInformation*, vtkInformationVector** in,
   // The sizes are checked as a scene's "mesh_tet" is.
   rvegen::Scene scene;
   scene.box = set.box;
-  scene.tet_mesh = {this->MaxSize,   this->MinSize,     this->ChordError, this->GapElements,
-                    this->ShiftCell, this->KeepVolumes, this->Order,      this->OptimizeThreshold};
+  rvegen::TetMeshSpec& t = scene.tet_mesh;
+  t.max_size = this->MaxSize;
+  t.min_size = this->MinSize;
+  t.chord_error = this->ChordError;
+  t.gap_elements = this->GapElements;
+  t.shift_cell = this->ShiftCell;
+  t.keep_volumes = this->KeepVolumes;
+  t.order = this->Order;
+  t.optimize_threshold = this->OptimizeThreshold;
   rvegen::TetMesh mesh;
   try {
     rvegen::validate_tet_mesh_spec(scene);

@@ -340,13 +340,14 @@ int cmd_generate(const std::vector<std::string>& args) {
       std::string(", above the ") +
       (max_memory > 0.0 ? "--max-memory limit of " : "memory available, ") +
       rvegen::format_bytes(limit);
+  const bool over = limit > 0.0 && need.total_bytes() > limit;
   bool mesh_guess_over = false;
-  if (limit > 0.0 && need.total_bytes() > limit && scene.outputs.mesh_tet) {
+  if (over && scene.outputs.mesh_tet) {
     rvegen::Scene without = scene;
     without.outputs.mesh_tet = false;
     mesh_guess_over = rvegen::estimate_resources(without).total_bytes() <= limit;
   }
-  if (limit > 0.0 && need.total_bytes() > limit && !mesh_guess_over) {
+  if (over && !mesh_guess_over) {
     std::cerr << "rvegen: the scene needs about " << rvegen::describe(need) << above_limit << "\n";
     return kExitInvalid;
   }
@@ -376,8 +377,8 @@ int cmd_generate(const std::vector<std::string>& args) {
     // room, before anything is written; the moved set is audited like the packed one (and, should
     // that fail, the packed set is kept).
     rvegen::Nudged nudged;
+    if (scene.outputs.mesh_tet) rvegen::check_tet_meshable(result.set);
     if (scene.outputs.mesh_tet && scene.tet_mesh.shift_cell && scene.tet_mesh.nudge) {
-      rvegen::check_tet_meshable(result.set);
       rvegen::InclusionSet moved = result.set;
       nudged = rvegen::nudge_off_chosen_cell(&moved, scene.min_gap);
       if (nudged.moved > 0) {
@@ -398,7 +399,6 @@ int cmd_generate(const std::vector<std::string>& args) {
     // the inclusions are known now), against the same limit, before anything is written.
     rvegen::TetMeshNeed mesh_need;
     if (scene.outputs.mesh_tet) {
-      rvegen::check_tet_meshable(result.set);
       mesh_need = rvegen::tet_mesh_need(result.set, scene.tet_mesh, limit);
       rvegen::ResourceEstimate packed = need;
       packed.tetrahedra = mesh_need.elements;

@@ -2588,14 +2588,6 @@ Nudged nudge_off_cell(InclusionSet* set, const Vec3& origin, double min_gap) {
     one.inclusions = {inc};
     return std::min(face_clearance(one, origin), edge_clearance(one, origin));
   };
-  auto wrapped = [&](Vec3 c) {
-    if (!box.periodic) return c;
-    for (int a = 0; a < 3; ++a) {
-      c[a] = box.origin[a] + std::fmod(c[a] - box.origin[a], box.size[a]);
-      if (c[a] < box.origin[a]) c[a] += box.size[a];
-    }
-    return c;
-  };
   std::vector<Shape> env(set->inclusions.size());
   std::vector<double> reach(env.size());
   for (size_t i = 0; i < env.size(); ++i) {
@@ -2614,7 +2606,7 @@ Nudged nudge_off_cell(InclusionSet* set, const Vec3& origin, double min_gap) {
         for (const double sign : {1.0, -1.0}) {
           Inclusion trial = inc;
           trial.shape.center[a] += sign * k * size / 16.0;
-          trial.shape.center = wrapped(trial.shape.center);
+          trial.shape.center = box.wrapped(trial.shape.center);
           if (own_clearance(trial) < kGoodClearance) continue;
           const Shape e = envelope(trial);
           bool clear = true;

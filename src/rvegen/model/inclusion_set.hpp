@@ -2,6 +2,7 @@
 // reports) is a pure function of it.
 #pragma once
 
+#include <cmath>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -16,6 +17,12 @@ struct Box {
   Vec3 size = Vec3::Ones();
   bool periodic = true;
   double volume() const { return size.prod(); }
+  /// x brought into the box along each periodic axis (unchanged in a closed box).
+  Vec3 wrapped(Vec3 x) const {
+    if (!periodic) return x;
+    for (int a = 0; a < 3; ++a) x[a] -= std::floor((x[a] - origin[a]) / size[a]) * size[a];
+    return x;
+  }
 };
 
 /// Refuses (InputError naming `path`) a box the arithmetic cannot serve: sizes outside

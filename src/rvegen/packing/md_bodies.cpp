@@ -133,11 +133,7 @@ Turn turn_mode(const OrientationLaw& law, MdSettings::Rotation rotation, Vec3* a
 }
 
 void wrap(const Box& box, Body* b) {
-  if (!box.periodic) return;
-  for (int a = 0; a < 3; ++a) {
-    const double t = (b->shape.center[a] - box.origin[a]) / box.size[a];
-    b->shape.center[a] -= std::floor(t) * box.size[a];
-  }
+  b->shape.center = box.wrapped(b->shape.center);
 }
 
 Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, Random& rng) {

@@ -145,7 +145,7 @@ bool coarser_tet_mesh_that_fits(const InclusionSet& set, const TetMeshSpec& spec
 /// The face clearance of a cell with lower corner `origin` (and the box's size): the least
 /// distance from a box face (any periodic copy of it) to an extreme point along the face's
 /// normal of a sphere or ellipsoid, over its least size (Shape::min_size), or of a cylinder's
-/// rim, over its radius, and to the span of a cylinder's end disk within 20 degrees of parallel
+/// rim, over its radius, and to the span of a cylinder's end disk within 30 degrees of parallel
 /// to the face, over the radius. A face that cuts a sphere at distance c r inside its extreme
 /// leaves a cap with an edge angle of acos(1 - c); one that crosses an end disk at angle phi, a
 /// wedge of phi. Also from the span along the face's normal of the two lines of a cylinder's

@@ -317,6 +317,30 @@ TEST(TetMesh, AFlatElementInABoxFaceIsRemovedAndTheOppositeFaceFlipped) {
   EXPECT_EQ(remove_flat_face_elements(&m), 0);
 }
 
+// An octahedron cut into a sliver: its equator's four points lifted and lowered by turns by
+// `lift`, its apexes at z = 1 and z = -bottom; the elements (the sliver, the two above it, the
+// two below) in the inclusions `ids` (-1: the matrix, phase 0; others phase 1). The mesh's box
+// is the unit box: the nodes at 0 or 1 lie on its faces.
+TetMesh octahedron_with_sliver(double lift, double bottom, const std::array<int, 5>& ids) {
+  TetMesh m;
+  m.nodes = {{1, 0, lift},   {0, 1, -lift}, {-1, 0, lift},
+             {0, -1, -lift}, {0, 0, 1},     {0, 0, -bottom}};
+  const std::array<int32_t, 4> tets[5] = {
+      {0, 1, 2, 3},  // the sliver
+      {0, 2, 1, 4},
+      {0, 2, 3, 4},  // the faces the raised points share, to the upper apex
+      {1, 3, 0, 5},
+      {1, 3, 2, 5}};  // the lowered points' faces, to the lower apex
+  for (int k = 0; k < 5; ++k) {
+    std::array<int32_t, 4> t = tets[k];
+    if (tet_volume(m.nodes, t) < 0.0) std::swap(t[0], t[1]);
+    m.tets.push_back(t);
+    m.phase.push_back(ids[k] < 0 ? 0 : 1);
+    m.inclusion_id.push_back(ids[k]);
+  }
+  return m;
+}
+
 // An octahedron cut into a sliver (its equator's four points, lifted and lowered by turns)
 // and the four elements from its apexes to the sliver's faces: every node on the region's
 // boundary, so none may move. A node at the sliver's circumcentre, joined to the octahedron's
@@ -324,21 +348,8 @@ TEST(TetMesh, AFlatElementInABoxFaceIsRemovedAndTheOppositeFaceFlipped) {
 // another region, the sliver alone is no better with a node inside, and stays.
 TEST(TetMesh, ANodeInsertedInARegionLiftsASliverWhoseNodesCannotMove) {
   auto octahedron = [](int apex_region) {
-    TetMesh m;
-    const double lift = 0.02;
-    m.nodes = {{1, 0, lift}, {0, 1, -lift}, {-1, 0, lift}, {0, -1, -lift}, {0, 0, 1}, {0, 0, -1}};
-    auto add = [&](std::array<int32_t, 4> t, int region) {
-      if (tet_volume(m.nodes, t) < 0.0) std::swap(t[0], t[1]);
-      m.tets.push_back(t);
-      m.phase.push_back(region < 0 ? 0 : 1);
-      m.inclusion_id.push_back(region);
-    };
-    add({0, 1, 2, 3}, -1);           // the sliver
-    add({0, 2, 1, 4}, apex_region);  // the faces the raised points share, to the upper apex
-    add({0, 2, 3, 4}, apex_region);
-    add({1, 3, 0, 5}, apex_region);  // the lowered points' faces, to the lower apex
-    add({1, 3, 2, 5}, apex_region);
-    return m;
+    const int a = apex_region;
+    return octahedron_with_sliver(0.02, 1.0, {-1, a, a, a, a});
   };
   auto volume = [](const TetMesh& m) {
     double v = 0.0;
@@ -363,6 +374,146 @@ TEST(TetMesh, ANodeInsertedInARegionLiftsASliverWhoseNodesCannotMove) {
   EXPECT_EQ(insert_nodes_in_slivers(&two), 0);
   EXPECT_EQ(two.tets.size(), 5u);
   EXPECT_EQ(two.nodes.size(), 6u);
+}
+
+// The octahedron above, every element in one region: no node may move, but the elements
+// around one of the sliver's edges (the sliver and the two above it, which share the raised
+// points) remade as two about the lowered points' edge lift it, with no node added.
+TEST(TetMesh, ASliverIsRemadeWithItsNeighboursByAFlip) {
+  TetMesh m = octahedron_with_sliver(0.02, 1.0, {-1, -1, -1, -1, -1});
+  m.box.origin = Vec3(-2, -2, -2);  // no node on a box face
+  m.box.size = Vec3(4, 4, 4);
+  const auto faces = boundary_faces(m);
+  ASSERT_LT(least_angle(m), 5.0);
+  EXPECT_EQ(remake_slivers(&m), 1);
+  EXPECT_EQ(m.nodes.size(), 6u);
+  EXPECT_EQ(m.tets.size(), 4u);
+  EXPECT_GT(least_angle(m), 30.0);
+  EXPECT_EQ(boundary_faces(m), faces);
+  double v = 0.0;
+  for (const auto& t : m.tets) v += tet_volume(m.nodes, t);
+  EXPECT_NEAR(v, 4.0 / 3.0, 1e-12);  // the octahedron's, |x| + |y| + |z| <= 1 to the lift
+  EXPECT_EQ(remake_slivers(&m), 0);
+}
+
+// The sliver lies on an interface: above it an inclusion's two elements, below it the matrix's
+// (the sliver's) two, their apex near the equator so that remaking the matrix side alone gives
+// at best 25 degrees. Flipping the interface's edge between the raised points to the one between
+// the lowered points (the four points nearly in one plane) gives the inclusion the sliver's
+// volume and every element over 50 degrees. Where the interface bends at that edge (the points
+// raised and lowered by a third of their spacing), it stays.
+TEST(TetMesh, ASliverFlatOnAnInterfaceGoesByFlippingTheInterfaceEdge) {
+  auto octahedron = [](double lift) {
+    TetMesh m = octahedron_with_sliver(lift, 0.3, {-1, 3, 3, -1, -1});
+    m.box.origin = Vec3(-2, -2, -2);  // no node on a box face
+    m.box.size = Vec3(4, 4, 4);
+    return m;
+  };
+  auto volume_of = [](const TetMesh& m, int id) {
+    double v = 0.0;
+    for (size_t e = 0; e < m.tets.size(); ++e) {
+      if (m.inclusion_id[e] == id) v += tet_volume(m.nodes, m.tets[e]);
+    }
+    return v;
+  };
+  // The faces between the two regions.
+  auto interface = [](const TetMesh& m) {
+    std::map<std::array<int32_t, 3>, std::set<int>> by;
+    for (size_t e = 0; e < m.tets.size(); ++e) {
+      const auto& t = m.tets[e];
+      for (int k = 0; k < 4; ++k) {
+        std::array<int32_t, 3> f = {t[(k + 1) % 4], t[(k + 2) % 4], t[(k + 3) % 4]};
+        std::sort(f.begin(), f.end());
+        by[f].insert(m.inclusion_id[e]);
+      }
+    }
+    std::set<std::array<int32_t, 3>> out;
+    for (const auto& [f, ids] : by) {
+      if (ids.size() == 2) out.insert(f);
+    }
+    return out;
+  };
+  TetMesh m = octahedron(0.02);
+  const double sliver = tet_volume(m.nodes, m.tets[0]);
+  const double inclusion = volume_of(m, 3), matrix = volume_of(m, -1);
+  const auto faces = boundary_faces(m);
+  ASSERT_LT(least_angle(m), 5.0);
+  using Face = std::array<int32_t, 3>;
+  ASSERT_EQ(interface(m), (std::set<Face>{{0, 1, 2}, {0, 2, 3}}));
+  EXPECT_EQ(remake_slivers(&m), 1);
+  EXPECT_EQ(m.tets.size(), 4u);
+  EXPECT_GT(least_angle(m), 20.0);
+  EXPECT_EQ(boundary_faces(m), faces);
+  EXPECT_EQ(interface(m), (std::set<Face>{{0, 1, 3}, {1, 2, 3}}));
+  EXPECT_NEAR(volume_of(m, 3), inclusion + sliver, 1e-12);
+  EXPECT_NEAR(volume_of(m, -1), matrix - sliver, 1e-12);
+
+  // Bent: the lines between the raised and the lowered points a third of the spacing apart.
+  // The interface flip is refused; the matrix side alone is remade (its interface faces stay).
+  TetMesh bent = octahedron(0.35);
+  const auto bent_interface = interface(bent);
+  remake_slivers(&bent, 90.0);  // every element counts as a sliver
+  EXPECT_EQ(interface(bent), bent_interface);
+}
+
+// The cube about its centre (twelve elements from the centre to the faces' triangles), with a
+// second node a hair (0.02) from the centre inside one of them: the elements about the short
+// edge are needles. The second node is collapsed into the centre, which gives the twelve back.
+// A node on a box face is not collapsed.
+TEST(TetMesh, ANodeAHairFromAnotherIsCollapsedIntoIt) {
+  TetMesh m;
+  for (int i = 0; i < 8; ++i) m.nodes.emplace_back(i & 1, (i >> 1) & 1, (i >> 2) & 1);
+  m.nodes.emplace_back(0.5, 0.5, 0.5);
+  const int quads[6][4] = {{0, 1, 3, 2}, {4, 5, 7, 6}, {0, 1, 5, 4},
+                           {2, 3, 7, 6}, {0, 2, 6, 4}, {1, 3, 7, 5}};
+  for (const auto& q : quads) {
+    for (const std::array<int32_t, 4> t0 : {std::array<int32_t, 4>{q[0], q[1], q[2], 8},
+                                            std::array<int32_t, 4>{q[0], q[2], q[3], 8}}) {
+      auto t = t0;
+      if (tet_volume(m.nodes, t) < 0.0) std::swap(t[0], t[1]);
+      m.tets.push_back(t);
+      m.phase.push_back(0);
+      m.inclusion_id.push_back(-1);
+    }
+  }
+  const double before = least_angle(m);
+  const auto faces = boundary_faces(m);
+  TetMesh split = m;
+  const auto host = split.tets[0];
+  Vec3 centroid = Vec3::Zero();
+  for (int32_t n : host) centroid += 0.25 * split.nodes[n];
+  split.nodes.push_back(split.nodes[8] + 0.02 * (centroid - split.nodes[8]).normalized());
+  split.tets.erase(split.tets.begin());
+  split.phase.pop_back();
+  split.inclusion_id.pop_back();
+  for (int k = 0; k < 4; ++k) {
+    auto t = host;
+    t[k] = 9;
+    ASSERT_GT(tet_volume(split.nodes, t), 0.0);
+    split.tets.push_back(t);
+    split.phase.push_back(0);
+    split.inclusion_id.push_back(-1);
+  }
+  ASSERT_EQ(split.tets.size(), 15u);
+  ASSERT_NO_THROW(check_conforming(split));
+  ASSERT_LT(least_angle(split), 5.0);
+  EXPECT_EQ(remake_slivers(&split), 1);
+  EXPECT_EQ(split.nodes.size(), 9u);
+  EXPECT_EQ(split.tets.size(), 12u);
+  EXPECT_NEAR(least_angle(split), before, 1e-9);
+  EXPECT_EQ(boundary_faces(split), faces);
+  EXPECT_NO_THROW(check_conforming(split));
+
+  // Corner 1 slid along the cube's edge to 0.02 from corner 0: both nodes of the short edge lie
+  // on box faces, so neither goes.
+  TetMesh corner = m;
+  corner.nodes[1] = Vec3(0.02, 0.0, 0.0);
+  corner.box.size = Vec3(1, 1, 1);
+  const double corner_least = least_angle(corner);
+  ASSERT_LT(corner_least, 5.0);
+  const size_t nodes = corner.nodes.size();
+  remake_slivers(&corner);
+  EXPECT_EQ(corner.nodes.size(), nodes);  // neither corner goes
 }
 
 // Two spheres, one cut by a box face, in the unit box.

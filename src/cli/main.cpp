@@ -232,6 +232,7 @@ nlohmann::ordered_json tet_mesh_report(const rvegen::InclusionSet& set,
   r["relocated_nodes"] = mesh.relocated_nodes;
   // Nodes added inside one region where elements under 5 degrees were left.
   r["inserted_nodes"] = mesh.inserted_nodes;
+  r["remade_slivers"] = mesh.remade_slivers;
   r["flat_elements_removed"] = mesh.flat_elements_removed;
   r["raised_triangles"] = mesh.raised_triangles;
   // The cell meshed: the box, or the box moved along its axes (mesh_tet.shift_cell).

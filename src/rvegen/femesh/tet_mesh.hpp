@@ -69,6 +69,9 @@ struct TetMesh {
   /// Nodes added inside one region, each with the elements about it remade, to lift elements
   /// under 5 degrees that moving nodes did not (insert_nodes_in_slivers).
   long long inserted_nodes = 0;
+  /// Elements under 5 degrees remade with their neighbours by flips and collapses of short
+  /// edges (remake_slivers).
+  long long remade_slivers = 0;
   /// Triangles of curved surfaces that lay flat in a box face, split about a node on the
   /// surface (raise_flat_triangles).
   long long raised_triangles = 0;
@@ -236,6 +239,27 @@ long long remove_flat_face_elements(TetMesh* mesh);
 /// it raises the least angle of the elements around the node, all positive. tet_mesh calls it on
 /// every mesh, after keep_phase_volumes. Returns the number of nodes moved.
 long long lift_slivers(TetMesh* mesh, const InclusionSet& set, double angle = 5.0);
+
+/// Remakes each element whose least dihedral angle is under `angle` degrees with its
+/// neighbours, where that lifts it, in one of three ways, the best by least angle:
+/// - the elements around one of its edges replaced by a triangulation of their ring (the best by
+///   least angle), no node added;
+/// - the element and its neighbour across a face, in one region, made three about the line
+///   between their other nodes;
+/// - one of its edges collapsed into one node u (its other node v goes, v's other elements take
+///   u), where v lies inside the box and in one region, or on one interface that the edge lies
+///   in with u within a tenth of the mean length of v's other edges of the plane of each of
+///   v's interface triangles (a short edge, or one along a flat interface).
+/// An edge on an interface (its ring in two regions) is flipped with the interface where the
+/// interface's two triangles at it nearly lie in one plane (their diagonals apart by at most a
+/// tenth of the shorter): the interface then moves by the flat element between them; a
+/// collapse moves it by no more than u's distance from those planes. Edges in box faces, nodes on
+/// them and edges where three regions meet stay; so do the faces' triangulations. At a tie in least
+/// angle, what keeps the interfaces is taken. Taken when every new element is positive and their
+/// least angle is at least `angle`, or higher than the old ones' with fewer under `angle`. Nodes
+/// left in no element go (the others keep their order). tet_mesh calls it after lift_slivers.
+/// Returns the number of remakes.
+long long remake_slivers(TetMesh* mesh, double angle = 5.0);
 
 /// Adds a node inside one region (inclusion and phase) at each element whose least dihedral
 /// angle is under `angle` degrees, where that lifts it: at the element's circumcentre, its

@@ -401,7 +401,7 @@ TEST(TetMesh, ASliverIsRemadeWithItsNeighboursByAFlip) {
 // at best 25 degrees. Flipping the interface's edge between the raised points to the one between
 // the lowered points (the four points nearly in one plane) gives the inclusion the sliver's
 // volume and every element over 50 degrees. Where the interface bends at that edge (the points
-// raised and lowered by a third of their spacing), it stays.
+// raised and lowered by 0.35), it stays.
 TEST(TetMesh, ASliverFlatOnAnInterfaceGoesByFlippingTheInterfaceEdge) {
   auto octahedron = [](double lift) {
     TetMesh m = octahedron_with_sliver(lift, 0.3, {-1, 3, 3, -1, -1});
@@ -448,11 +448,15 @@ TEST(TetMesh, ASliverFlatOnAnInterfaceGoesByFlippingTheInterfaceEdge) {
   EXPECT_NEAR(volume_of(m, 3), inclusion + sliver, 1e-12);
   EXPECT_NEAR(volume_of(m, -1), matrix - sliver, 1e-12);
 
-  // Bent: the lines between the raised and the lowered points a third of the spacing apart.
-  // The interface flip is refused; the matrix side alone is remade (its interface faces stay).
-  TetMesh bent = octahedron(0.35);
+  // Bent: the lines between the raised and the lowered points 0.7 apart (a third of the
+  // diagonals), the lower apex at -1. Every element under 30 degrees counts: the interface flip
+  // would do best (it is taken when the flatness bound is lifted), but it is refused, and the
+  // matrix side alone is remade, its interface faces kept.
+  TetMesh bent = octahedron_with_sliver(0.35, 1.0, {-1, 3, 3, -1, -1});
+  bent.box = m.box;
   const auto bent_interface = interface(bent);
-  remake_slivers(&bent, 90.0);  // every element counts as a sliver
+  ASSERT_EQ(bent_interface.size(), 2u);
+  EXPECT_EQ(remake_slivers(&bent, 30.0), 1);
   EXPECT_EQ(interface(bent), bent_interface);
 }
 

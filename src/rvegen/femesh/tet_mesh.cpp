@@ -505,6 +505,25 @@ uint64_t face_key(int32_t a, int32_t b, int32_t c) {
              static_cast<uint32_t>(c));
 }
 
+// Drops the nodes in no element; the others keep their order.
+void drop_unused_nodes(TetMesh* mesh) {
+  std::vector<int32_t> number(mesh->nodes.size(), -1);
+  for (const auto& t : mesh->tets) {
+    for (int32_t n : t) number[n] = 0;
+  }
+  int32_t kept = 0;
+  for (size_t i = 0; i < number.size(); ++i) {
+    if (number[i] < 0) continue;
+    number[i] = kept;
+    mesh->nodes[kept++] = mesh->nodes[i];
+  }
+  if (static_cast<size_t>(kept) == mesh->nodes.size()) return;
+  mesh->nodes.resize(kept);
+  for (auto& t : mesh->tets) {
+    for (int32_t& n : t) n = number[n];
+  }
+}
+
 }  // namespace
 
 // The volume mesher rarely leaves two nodes at one position, each used by elements on its own
@@ -528,20 +547,11 @@ long long merge_coincident_nodes(TetMesh* mesh) {
     same[order[k]] = repeat ? same[order[k - 1]] : order[k];
     merged += repeat;
   }
-  std::vector<int32_t> number(mesh->nodes.size(), -1);
   for (auto& t : mesh->tets) {
     for (int32_t& n : t) n = same[n];
-    for (int c = 0; c < 4; ++c) number[t[c]] = 0;
   }
-  std::vector<Vec3> kept;
-  for (size_t i = 0; i < number.size(); ++i) {
-    if (number[i] < 0) continue;
-    number[i] = static_cast<int32_t>(kept.size());
-    kept.push_back(mesh->nodes[i]);
-  }
-  mesh->nodes.swap(kept);
-  for (auto& t : mesh->tets) {
-    for (int32_t& n : t) n = number[n];
+  drop_unused_nodes(mesh);
+  for (const auto& t : mesh->tets) {
     for (int c = 0; c < 4; ++c) {
       for (int d = c + 1; d < 4; ++d) {
         if (t[c] == t[d]) throw MeshError("mesh_tet: an element with two nodes at one position");
@@ -1383,6 +1393,20 @@ void elements_around(const TetMesh& mesh, std::vector<int32_t>* start,
   }
 }
 
+// The element other than `except` that has face (a, b, c), -1 if none (start and around:
+// elements_around).
+int32_t element_on(const TetMesh& mesh, const std::vector<int32_t>& start,
+                   const std::vector<int32_t>& around, int32_t a, int32_t b, int32_t c,
+                   int32_t except) {
+  for (int32_t i = start[a]; i < start[a + 1]; ++i) {
+    const int32_t f = around[i];
+    if (f == except) continue;
+    const auto& u = mesh.tets[f];
+    if (std::count(u.begin(), u.end(), b) > 0 && std::count(u.begin(), u.end(), c) > 0) return f;
+  }
+  return -1;
+}
+
 // The centre of a tetrahedron's circumscribed sphere (its centroid when the tetrahedron is flat
 // to rounding).
 Vec3 circumcentre(const Vec3 (&p)[4]) {
@@ -1413,16 +1437,7 @@ long long insert_nodes_in_slivers(TetMesh* mesh, double angle) {
     // The element across face k of e (the face without corner k), -1 if none.
     auto across = [&](int32_t e, int k) {
       const auto& t = mesh->tets[e];
-      const int32_t a = t[(k + 1) % 4], b = t[(k + 2) % 4], c = t[(k + 3) % 4];
-      for (int32_t i = start[a]; i < start[a + 1]; ++i) {
-        const int32_t f = around[i];
-        if (f == e) continue;
-        const auto& u = mesh->tets[f];
-        if (std::count(u.begin(), u.end(), b) > 0 && std::count(u.begin(), u.end(), c) > 0) {
-          return f;
-        }
-      }
-      return int32_t(-1);
+      return element_on(*mesh, start, around, t[(k + 1) % 4], t[(k + 2) % 4], t[(k + 3) % 4], e);
     };
     auto tet_points = [&](const std::array<int32_t, 4>& t, Vec3(&p)[4]) {
       for (int k = 0; k < 4; ++k) p[k] = mesh->nodes[t[k]];
@@ -1741,13 +1756,8 @@ long long remake_slivers(TetMesh* mesh, double angle) {
           // both must face elements of its own region (not a box face, not a third region).
           const int32_t one = tet_of[part[2]], a = w[part[0]], b = w[part[1]];
           for (int32_t c : {u, v}) {
-            bool kept = false;
-            for (int32_t i = start[a]; i < start[a + 1] && !kept; ++i) {
-              const int32_t f = around[i];
-              kept = f != one && !gone[f] && has(mesh->tets[f], b) && has(mesh->tets[f], c) &&
-                     region_of(*mesh, f) == region_of(*mesh, one);
-            }
-            if (!kept) return false;
+            const int32_t f = element_on(*mesh, start, around, a, b, c, one);
+            if (f < 0 || gone[f] || region_of(*mesh, f) != region_of(*mesh, one)) return false;
           }
           continue;
         }
@@ -1776,11 +1786,7 @@ long long remake_slivers(TetMesh* mesh, double angle) {
     auto split_face = [&](int32_t e, int k, Remake* out) {
       const auto& t = mesh->tets[e];
       const int32_t p = t[(k + 1) % 4], q = t[(k + 2) % 4], r = t[(k + 3) % 4], d = t[k];
-      int32_t f = -1;
-      for (int32_t i = start[p]; i < start[p + 1] && f < 0; ++i) {
-        const int32_t g = around[i];
-        if (g != e && has(mesh->tets[g], q) && has(mesh->tets[g], r)) f = g;
-      }
+      const int32_t f = element_on(*mesh, start, around, p, q, r, e);
       if (f < 0 || gone[f] || region_of(*mesh, f) != region_of(*mesh, e)) return false;
       int32_t x = -1;
       for (int32_t c : mesh->tets[f]) {
@@ -1915,23 +1921,7 @@ long long remake_slivers(TetMesh* mesh, double angle) {
     flips += this_round;
     if (this_round == 0) break;
   }
-  // Nodes left in no element (collapsed) go; the others keep their order.
-  std::vector<int32_t> renumber(mesh->nodes.size(), -1);
-  for (const auto& t : mesh->tets) {
-    for (int32_t n : t) renumber[n] = 0;
-  }
-  int32_t kept = 0;
-  for (size_t n = 0; n < renumber.size(); ++n) {
-    if (renumber[n] < 0) continue;
-    renumber[n] = kept;
-    mesh->nodes[kept++] = mesh->nodes[n];
-  }
-  if (static_cast<size_t>(kept) != mesh->nodes.size()) {
-    mesh->nodes.resize(kept);
-    for (auto& t : mesh->tets) {
-      for (int32_t& n : t) n = renumber[n];
-    }
-  }
+  drop_unused_nodes(mesh);  // the collapsed nodes
   return flips;
 }
 void check_tet_meshable(const InclusionSet& set) {

@@ -1600,7 +1600,7 @@ long long remake_slivers(TetMesh* mesh, double angle) {
     }
     return false;
   };
-  long long flips = 0;
+  long long remakes = 0;
   for (int round = 0; round < 4; ++round) {
     const size_t ne = mesh->tets.size();
     std::vector<double> least;
@@ -1918,12 +1918,13 @@ long long remake_slivers(TetMesh* mesh, double angle) {
       ++this_round;
     }
     drop_elements(mesh, gone);
-    flips += this_round;
+    remakes += this_round;
     if (this_round == 0) break;
   }
   drop_unused_nodes(mesh);  // the collapsed nodes
-  return flips;
+  return remakes;
 }
+
 void check_tet_meshable(const InclusionSet& set) {
   if (!set.box.periodic) {
     throw InputError("outputs: mesh_tet needs a periodic box (box.periodic false)");

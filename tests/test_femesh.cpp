@@ -671,6 +671,16 @@ TEST(TetMesh, FibreEndsCutByABoxFaceMeshPeriodically) {
   }
 }
 
+// The 2,500-fibre scene's mesh settings (chord error 0.1, one element across gaps), in a
+// cell given by the test.
+TetMeshOptions fibre_scene_options() {
+  TetMeshOptions opt;
+  opt.chord_error = 0.1;
+  opt.gap_elements = 1;
+  opt.shift_cell = false;
+  return opt;
+}
+
 TEST(TetMesh, ACurvedTriangleLyingFlatInABoxFaceIsRaisedOffIt) {
   // Two fibres of the 2,500-fibre scene, in the cell it was meshed in: the first one's end rim
   // crosses the face y = 0.0503 where the mantle meets it at a small angle, and the surface
@@ -694,16 +704,69 @@ TEST(TetMesh, ACurvedTriangleLyingFlatInABoxFaceIsRaisedOffIt) {
     set.inclusions.push_back(inc);
   }
   set.family_names = {"fibres"};
-  TetMeshOptions opt;
-  opt.chord_error = 0.1;
-  opt.gap_elements = 1;
-  opt.shift_cell = false;
+  const TetMeshOptions opt = fibre_scene_options();
   TetMesh m;
   ASSERT_NO_THROW(m = tet_mesh(set, opt));
   EXPECT_GE(m.raised_triangles, 1);
   const TetQuality q = tet_quality(m);
   EXPECT_GT(q.min_volume, 0.0);
   EXPECT_NEAR(q.phase_volume[1], exact, 0.01 * exact);
+  expect_tied_to_images(m, 1e-9);
+}
+
+TEST(TetMesh, AChipAFaceCutsOffAFibreRimHasElementsAsSmallAsItsDepthUnlessItsWedgeIsShallow) {
+  // A fibre of the 2,500-fibre scene, in the cell it was meshed in: the cell's upper face
+  // y = 0.669 cuts off a chip of its end rim 0.075 radius (8.8e-4) deep, where the surface
+  // elements are 5e-3 long. Meshed in two elements 9.6e-3 long, the chip left matrix elements
+  // of 4.1-4.7 degrees over it in two runs of three.
+  InclusionSet set;
+  set.box.origin = Vec3(0.44144048182874596, -0.3310099506462849, 0.46270130219979366);
+  set.box.size = Vec3(1, 1, 1);
+  Inclusion inc;
+  inc.id = 0;
+  inc.shape =
+      Shape::cylinder(Vec3(0.6756468985043989, 0.7617958175632955, 0.5529567411175977), 0.0117,
+                      Vec3(0.07023268895114737, -0.08572646320413142, 0.03751456929250399));
+  set.inclusions.push_back(inc);
+  set.family_names = {"fibres"};
+  const Shape& s = set.inclusions[0].shape;
+  const Vec3 u = s.half_axis.normalized();
+  const double rim =
+      s.center.y() - std::abs(s.half_axis.y()) - s.radius * std::sqrt(1.0 - u.y() * u.y());
+  const double depth = set.box.origin.y() + 1.0 - rim;
+  ASSERT_GT(depth, 0.07 * s.radius);
+  ASSERT_LT(depth, 0.08 * s.radius);
+  const TetMeshOptions opt = fibre_scene_options();
+  TetMesh m;
+  ASSERT_NO_THROW(m = tet_mesh(set, opt));
+  int chip = 0;
+  double longest = 0.0;
+  for (size_t e = 0; e < m.tets.size(); ++e) {
+    bool in = m.inclusion_id[e] == 0;
+    for (const int k : m.tets[e]) in = in && m.nodes[k].y() > rim - 1e-12;
+    if (!in) continue;
+    ++chip;
+    for (int i = 0; i < 4; ++i) {
+      for (int j = i + 1; j < 4; ++j) {
+        longest = std::max(longest, (m.nodes[m.tets[e][i]] - m.nodes[m.tets[e][j]]).norm());
+      }
+    }
+  }
+  EXPECT_GE(chip, 20);
+  EXPECT_LT(longest, 2.5 * depth);
+  const TetQuality q = tet_quality(m);
+  EXPECT_EQ(q.below_5_degrees, 0) << "least " << q.min_dihedral;
+  expect_tied_to_images(m, 1e-9);
+  // Another fibre of that scene runs 3.6 degrees off the face z = 0.463 and is cut 0.04 radius
+  // below its mantle: the mantle meets the face at 3.6 degrees along the chip, so elements that
+  // follow it are flatter still (refined like the first, 39-46 of them under 5 degrees, least
+  // 2-3). Such a chip is not refined: the coarse surface elements cut across it.
+  set.inclusions[0].shape =
+      Shape::cylinder(Vec3(0.7619863627942834, 0.45847019110271114, 0.48130220265759216), 0.0117,
+                      Vec3(0.09061845675434262, -0.07363810853661894, 0.007397585187780727));
+  ASSERT_NO_THROW(m = tet_mesh(set, opt));
+  const TetQuality shallow = tet_quality(m);
+  EXPECT_EQ(shallow.below_5_degrees, 0) << "least " << shallow.min_dihedral;
   expect_tied_to_images(m, 1e-9);
 }
 

@@ -103,10 +103,10 @@ constexpr double kGrowth = 0.2;
 // puts at least two elements across such chips and gaps, growing by kChipGrowth away from
 // them (growing by 1, the 87 fibres about that chip, meshed alone, left an element of 4.3-4.6
 // degrees where the sizes grew, in 1 run of 6; by 0.5, in none of 16). Only where the end
-// disk and the mantle both meet the face at kChipWedge or more: a
-// fibre 3.6 degrees off a face and cut 0.04 radius under its mantle meets the face at 3.6
-// degrees, and refined so, its elements followed that wedge (39-46 under 5 degrees, where the
-// coarse ones cut across it left none).
+// disk and the mantle both meet the face at kChipWedge or more: a fibre 3.6 degrees off a
+// face and cut 0.04 radius under its mantle meets the face at 3.6 degrees, and refined so,
+// its elements followed that wedge (39-46 under 5 degrees, where the coarse ones cut across
+// it left none).
 constexpr double kThinChip = 0.25;
 constexpr double kChipGrowth = 0.5;
 constexpr double kChipWedge = 20.0 * M_PI / 180.0;

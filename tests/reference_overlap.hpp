@@ -50,6 +50,8 @@ inline Vec3 support(const ShearedPiece& p, const Vec3& d) {
   const double rho = std::sqrt(a * a + b * b);
   Vec3 x = p.center + (d.dot(p.half_axis) >= 0 ? p.half_axis : Vec3(-p.half_axis));
   if (rho > 0) x += p.radius * (a / rho * e1 + b / rho * e2);
+  // The bows: the disk's centre moved over a segment along each direction.
+  for (int k = 0; k < 2; ++k) x += (d.dot(p.bow[k]) >= 0 ? p.bow_hi[k] : p.bow_lo[k]) * p.bow[k];
   return x + d * (p.round / d.norm());
 }
 

@@ -527,21 +527,32 @@ ConvexQuery convex_query(const ShearedPiece& a, const ShearedPiece& b, double to
                  need_distance, depth_rel);
 }
 
+double ShearedPiece::bow_reach() const {
+  return std::max(std::abs(bow_lo[0]), std::abs(bow_hi[0])) +
+         std::max(std::abs(bow_lo[1]), std::abs(bow_hi[1]));
+}
+
 double ShearedPiece::bounding_radius() const {
-  // The farthest point of the disk about an end of the segment, then the ball.
+  // The farthest point of the disk about an end of the segment, then the bows and the ball.
   const double along = half_axis.dot(normal);
   const double across = std::sqrt(std::max(0.0, half_axis.squaredNorm() - along * along));
-  return std::sqrt(along * along + (across + radius) * (across + radius)) + round;
+  return std::sqrt(along * along + (across + radius) * (across + radius)) + bow_reach() + round;
 }
 
 double ShearedPiece::support_value(const Vec3& d) const {
   const double dn = d.dot(normal);
   const double across = std::sqrt(std::max(0.0, d.squaredNorm() - dn * dn));
-  return d.dot(center) + std::abs(d.dot(half_axis)) + radius * across + round * d.norm();
+  double h = d.dot(center) + std::abs(d.dot(half_axis)) + radius * across + round * d.norm();
+  for (int k = 0; k < 2; ++k) {
+    const double dv = d.dot(bow[k]);
+    h += std::max(bow_lo[k] * dv, bow_hi[k] * dv);
+  }
+  return h;
 }
 
 Vec3 ShearedPiece::support(const Vec3& d) const {
   Vec3 x = center + (d.dot(half_axis) >= 0.0 ? half_axis : Vec3(-half_axis));
+  for (int k = 0; k < 2; ++k) x += (d.dot(bow[k]) >= 0.0 ? bow_hi[k] : bow_lo[k]) * bow[k];
   Vec3 radial = d - d.dot(normal) * normal;
   radial -= radial.dot(normal) * normal;  // second Gram-Schmidt pass, as in Shape::support
   const double rn2 = radial.squaredNorm(), d2 = d.squaredNorm();
@@ -550,22 +561,52 @@ Vec3 ShearedPiece::support(const Vec3& d) const {
   return x;
 }
 
+namespace {
+
+// The distance from a point z of the plane spanned by two vectors to the parallelogram
+// {a v + b w : a in [a0, a1], b in [b0, b1]} (a segment or a point where a range or a vector is
+// zero): 0 inside, else the least distance to its four sides.
+double parallelogram_distance(const Vec3& z, const Vec3& v, double a0, double a1, const Vec3& w,
+                              double b0, double b1) {
+  auto segment = [&](const Vec3& p, const Vec3& q) {
+    return std::sqrt(segment_distance2(p, q, z, z));
+  };
+  const Vec3 p00 = a0 * v + b0 * w, p10 = a1 * v + b0 * w, p01 = a0 * v + b1 * w,
+             p11 = a1 * v + b1 * w;
+  // Inside: z = a v + b w with a, b in range (v and w independent), when both ranges are open.
+  const double vv = v.squaredNorm(), ww = w.squaredNorm(), vw = v.dot(w);
+  const double det = vv * ww - vw * vw;
+  if (a1 > a0 && b1 > b0 && det > 1e-12 * vv * ww) {
+    const double zv = z.dot(v), zw = z.dot(w);
+    const double a = (zv * ww - zw * vw) / det, b = (zw * vv - zv * vw) / det;
+    if (a >= a0 && a <= a1 && b >= b0 && b <= b1) return 0.0;
+  }
+  return std::min({segment(p00, p10), segment(p10, p11), segment(p11, p01), segment(p01, p00)});
+}
+
+}  // namespace
+
 double ShearedPiece::distance_to_core(const Vec3& x) const {
-  // The distance to the disk about center + t half_axis is convex in t: golden-section search.
+  // The distance to the disk about center + t half_axis, swept over the bows, is convex in t:
+  // golden-section search. At each t, the distance within the disk's plane is the distance from
+  // the point to the bows' parallelogram less the radius.
   const Vec3 y = x - center;
+  auto in_plane = [&](const Vec3& z) {
+    const Vec3 p = z - z.dot(normal) * normal;
+    return parallelogram_distance(p, bow[0], bow_lo[0], bow_hi[0], bow[1], bow_lo[1], bow_hi[1]);
+  };
   auto at = [&](double t) {
     const Vec3 z = y - t * half_axis;
     const double dz = z.dot(normal);
-    const double across = std::sqrt(std::max(0.0, z.squaredNorm() - dz * dz));
-    return std::hypot(dz, std::max(0.0, across - radius));
+    return std::hypot(dz, std::max(0.0, in_plane(z) - radius));
   };
   // Where the disk's plane holds x (the chord crosses the planes normal to `normal`), x is at
-  // its distance from the disk's rim, or inside.
+  // its distance from the swept disk's rim, or inside.
   const double hn = half_axis.dot(normal);
   if (std::abs(hn) > 0.0) {
     const double t = y.dot(normal) / hn;
     const Vec3 z = y - t * half_axis;
-    if (t >= -1.0 && t <= 1.0 && (z - z.dot(normal) * normal).norm() <= radius) return 0.0;
+    if (t >= -1.0 && t <= 1.0 && in_plane(z) <= radius) return 0.0;
   }
   const double g = 0.5 * (std::sqrt(5.0) - 1.0);
   double lo = -1.0, hi = 1.0;
@@ -581,8 +622,8 @@ double ShearedPiece::distance_to_core(const Vec3& x) const {
 }
 
 bool ShearedPiece::contains(const Vec3& x) const {
-  // The piece lies within radius + round of its chord: most points are told apart there.
-  const double reach = radius + round;
+  // The piece lies within radius + bows + round of its chord: most points are told apart there.
+  const double reach = radius + bow_reach() + round;
   if (segment_distance2(center - half_axis, center + half_axis, x, x) > reach * reach) {
     return false;
   }

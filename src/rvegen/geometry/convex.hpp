@@ -37,6 +37,14 @@ struct ShearedPiece {
   Vec3 normal = Vec3::UnitZ();
   Vec3 half_axis = Vec3::Zero();
   double radius = 0.0, round = 0.0;
+  /// Where a chain's centre line bows off its chord: the disk's centre moves, besides along
+  /// the chord, by b in [bow_lo[k], bow_hi[k]] along each unit direction bow[k] normal to
+  /// `normal` (the wave's and the bend's; zero: none). The piece is the disk swept over the
+  /// chord and both ranges, then grown by the ball.
+  Vec3 bow[2] = {Vec3::Zero(), Vec3::Zero()};
+  double bow_lo[2] = {0.0, 0.0}, bow_hi[2] = {0.0, 0.0};
+  /// The largest distance the bows move the disk's centre.
+  double bow_reach() const;
   double bounding_radius() const;
   /// The support function h(d) = max over the piece of d . x, and a point where it is reached.
   double support_value(const Vec3& d) const;

@@ -22,7 +22,7 @@ bool capsules_meet(const Capsule& a, const Capsule& b) {
 Capsule capsule_of(const Piece& p) {
   if (!p.sheared) return capsule_of(p.shape);
   const ShearedPiece& s = p.part;
-  return {s.center - s.half_axis, s.center + s.half_axis, s.radius + s.round};
+  return {s.center - s.half_axis, s.center + s.half_axis, s.radius + s.bow_reach() + s.round};
 }
 
 namespace {

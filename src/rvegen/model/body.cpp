@@ -126,12 +126,6 @@ double CentreLine::curvature() const {
   return centre_line_curvature(A, k, Rc, s_max);
 }
 
-double CentreLine::max_abs_sin(double x0, double x1) {
-  // 1 where a crest (pi / 2 + j pi) lies in [x0, x1], otherwise the larger of its ends.
-  const double crest = M_PI / 2.0 + M_PI * std::ceil((x0 - M_PI / 2.0) / M_PI);
-  return crest <= x1 ? 1.0 : std::max(std::abs(std::sin(x0)), std::abs(std::sin(x1)));
-}
-
 Shape envelope(const Inclusion& inc) {
   const Modifiers& m = inc.mod;
   if (!m.any() && m.packing_pad == 0.0) return inc.shape;
@@ -180,6 +174,15 @@ Shape chain_bound(const Inclusion& inc) {
   return Shape::cylinder(inc.shape.center, radius, f.u * half);
 }
 
+namespace {
+// The largest |sin x| over [x0, x1]: 1 where a crest (pi / 2 + j pi) lies in it, otherwise the
+// larger of its ends.
+double max_abs_sin(double x0, double x1) {
+  const double crest = M_PI / 2.0 + M_PI * std::ceil((x0 - M_PI / 2.0) / M_PI);
+  return crest <= x1 ? 1.0 : std::max(std::abs(std::sin(x0)), std::abs(std::sin(x1)));
+}
+}  // namespace
+
 void chain_pieces(const Inclusion& inc, std::vector<ShearedPiece>* out) {
   const FibreFrame f = fibre_frame(inc);
   const CentreLine line(inc);
@@ -207,7 +210,7 @@ void chain_pieces(const Inclusion& inc, std::vector<ShearedPiece>* out) {
       // (Each part's sagitta is at most twice its reach, so the two add up to at most c.sag,
       // which chain_bound allows for.)
       const double sag =
-          std::min(2.0 * line.A, line.A * line.k * line.k * line.max_abs_sin(x0, x1) * len2);
+          std::min(2.0 * line.A, line.A * line.k * line.k * max_abs_sin(x0, x1) * len2);
       // sin keeps one sign over [x0, x1] unless a multiple of pi lies inside it; the wave's
       // second derivative is -A k^2 sin, so where sin >= 0 the wave lies above its chord.
       const double j = std::floor(x0 / M_PI);

@@ -65,11 +65,9 @@ struct CentreLine {
     }
     return o;
   }
-  double reach() const;      // bound on |offset|
-  double slope() const;      // bound on |offset'|
-  double curvature() const;  // bound on |offset''|
-  /// The largest |sin x| over [x0, x1].
-  static double max_abs_sin(double x0, double x1);
+  double reach() const;                       // bound on |offset|
+  double slope() const;                       // bound on |offset'|
+  double curvature() const;                   // bound on |offset''|
   Vec3 v = Vec3::UnitX(), w = Vec3::UnitX();  // wave and bend directions (unit, across the axis)
   double A = 0.0, k = 0.0, phase = 0.0;       // wave
   double Rc = 0.0, h = 0.0, mid = 0.0, s_max = 0.0;  // bend

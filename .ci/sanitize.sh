@@ -42,6 +42,7 @@ costs="$B/Testing/Temporary/CTestCostData.txt"
 if [ ! -s "$costs" ]; then
   mkdir -p "$(dirname "$costs")"
   cat >"$costs" <<'EOF'
+ChainRestarts.IntertwinedChainsGoBackToTheBestConfigurationAndPackFurther 1 173
 DeformedSupport.PackingReachesHalfAndTrueSurfacesDoNotOverlap 1 64
 Md.MixedShapesWithLawsNonPeriodicAndGap 1 59
 AllKinds/PairKindSweep.PackerAndAuditDecideAlike/chain_grain 1 42

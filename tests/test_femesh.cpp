@@ -859,6 +859,20 @@ Inclusion tilted_fibre(double degrees, double r, double h, double z) {
   return inc;
 }
 
+// Every pair of inclusions (periodic images too) at least `gap` apart.
+void expect_apart(const InclusionSet& set, double gap) {
+  for (size_t i = 0; i < set.inclusions.size(); ++i) {
+    const Shape& a = set.inclusions[i].shape;
+    for (size_t j = i + 1; j < set.inclusions.size(); ++j) {
+      const Shape& b = set.inclusions[j].shape;
+      for_each_image(set.box, a.center, a.bounding_radius() + gap, b.center, b.bounding_radius(),
+                     [&](const Vec3& shift) {
+                       EXPECT_TRUE(clear_of(a, b.translated(shift), gap)) << i << " " << j;
+                     });
+    }
+  }
+}
+
 // Twelve fibres of radius r and half length 0.2, 7 degrees off the z faces, at heights k / 12.
 InclusionSet shallow_fibres(double r) {
   InclusionSet set = one_of(Shape::sphere(Vec3(0.5, 0.5, 0.5), 0.01));
@@ -891,7 +905,7 @@ TEST(TetMesh, WhereShallowFibresCoverTheAxisTheShallowestAreStillAvoided) {
 // A fibre 1.5 degrees off the face z = 1, its mantle's furthest line along z crossing the face
 // (a wedge of 1.5 degrees in any mesh of this cell), a sphere 0.005 below it: the fibre cannot go
 // down by the 0.006 that would take it off the face and keep 0.002 from the sphere, so it goes up
-// until the face crosses it between its lines; a second sphere above leaves it no room at all.
+// until the face crosses it between its lines.
 TEST(TetMesh, AFibreGrazingAFaceOfTheCellIsNudgedOffItWhereThereIsRoom) {
   const double tilt = 1.5 * M_PI / 180.0, r = 0.02, h = 0.2, gap = 0.002;
   const Vec3 u(std::cos(tilt), 0.0, std::sin(tilt));
@@ -921,15 +935,60 @@ TEST(TetMesh, AFibreGrazingAFaceOfTheCellIsNudgedOffItWhereThereIsRoom) {
   opt.shift_cell = false;
   opt.chord_error = 0.01;
   EXPECT_GE(tet_quality(tet_mesh(set, opt)).min_dihedral, 5.0);
-  // No room: nothing moves.
-  InclusionSet boxed = before;
-  Inclusion above;
-  above.shape = Shape::sphere(Vec3(0.5, 0.5, r + 0.003 + 0.03 - top), 0.03);  // (periodic)
-  boxed.inclusions.push_back(above);
-  const Nudged m = nudge_off_cell(&boxed, boxed.box.origin, gap);
+}
+
+// The fibre of the test above between two flat ellipsoids (plates), 0.003 below and above it:
+// no translation of it alone clears the face and keeps min_gap. It moves down off the face and
+// pushes the lower plate, which had room.
+TEST(TetMesh, AFibreBoxedInOffAFaceOfTheCellPushesWhatBoxesItIn) {
+  const double tilt = 1.5 * M_PI / 180.0, r = 0.02, h = 0.2, gap = 0.002;
+  const Vec3 u(std::cos(tilt), 0.0, std::sin(tilt));
+  InclusionSet set = one_of(Shape::cylinder(Vec3(0.5, 0.5, 1.0 - r * std::cos(tilt)), r, h * u));
+  Vec3 lo, hi;
+  set.inclusions[0].shape.aabb(&lo, &hi);
+  const double t = 0.02;  // the plates' half thickness
+  for (const double z : {lo[2] - 0.003 - t, hi[2] + 0.003 + t - 1.0}) {
+    Inclusion plate;
+    plate.shape = Shape::ellipsoid(Vec3(0.5, 0.5, z), Vec3(0.45, 0.45, t), Mat3::Identity());
+    set.inclusions.push_back(plate);
+  }
+  const InclusionSet before = set;
+  const Vec3 o = set.box.origin;
+  ASSERT_EQ(face_clearance(set, o), 0.0);
+  const Nudged n = nudge_off_cell(&set, o, gap);
+  EXPECT_EQ(n.stuck, 0);
+  EXPECT_EQ(n.moved, 2);  // the fibre and the lower plate
+  EXPECT_GE(std::min(face_clearance(set, o), edge_clearance(set, o)), kGoodClearance);
+  const Vec3 fibre = set.inclusions[0].shape.center - before.inclusions[0].shape.center;
+  const Vec3 lower = set.inclusions[1].shape.center - before.inclusions[1].shape.center;
+  EXPECT_LT(fibre[2], 0.0);
+  EXPECT_LT(lower[2], 0.0);
+  EXPECT_LE(fibre.norm(), 4.0 * r);
+  EXPECT_LE(lower.norm(), 2.0 * t);
+  EXPECT_EQ(set.inclusions[2].shape.center, before.inclusions[2].shape.center);
+  expect_apart(set, gap);
+  for (size_t i = 0; i < set.inclusions.size(); ++i) {
+    const Shape& a = set.inclusions[i].shape;
+    const Shape& a0 = before.inclusions[i].shape;
+    EXPECT_EQ(a.half_axis, a0.half_axis);
+    EXPECT_EQ(a.semi_axes, a0.semi_axes);
+  }
+  // The same set, nudged again: the same result (the order is the index order).
+  InclusionSet again = before;
+  nudge_off_cell(&again, o, gap);
+  for (size_t i = 0; i < set.inclusions.size(); ++i)
+    EXPECT_EQ(again.inclusions[i].shape.center, set.inclusions[i].shape.center);
+  // A fibre whose band along z is wider than the moves allowed (half length 0.4, 7 degrees off
+  // the faces, radius 0.01: 4.9 radii each way from the face through its middle) stays, and
+  // is counted.
+  InclusionSet wide =
+      one_of(Shape::cylinder(Vec3(0.5, 0.5, 0.0), 0.01,
+                             0.4 * Vec3(std::cos(7 * M_PI / 180), 0.0, std::sin(7 * M_PI / 180))));
+  ASSERT_LT(face_clearance(wide, o), kGoodClearance);
+  const Nudged m = nudge_off_cell(&wide, o, gap);
   EXPECT_EQ(m.moved, 0);
   EXPECT_EQ(m.stuck, 1);
-  EXPECT_EQ(boxed.inclusions[0].shape.center, before.inclusions[0].shape.center);
+  EXPECT_EQ(wide.inclusions[0].shape.center, Vec3(0.5, 0.5, 0.0));
 }
 
 // A fibre whose end disk a face crosses at 22 degrees, 0.2 radius from the disk's centre, cuts
@@ -976,14 +1035,8 @@ TEST(TetMesh, InclusionsEveryCellGrazesAreNudgedOffTheCellChosenAfterwards) {
     Vec3 moved = a.center - before.inclusions[i].shape.center;  // (periodic)
     for (int k = 0; k < 3; ++k) moved[k] -= std::round(moved[k]);
     EXPECT_LE(moved.norm(), 4 * 1.5 * r + 1e-12) << i;
-    for (size_t j = i + 1; j < set.inclusions.size(); ++j) {
-      const Shape& b = set.inclusions[j].shape;
-      for_each_image(set.box, a.center, a.bounding_radius() + gap, b.center, b.bounding_radius(),
-                     [&](const Vec3& shift) {
-                       EXPECT_TRUE(clear_of(a, b.translated(shift), gap)) << i << " " << j;
-                     });
-    }
   }
+  expect_apart(set, gap);
   InclusionSet again = set;
   EXPECT_EQ(nudge_off_cell(&again, o, gap).moved, 0);
 }

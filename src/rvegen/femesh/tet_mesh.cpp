@@ -2873,6 +2873,31 @@ double line_clearance(const Shape& s, int a, int b, int c, double fa, double fb)
   return 1e300;
 }
 
+// A shape holding every point within t of s: a sphere or cylinder grown by t (its rims rounded
+// inside the grown cylinder's), an ellipsoid scaled by 1 + t over its least semi-axis.
+Shape padded(const Shape& s, double t) {
+  Shape g = s;
+  switch (s.kind) {
+    case ShapeKind::Sphere:
+      g.radius += t;
+      break;
+    case ShapeKind::Cylinder:
+      g.radius += t;
+      g.half_axis *= 1.0 + t / s.half_axis.norm();
+      break;
+    case ShapeKind::Ellipsoid:
+      g.semi_axes *= 1.0 + t / s.semi_axes.minCoeff();
+      break;
+  }
+  return g;
+}
+
+// The length an inclusion's moves off the cell's faces are counted in: a cylinder's radius, the
+// least size of other shapes.
+double size_of(const Inclusion& inc) {
+  return inc.shape.kind == ShapeKind::Cylinder ? inc.shape.radius : inc.shape.min_size();
+}
+
 }  // namespace
 
 double face_clearance(const InclusionSet& set, const Vec3& origin) {
@@ -3018,18 +3043,40 @@ Nudged nudge_off_cell(InclusionSet* set, const Vec3& origin, double min_gap) {
     one.inclusions = {inc};
     return std::min(face_clearance(one, origin), edge_clearance(one, origin));
   };
-  std::vector<Shape> env(set->inclusions.size());
-  std::vector<double> reach(env.size());
-  for (size_t i = 0; i < env.size(); ++i) {
+  const size_t n = set->inclusions.size();
+  std::vector<Shape> env(n);
+  std::vector<double> reach(n);
+  double largest = 0.0;
+  for (size_t i = 0; i < n; ++i) {
     env[i] = envelope(set->inclusions[i]);
     reach[i] = env[i].bounding_radius();
+    largest = std::max(largest, size_of(set->inclusions[i]));
   }
+  // Whether inclusion i's envelope, as `e`, keeps min_gap from every other in `among` (all when
+  // null).
+  auto apart = [&](size_t i, const Shape& e, const std::vector<size_t>* among) {
+    const double ri = e.bounding_radius();
+    auto clear_of_j = [&](size_t j) {
+      if (j == i) return true;
+      bool clear = true;
+      for_each_image(box, e.center, ri + min_gap, env[j].center, reach[j], [&](const Vec3& shift) {
+        if (clear && !clear_of(e, env[j].translated(shift), min_gap)) clear = false;
+      });
+      return clear;
+    };
+    if (among) return std::all_of(among->begin(), among->end(), clear_of_j);
+    for (size_t j = 0; j < n; ++j)
+      if (!clear_of_j(j)) return false;
+    return true;
+  };
+  std::vector<char> moved(n, 0);
+  // The first stage: along one axis, clear of every other.
   constexpr int kSteps = 24;  // 1.5 sizes in sixteenths
-  for (size_t i = 0; i < set->inclusions.size(); ++i) {
+  std::vector<size_t> stuck;
+  for (size_t i = 0; i < n; ++i) {
     Inclusion& inc = set->inclusions[i];
     if (own_clearance(inc) >= kGoodClearance) continue;
-    const double size =
-        inc.shape.kind == ShapeKind::Cylinder ? inc.shape.radius : inc.shape.min_size();
+    const double size = size_of(inc);
     bool done = false;
     for (int k = 1; k <= kSteps && !done; ++k) {
       for (int a = 0; a < 3 && !done; ++a) {
@@ -3039,38 +3086,194 @@ Nudged nudge_off_cell(InclusionSet* set, const Vec3& origin, double min_gap) {
           trial.shape.center = box.wrapped(trial.shape.center);
           if (own_clearance(trial) < kGoodClearance) continue;
           const Shape e = envelope(trial);
-          bool clear = true;
-          for (size_t j = 0; j < env.size() && clear; ++j) {
-            if (j == i) continue;
-            for_each_image(box, e.center, reach[i] + min_gap, env[j].center, reach[j],
-                           [&](const Vec3& shift) {
-                             if (clear && !clear_of(e, env[j].translated(shift), min_gap)) {
-                               clear = false;
-                             }
-                           });
-          }
-          if (!clear) continue;
+          if (!apart(i, e, nullptr)) continue;
           inc = trial;
           env[i] = e;
-          ++out.moved;
+          moved[i] = 1;
           done = true;
           break;
         }
       }
     }
+    if (!done) stuck.push_back(i);
+  }
+  // The second stage, for those: the least translation in any of 26 directions (to 4 sizes) that
+  // clears the cell's faces and keeps min_gap from every other; else the first of the least that
+  // clear the faces and make room by pushing others (relax, below).
+  std::vector<Vec3> dirs;
+  for (int x = -1; x <= 1; ++x)
+    for (int y = -1; y <= 1; ++y)
+      for (int z = -1; z <= 1; ++z)
+        if (x || y || z) dirs.push_back(Vec3(x, y, z).normalized());
+  // The inclusions within reach of i's moves and of theirs (every periodic image's bounding
+  // spheres, grown by the moves).
+  std::map<size_t, std::vector<size_t>> near_of;
+  constexpr int kFarSteps = 64;  // 4 sizes in sixteenths
+  constexpr double kPushedGap = 1.2;
+  const double slack = (kFarSteps / 16.0 + 2.0) * largest + 2.0 * kPushedGap * min_gap;
+  auto near = [&](size_t i) -> const std::vector<size_t>& {
+    auto it = near_of.find(i);
+    if (it != near_of.end()) return it->second;
+    std::vector<size_t>& list = near_of[i];
+    for (size_t j = 0; j < n; ++j) {
+      if (j == i) continue;
+      const double r = reach[i] + slack + reach[j];
+      Vec3 d = env[j].center - env[i].center;
+      bool hit = false;
+      if (2.0 * r < box.size.minCoeff()) {
+        to_nearest_image(box, &d);  // the only image within r
+        hit = d.squaredNorm() < r * r;
+      } else {
+        for_each_image(box, env[i].center, reach[i] + slack, env[j].center, reach[j],
+                       [&](const Vec3&) { hit = true; });
+      }
+      if (hit) list.push_back(j);
+    }
+    return list;
+  };
+  auto moved_by = [&](const Inclusion& inc, const Vec3& d) {
+    Inclusion trial = inc;
+    trial.shape.center = box.wrapped(trial.shape.center + d);
+    return trial;
+  };
+  // The relaxation: i moved by d and held there, the inclusions it meets pushed off along their
+  // contact's normal, and those they meet in turn (each pair apart by its depth, half each, all
+  // of it when one is i), in sweeps until no two meet. Accepted when then every moved inclusion
+  // keeps min_gap from every other (exact tests) and grazes the faces no more than before (or
+  // under kGoodClearance), none moved more than 2 of its sizes, and at most kMostMoved moved.
+  // Pairs are pushed to 1.2 min_gap: the volume mesher refused the surfaces of a 2,484-fibre
+  // scene whose pushes had left 350 pairs at min_gap (the packer leaves none within 1.01 of it).
+  constexpr int kSweeps = 200, kMostMoved = 64;
+  auto relax = [&](size_t i, const Vec3& d) {
+    std::vector<size_t> moving = {i};
+    std::map<size_t, Vec3> shift = {{i, d}};
+    auto at = [&](size_t j) {
+      const auto it = shift.find(j);
+      return it == shift.end() ? env[j] : env[j].translated(it->second);
+    };
+    auto push = [&](size_t j, const Vec3& p) {
+      if (j == i) return true;
+      auto [it, fresh] = shift.emplace(j, Vec3::Zero());
+      if (fresh) moving.push_back(j);
+      it->second += p;
+      return it->second.norm() <= 2.0 * size_of(set->inclusions[j]) &&
+             static_cast<int>(moving.size()) <= kMostMoved;
+    };
+    // Only the pairs of an inclusion pushed since its last visit can have come to meet.
+    std::map<size_t, bool> dirty = {{i, true}};
+    bool settled = false;
+    for (int sweep = 0; sweep < kSweeps && !settled; ++sweep) {
+      settled = true;
+      for (size_t q = 0; q < moving.size(); ++q) {
+        const size_t a = moving[q];
+        if (!dirty[a]) continue;
+        dirty[a] = false;
+        Shape ea = padded(at(a), kPushedGap * min_gap);
+        double ra = ea.bounding_radius();
+        for (const size_t b : near(a)) {
+          const Shape eb = at(b);
+          Contact c;
+          const double r = ra + reach[b];
+          if (2.0 * r < box.size.minCoeff()) {
+            Vec3 d = eb.center - ea.center;
+            const std::array<int, 3> k = to_nearest_image(box, &d);  // the only image within r
+            if (d.squaredNorm() >= r * r) continue;
+            c = intersect(ea, eb.translated(box.size.cwiseProduct(Vec3(k[0], k[1], k[2]))));
+          } else {
+            for_each_image(box, ea.center, ra, eb.center, reach[b], [&](const Vec3& t) {
+              if (!c.overlap) c = intersect(ea, eb.translated(t));
+            });
+          }
+          if (!c.overlap) continue;
+          settled = false;
+          // A little past the depth, which is an upper bound or exact.
+          const Vec3 p = (c.depth + 1e-3 * min_gap + 1e-9 * size_of(set->inclusions[b])) * c.normal;
+          const bool ok = a == i   ? push(b, p)
+                          : b == i ? push(a, -p)
+                                   : push(a, -0.5 * p) && push(b, 0.5 * p);
+          if (!ok) return false;
+          if (a != i) {
+            dirty[a] = true;
+            ea = padded(at(a), kPushedGap * min_gap);
+          }
+          if (b != i) dirty[b] = true;
+        }
+      }
+    }
+    if (!settled) return false;
+    // The exact checks, on the moved inclusions as they would be written.
+    std::vector<std::pair<size_t, Inclusion>> trial;
+    for (const size_t j : moving) {
+      const Inclusion t = moved_by(set->inclusions[j], shift[j]);
+      const double need =
+          j == i ? kGoodClearance : std::min(kGoodClearance, own_clearance(set->inclusions[j]));
+      if (own_clearance(t) < need) return false;
+      trial.push_back({j, t});
+    }
+    std::vector<Shape> kept;
+    for (const auto& [j, t] : trial) {
+      kept.push_back(env[j]);
+      env[j] = envelope(t);
+    }
+    bool clear = true;
+    for (size_t q = 0; q < trial.size() && clear; ++q) {
+      clear = apart(trial[q].first, env[trial[q].first], &near(trial[q].first));
+    }
+    if (!clear) {
+      for (size_t q = 0; q < trial.size(); ++q) env[trial[q].first] = kept[q];
+      return false;
+    }
+    for (const auto& [j, t] : trial) {
+      set->inclusions[j] = t;
+      moved[j] = 1;
+    }
+    return true;
+  };
+  constexpr int kTries = 24;
+  for (const size_t i : stuck) {
+    Inclusion& inc = set->inclusions[i];
+    const double size = size_of(inc);
+    near_of.clear();  // positions have moved since
+    bool done = false;
+    // Free moves first, then those that push.
+    int tries = 0;
+    for (int push = 0; push < 2 && !done; ++push) {
+      for (int k = 1; k <= kFarSteps && !done && tries < kTries; ++k) {
+        for (size_t q = 0; q < dirs.size() && !done && tries < kTries; ++q) {
+          const Vec3 d = dirs[q] * (k * size / 16.0);
+          const Inclusion trial = moved_by(inc, d);
+          if (own_clearance(trial) < kGoodClearance) continue;
+          if (push) {
+            ++tries;
+            done = relax(i, d);
+            continue;
+          }
+          const Shape e = envelope(trial);
+          if (!apart(i, e, &near(i))) continue;
+          inc = trial;
+          env[i] = e;
+          moved[i] = 1;
+          done = true;
+        }
+      }
+    }
     if (!done) ++out.stuck;
   }
+  out.moved = static_cast<int>(std::count(moved.begin(), moved.end(), 1));
   return out;
 }
 
 Nudged nudge_off_chosen_cell(InclusionSet* set, double min_gap) {
   Nudged total;
+  std::vector<Vec3> start;
+  for (const Inclusion& inc : set->inclusions) start.push_back(inc.shape.center);
   for (int round = 0; round < 4; ++round) {
     const Nudged n = nudge_off_cell(set, cell_origin(*set), min_gap);
-    total.moved += n.moved;
     total.stuck = n.stuck;
     if (n.moved == 0) break;
   }
+  for (size_t i = 0; i < start.size(); ++i)
+    total.moved += set->inclusions[i].shape.center != start[i];
   return total;
 }
 

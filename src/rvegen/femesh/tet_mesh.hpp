@@ -174,23 +174,28 @@ double edge_clearance(const InclusionSet& set, const Vec3& origin);
 Vec3 cell_origin(const InclusionSet& set);
 inline constexpr double kGoodClearance = 0.05;  // caps of 18 degrees or more
 
-/// What nudge_off_cell did: inclusions moved, and those that graze the cell and found no room.
+/// What nudge_off_cell did: inclusions moved (each counted once), and those that graze the cell
+/// and found no room.
 struct Nudged {
   int moved = 0;
   int stuck = 0;
 };
-/// Moves, by the least translation along one axis that does it (at most 1.5 of its least size,
-/// a cylinder's radius, in steps of a sixteenth), each inclusion whose own face or edge
-/// clearance at the cell with lower corner `origin` is under kGoodClearance, where that clears
-/// it and keeps it at least `min_gap` from every other inclusion (exact tests on the envelopes,
-/// periodic images). The inclusions stay as drawn otherwise (sizes and orientations, hence the
-/// volume fractions and the orientation tensor): only those that the faces of a dense cell
-/// (cell_origin) cannot keep off move, by a fraction of their size. In the index order, so the
-/// same set gives the same result.
+/// Moves each inclusion whose own face or edge clearance at the cell with lower corner `origin`
+/// is under kGoodClearance off the cell's faces, keeping it at least `min_gap` from every other
+/// inclusion (exact tests on the envelopes, periodic images):
+/// - first by the least translation along one axis that does it (at most 1.5 of its least size,
+///   a cylinder's radius, in steps of a sixteenth);
+/// - else by the least in any of 26 directions (at most 4 sizes);
+/// - else by one of those (the 24 least) that pushes the inclusions it meets: they are moved
+///   off it along their contacts' normals, and those they meet in turn, in sweeps until no two
+///   are within 1.2 min_gap. Accepted when at most 64 moved, none by more than 2 of its sizes,
+///   and none grazes the faces more than before (or under kGoodClearance).
+/// The inclusions stay as drawn otherwise (sizes and orientations, hence the volume fractions
+/// and the orientation tensor). In the index order, so the same set gives the same result.
 Nudged nudge_off_cell(InclusionSet* set, const Vec3& origin, double min_gap);
 /// Rounds of nudge_off_cell at cell_origin(*set) until one moves nothing (at most four), so that
 /// the cell tet_mesh chooses for the moved set is the one the last round cleared; `moved` counts
-/// every round's moves, `stuck` the last round's.
+/// the inclusions that any round moved, `stuck` the last round's.
 Nudged nudge_off_chosen_cell(InclusionSet* set, double min_gap);
 
 /// Merges nodes at one position (each element then uses the lowest-numbered one), drops nodes

@@ -177,7 +177,7 @@ struct TetMeshSpec {
   /// box face grazes an inclusion (a thin cap bounds its elements' angles); false: the box.
   bool shift_cell = true;
   /// With shift_cell, inclusions that every cell's faces would still graze (dense scenes: long
-  /// fibres nearly along a face) move off them by a fraction of their size before anything is
+  /// fibres nearly along a face) move off them by a few of their sizes at most before anything is
   /// written, where there is room (nudge_off_cell; report.json's mesh_tet.nudged_inclusions);
   /// false: they stay where the packer put them.
   bool nudge = true;

@@ -361,19 +361,26 @@ Mat3 frame(const Shape& s, int k) {
   return Eigen::AngleAxisd(2.0 * M_PI * std::fmod(golden * k * 7.0, 1.0), axis).toRotationMatrix();
 }
 
-double frame_score(const Shape& s, const Seam& seam, const Box& box) {
+// Per box face the shape crosses, the least over the seam's points of the larger of the two
+// terms above; ascending. Frames compare by these in order (lexicographically): a face whose
+// term is the same for every frame (one the seam crosses at a fixed angle, its tangent's term)
+// then leaves the choice to the next face, not to the first frame.
+std::vector<double> frame_score(const Shape& s, const Seam& seam, const Box& box) {
   Vec3 lo, hi;
   s.aabb(&lo, &hi);
-  double score = 1e300;
+  std::vector<double> score;
   for (int a = 0; a < 3; ++a) {
     const double L = box.size[a], half = 0.5 * (hi[a] - lo[a]);
     for (double f = box.origin[a] + L * std::ceil((lo[a] - box.origin[a]) / L); f < hi[a]; f += L) {
+      double least = 1e300;
       for (size_t k = 0; k < seam.at.size(); ++k) {
-        score = std::min(
-            score, std::max(std::abs(seam.at[k][a] - f) / half, std::abs(seam.tangent[k][a])));
+        least = std::min(
+            least, std::max(std::abs(seam.at[k][a] - f) / half, std::abs(seam.tangent[k][a])));
       }
+      score.push_back(least);
     }
   }
+  std::sort(score.begin(), score.end());
   return score;
 }
 
@@ -400,10 +407,11 @@ int revolved_solid(int profile, std::initializer_list<int> centres) {
 // tag.
 int add_solid(const Shape& s, const Box& box, double offset = 0.0, const Mat3* given = nullptr) {
   int best = 0;
-  double best_score = given ? 1e300 : frame_score(s, seam_of(s, frame(s, 0)), box);
-  for (int k = 1; k < kFrames && best_score < 1e300; ++k) {
-    const double score = frame_score(s, seam_of(s, frame(s, k)), box);
-    if (score > best_score) {
+  std::vector<double> best_score;
+  if (!given) best_score = frame_score(s, seam_of(s, frame(s, 0)), box);
+  for (int k = 1; k < kFrames && !best_score.empty(); ++k) {
+    const std::vector<double> score = frame_score(s, seam_of(s, frame(s, k)), box);
+    if (best_score < score) {
       best = k;
       best_score = score;
     }
@@ -490,7 +498,8 @@ Mat3 void_frame(const Inclusion& in, const Box& box) {
                                     : Vec3(std::cos(phi) * F.col(0) - std::sin(phi) * u));
       }
     }
-    const double score = frame_score(outer, seam, box);
+    const std::vector<double> faces = frame_score(outer, seam, box);
+    const double score = faces.empty() ? 1e300 : faces.front();
     if (score > best) {
       best = score;
       P = F;

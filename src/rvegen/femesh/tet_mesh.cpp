@@ -2882,25 +2882,6 @@ double line_clearance(const Shape& s, int a, int b, int c, double fa, double fb)
   return 1e300;
 }
 
-// A shape holding every point within t of s: a sphere or cylinder grown by t (its rims rounded
-// inside the grown cylinder's), an ellipsoid scaled by 1 + t over its least semi-axis.
-Shape padded(const Shape& s, double t) {
-  Shape g = s;
-  switch (s.kind) {
-    case ShapeKind::Sphere:
-      g.radius += t;
-      break;
-    case ShapeKind::Cylinder:
-      g.radius += t;
-      g.half_axis *= 1.0 + t / s.half_axis.norm();
-      break;
-    case ShapeKind::Ellipsoid:
-      g.semi_axes *= 1.0 + t / s.semi_axes.minCoeff();
-      break;
-  }
-  return g;
-}
-
 // The length an inclusion's moves off the cell's faces are counted in: a cylinder's radius, the
 // least size of other shapes.
 double size_of(const Inclusion& inc) {
@@ -3114,6 +3095,15 @@ Nudged nudge_off_cell(InclusionSet* set, const Vec3& origin, double min_gap) {
     for (int y = -1; y <= 1; ++y)
       for (int z = -1; z <= 1; ++z)
         if (x || y || z) dirs.push_back(Vec3(x, y, z).normalized());
+  // for_each_image, with the nearest image alone where no other can be within reach (the hot
+  // loops below, without the std::function call).
+  auto images = [&](const Vec3& ca, double ra, const Vec3& cb, double rb, const auto& f) {
+    const double r = ra + rb;
+    if (2.0 * r >= box.size.minCoeff()) return for_each_image(box, ca, ra, cb, rb, f);
+    Vec3 d = cb - ca;
+    const std::array<int, 3> k = to_nearest_image(box, &d);
+    if (d.squaredNorm() < r * r) f(box.size.cwiseProduct(Vec3(k[0], k[1], k[2])));
+  };
   // The inclusions within reach of i's moves and of theirs (every periodic image's bounding
   // spheres, grown by the moves).
   std::map<size_t, std::vector<size_t>> near_of;
@@ -3125,17 +3115,10 @@ Nudged nudge_off_cell(InclusionSet* set, const Vec3& origin, double min_gap) {
     if (it != near_of.end()) return it->second;
     std::vector<size_t>& list = near_of[i];
     for (size_t j = 0; j < n; ++j) {
-      if (j == i) continue;
-      const double r = reach[i] + slack + reach[j];
-      Vec3 d = env[j].center - env[i].center;
       bool hit = false;
-      if (2.0 * r < box.size.minCoeff()) {
-        to_nearest_image(box, &d);  // the only image within r
-        hit = d.squaredNorm() < r * r;
-      } else {
-        for_each_image(box, env[i].center, reach[i] + slack, env[j].center, reach[j],
-                       [&](const Vec3&) { hit = true; });
-      }
+      if (j != i)
+        images(env[i].center, reach[i] + slack, env[j].center, reach[j],
+               [&](const Vec3&) { hit = true; });
       if (hit) list.push_back(j);
     }
     return list;
@@ -3182,17 +3165,9 @@ Nudged nudge_off_cell(InclusionSet* set, const Vec3& origin, double min_gap) {
         for (const size_t b : near(a)) {
           const Shape eb = at(b);
           Contact c;
-          const double r = ra + reach[b];
-          if (2.0 * r < box.size.minCoeff()) {
-            Vec3 d = eb.center - ea.center;
-            const std::array<int, 3> k = to_nearest_image(box, &d);  // the only image within r
-            if (d.squaredNorm() >= r * r) continue;
-            c = intersect(ea, eb.translated(box.size.cwiseProduct(Vec3(k[0], k[1], k[2]))));
-          } else {
-            for_each_image(box, ea.center, ra, eb.center, reach[b], [&](const Vec3& t) {
-              if (!c.overlap) c = intersect(ea, eb.translated(t));
-            });
-          }
+          images(ea.center, ra, eb.center, reach[b], [&](const Vec3& t) {
+            if (!c.overlap) c = intersect(ea, eb.translated(t));
+          });
           if (!c.overlap) continue;
           settled = false;
           // A little past the depth, which is an upper bound or exact.

@@ -45,10 +45,7 @@ Shape grown(const Inclusion& inc, double t) {
     case ShapeKind::Ellipsoid: {
       Shape e = s;
       if (m.deformed()) e = e.scaled(m.deform_scale * (1.0 + m.deform_amplitude * m.deform_peak));
-      // E + ball(t) lies inside E scaled by 1 + t / a_min: h_E(d) + t |d| <= (1 + t / a_min)
-      // h_E(d) because h_E(d) >= a_min |d|.
-      if (t > 0.0) e = e.scaled(1.0 + t / e.semi_axes.minCoeff());
-      return e;
+      return padded(e, t);
     }
   }
   return s;
@@ -124,6 +121,20 @@ double CentreLine::slope() const {
 
 double CentreLine::curvature() const {
   return centre_line_curvature(A, k, Rc, s_max);
+}
+
+Shape padded(const Shape& s, double t) {
+  switch (s.kind) {
+    case ShapeKind::Sphere:
+      return Shape::sphere(s.center, s.radius + t);
+    case ShapeKind::Cylinder:
+      return grown_cylinder(s, t, t);
+    case ShapeKind::Ellipsoid:
+      // E + ball(t) lies inside E scaled by 1 + t / a_min: h_E(d) + t |d| <= (1 + t / a_min)
+      // h_E(d) because h_E(d) >= a_min |d|.
+      return t > 0.0 ? s.scaled(1.0 + t / s.semi_axes.minCoeff()) : s;
+  }
+  return s;
 }
 
 Shape envelope(const Inclusion& inc) {

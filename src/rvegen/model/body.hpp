@@ -27,6 +27,10 @@ enum class Region : uint8_t { kOutside = 0, kCore = 1, kShell = 2, kVoid = 3 };
 Shape envelope(const Inclusion& inc);
 /// A convex shape holding every region of the inclusion (the envelope with the whole shell).
 Shape outer_bound(const Inclusion& inc);
+/// A convex shape holding every point within t >= 0 of the straight shape s: a sphere or a
+/// cylinder grown by t in radius (and half length), an ellipsoid scaled by 1 + t over its least
+/// semi-axis.
+Shape padded(const Shape& s, double t);
 
 /// Wavy and bent fibres are sheared straight cylinders: the cross-section at axial coordinate s
 /// (|s| <= h, the half length) is displaced sideways by centre_offset(s), the sum of

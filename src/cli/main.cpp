@@ -233,6 +233,7 @@ nlohmann::ordered_json tet_mesh_report(const rvegen::InclusionSet& set,
   // Nodes added inside one region where elements under 5 degrees were left.
   r["inserted_nodes"] = mesh.inserted_nodes;
   r["remade_slivers"] = mesh.remade_slivers;
+  r["sliver_rounds"] = mesh.sliver_rounds;
   r["flat_elements_removed"] = mesh.flat_elements_removed;
   r["raised_triangles"] = mesh.raised_triangles;
   // The cell meshed: the box, or the box moved along its axes (mesh_tet.shift_cell).

@@ -72,6 +72,8 @@ struct TetMesh {
   /// Elements under 5 degrees remade with their neighbours by flips and collapses of short
   /// edges (remake_slivers).
   long long remade_slivers = 0;
+  /// Rounds of the three repairs above (repair_slivers).
+  int sliver_rounds = 0;
   /// Triangles of curved surfaces that lay flat in a box face, split about a node on the
   /// surface (raise_flat_triangles).
   long long raised_triangles = 0;
@@ -282,6 +284,14 @@ long long insert_nodes_in_slivers(TetMesh* mesh, double angle = 5.0);
 /// Throws MeshError unless the mesh conforms (every face of an element is a face of another
 /// element or lies in a box face) and fills the box (every element positive, their volumes
 /// adding up to the box's to 1e-9). tet_mesh calls it on every mesh.
+/// Lifts the elements under `angle` degrees by rounds of lift_slivers, remake_slivers and
+/// insert_nodes_in_slivers, each round on what the one before left (a remake or an inserted node
+/// can give a node room that it lacked), until none is left under `angle`, a round leaves as
+/// many as it found, or 4 rounds; the three passes' counts add to the mesh's relocated_nodes,
+/// remade_slivers and inserted_nodes. tet_mesh calls it after keep_phase_volumes. Returns the
+/// rounds run (0: none was under `angle`).
+int repair_slivers(TetMesh* mesh, const InclusionSet& set, double angle = 5.0);
+
 void check_conforming(const TetMesh& mesh);
 
 /// What the mesh is worth: element volumes and their sum per phase label, the least dihedral

@@ -10,6 +10,7 @@
 #include <limits>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <thread>
 #include <unordered_map>
@@ -2284,10 +2285,9 @@ long long raise_flat_triangles(const Box& box, double tol) {
 }
 
 // One attempt, with Gmsh's 2D algorithm `surface_algorithm` (6: Frontal-Delaunay, 5: Delaunay).
-// Meshes the set with Gmsh's surface mesher `surface_algorithm` (6: Frontal-Delaunay, 5:
-// Delaunay). With curve_chord > 0, the curves (the faces' cuts and the shells' rims) are divided
-// as that chord error asks, where it is less than options.chord_error; the surfaces and volumes
-// as options ask.
+// With curve_chord > 0, the curves (the faces' cuts and the shells' rims) are divided as that
+// chord error asks, where it is less than options.chord_error; the surfaces and volumes as
+// options ask.
 TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
                   const TetMeshProgress& progress, int surface_algorithm, double curve_chord) {
   // Progress by stages, each a span of the whole; inside a long stage the size callback reports
@@ -2536,16 +2536,18 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
 
     const SizeField size(set, options, max_size, min_size);
     TetMeshOptions curve_options = options;
-    const bool finer_curves = curve_chord > 0.0 && curve_chord < options.chord_error;
-    if (finer_curves) curve_options.chord_error = curve_chord;
-    const SizeField curve_size(set, curve_options, max_size, min_size);
+    std::optional<SizeField> curve_size;
+    if (curve_chord > 0.0 && curve_chord < options.chord_error) {
+      curve_options.chord_error = curve_chord;
+      curve_size.emplace(set, curve_options, max_size, min_size);
+    }
     gmsh::model::mesh::setSizeCallback([&](int dim, int, double x, double y, double z) {
       const long long n = ++calls;
       if (n % 65536 == 0 && !stop && std::this_thread::get_id() == caller) {
         const double done = static_cast<double>(n - stage_calls);
         report(stage_from + (stage_to - stage_from) * done / (done + 4e6), "");
       }
-      return dim == 1 && finer_curves ? curve_size(Vec3(x, y, z)) : size(Vec3(x, y, z));
+      return dim == 1 && curve_size ? (*curve_size)(Vec3(x, y, z)) : size(Vec3(x, y, z));
     });
     gmsh::option::setNumber("Mesh.MeshSizeExtendFromBoundary", 0);
     gmsh::option::setNumber("Mesh.MeshSizeFromPoints", 0);

@@ -1294,6 +1294,66 @@ TEST(TetMesh, OverlappingShellsAreMeshedOnceAndTheirVolumesAreExact) {
   EXPECT_GT(shell / meshed[4], 1.05);
 }
 
+// A sphere across a corner of the box is cut by the planes of the cells' faces into eight
+// pieces, each brought into the box by its shift; inclusions given an image away (a sphere and a
+// fibre one box length off) go in as their images, where they lie. Every element of an
+// inclusion lies within it (periodically), and every phase's volume is the exact one.
+TEST(TetMesh, APieceInEachCellAndImagesInsideTheBoxGoInWhereTheyLie) {
+  InclusionSet set;
+  set.box.size = Vec3(1, 1, 1);
+  set.family_names = {"sphere", "fibre"};
+  const std::vector<std::pair<int, Shape>> shapes = {
+      {0, Shape::sphere({0.04, 0.96, 0.05}, 0.15)},
+      {0, Shape::sphere({1.3, 0.3, 0.3}, 0.12)},
+      {1, Shape::cylinder({0.45, -0.4, 0.35}, 0.05, {0.12, 0.06, 0.03})}};
+  for (const auto& [family, shape] : shapes) {
+    Inclusion inc;
+    inc.id = 10 + static_cast<int>(set.inclusions.size());
+    inc.family = family;
+    inc.shape = shape;
+    set.inclusions.push_back(inc);
+  }
+  TetMeshOptions options;
+  options.chord_error = 0.02;
+  options.shift_cell = false;
+  const TetMesh mesh = tet_mesh(set, options);
+  const auto [meshed, exact] = volumes(set, mesh);
+  for (size_t p = 0; p < exact.size(); ++p) {
+    EXPECT_NEAR(meshed[p] / exact[p], 1.0, 0.01) << mesh.phases[p].name;
+  }
+  auto wrapped = [](Vec3 d) {
+    for (int a = 0; a < 3; ++a) d[a] -= std::round(d[a]);
+    return d;
+  };
+  std::vector<std::set<int>> corners(3);  // the cells (by octant) each inclusion's elements lie in
+  std::vector<long> count(3, 0);
+  for (size_t e = 0; e < mesh.tets.size(); ++e) {
+    const int id = mesh.inclusion_id[e];
+    if (id < 0) continue;
+    ASSERT_GE(id, 10);
+    ASSERT_LT(id, 13);
+    Vec3 g = Vec3::Zero();
+    for (const int n : mesh.tets[e]) g += 0.25 * mesh.nodes[n];
+    ASSERT_GE(g.minCoeff(), 0.0);
+    ASSERT_LE(g.maxCoeff(), 1.0);
+    const Shape& s = set.inclusions[id - 10].shape;
+    const Vec3 d = wrapped(g - s.center);
+    if (s.kind == ShapeKind::Sphere) {
+      EXPECT_LT(d.norm(), s.radius + 1e-9) << "inclusion " << id;
+    } else {
+      const Vec3 u = s.half_axis.normalized();
+      EXPECT_LT(std::abs(d.dot(u)), s.half_axis.norm() + 1e-9);
+      EXPECT_LT((d - d.dot(u) * u).norm(), s.radius + 1e-9);
+    }
+    corners[id - 10].insert((g[0] > 0.5) + 2 * (g[1] > 0.5) + 4 * (g[2] > 0.5));
+    ++count[id - 10];
+  }
+  EXPECT_EQ(corners[0].size(), 8u);  // the corner sphere: a piece in each corner of the box
+  EXPECT_EQ(corners[1].size(), 1u);
+  EXPECT_GT(count[1], 100);
+  EXPECT_GT(count[2], 100);
+}
+
 // Coated ellipsoids: the shell's outer surface is the offset of the ellipsoid (every point
 // within t of it), which is no ellipsoid; the ellipsoid of semi-axes a + t, the nearest one, leaves
 // the shell 3-4 % short here. Two tilted ones, one of them across a box face (its core and shell

@@ -7,6 +7,7 @@
 #include <atomic>
 #include <cmath>
 #include <initializer_list>
+#include <iterator>
 #include <limits>
 #include <map>
 #include <mutex>
@@ -761,7 +762,7 @@ void add_midside_nodes(TetMesh* mesh) {
   for (const auto& t : mesh->tets) {
     for (const auto& e : kTetEdges) edges.push_back(key(t[e[0]], t[e[1]]));
   }
-  std::sort(edges.begin(), edges.end());
+  parallel_sort(edges.begin(), edges.end());
   edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
   edges.shrink_to_fit();
   const size_t corners = mesh->nodes.size();
@@ -776,14 +777,14 @@ void add_midside_nodes(TetMesh* mesh) {
     mesh->nodes[corners + i] = 0.5 * (mesh->nodes[a] + mesh->nodes[b]);
   }
   mesh->mid.resize(mesh->tets.size());
-  for (size_t e = 0; e < mesh->tets.size(); ++e) {
+  parallel_for(size_t{0}, mesh->tets.size(), [&](size_t e) {
     const auto& t = mesh->tets[e];
     for (int k = 0; k < 6; ++k) {
       const uint64_t x = key(t[kTetEdges[k][0]], t[kTetEdges[k][1]]);
       const size_t rank = std::lower_bound(edges.begin(), edges.end(), x) - edges.begin();
       mesh->mid[e][k] = static_cast<int32_t>(corners + rank);
     }
-  }
+  });
 }
 
 namespace {
@@ -1267,6 +1268,11 @@ long long remove_flat_face_elements(TetMesh* mesh) {
   return removed;
 }
 
+namespace {
+void elements_around(const TetMesh& mesh, std::vector<int32_t>* start,
+                     std::vector<int32_t>* around);  // below
+}  // namespace
+
 // The nodes a relocation may move, and how. A node inside one region (every element around in
 // one inclusion and phase) moves freely: no phase's volume or interface changes. A node on one
 // curved interface (a core against the matrix or its shell, a shell against the matrix) slides
@@ -1337,8 +1343,9 @@ long long lift_slivers(TetMesh* mesh, const InclusionSet& set, double angle) {
                              mesh->phases[label[1]].kind);
   };
   std::vector<double> least(ne);
-  for (size_t e = 0; e < ne; ++e) least[e] = least_dihedral(*mesh, mesh->tets[e]);
+  parallel_for(size_t{0}, ne, [&](size_t e) { least[e] = least_dihedral(*mesh, mesh->tets[e]); });
   long long moved = 0;
+  std::vector<int32_t> start, around_all;  // elements_around, made once needed
   for (int round = 0; round < 4; ++round) {
     // The nodes of the elements under the angle that may move, and their balls.
     // (A node on a box face is moved by the lower of it and its image; its ball holds both's.)
@@ -1351,10 +1358,17 @@ long long lift_slivers(TetMesh* mesh, const InclusionSet& set, double angle) {
       }
     }
     if (ball.empty()) break;
-    for (size_t e = 0; e < ne; ++e) {
-      for (int32_t n : mesh->tets[e]) {
-        const auto it = ball.find(leader(n));
-        if (it != ball.end()) it->second.push_back(static_cast<int32_t>(e));
+    // A leader's ball: the elements around it and around the image it leads, in the elements'
+    // order (an element once for each of its nodes led).
+    if (start.empty()) elements_around(*mesh, &start, &around_all);
+    for (auto& [n, elements] : ball) {
+      const int32_t led = image[n] >= 0 && leader(image[n]) == n ? image[n] : -1;
+      const auto a0 = around_all.begin() + start[n], a1 = around_all.begin() + start[n + 1];
+      if (led < 0) {
+        elements.assign(a0, a1);
+      } else {
+        std::merge(a0, a1, around_all.begin() + start[led], around_all.begin() + start[led + 1],
+                   std::back_inserter(elements));
       }
     }
     std::vector<int32_t> order;
@@ -1511,9 +1525,10 @@ namespace {
 // element's least angle.
 std::vector<int32_t> elements_under(const TetMesh& mesh, double angle, std::vector<double>* least) {
   least->resize(mesh.tets.size());
+  parallel_for(size_t{0}, mesh.tets.size(),
+               [&](size_t e) { (*least)[e] = least_dihedral(mesh, mesh.tets[e]); });
   std::vector<int32_t> bad;
   for (size_t e = 0; e < mesh.tets.size(); ++e) {
-    (*least)[e] = least_dihedral(mesh, mesh.tets[e]);
     if ((*least)[e] < angle) bad.push_back(static_cast<int32_t>(e));
   }
   return bad;
@@ -2910,14 +2925,17 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
   };
   std::unordered_map<std::array<long long, 3>, int32_t, KeyHash> at;
   std::vector<int32_t> dependent;
+  // (Only nodes on a lower face can be masters: the map holds those, not all the nodes.)
   for (size_t i = 0; i < mesh.nodes.size(); ++i) {
     const Vec3& x = mesh.nodes[i];
-    bool upper = false;
-    for (int a = 0; a < 3; ++a)
+    bool upper = false, lower = false;
+    for (int a = 0; a < 3; ++a) {
       upper = upper || std::abs(x[a] - box.origin[a] - box.size[a]) <= tol;
+      lower = lower || std::abs(x[a] - box.origin[a]) <= 3.0 * tol;  // the keys' reach
+    }
     if (upper) {
       dependent.push_back(static_cast<int32_t>(i));
-    } else {
+    } else if (lower) {
       at[key_of(x)] = static_cast<int32_t>(i);
     }
   }

@@ -2811,8 +2811,10 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
     // again, which must leave them too.
     std::set<int> lower_patches;
     for (const FacePair& fp : face_pairs) lower_patches.insert(fp.lower);
-    gmsh::vectorpair shown, hidden;
-    for (const auto& s : surfaces) (lower_patches.count(s.second) ? shown : hidden).push_back(s);
+    gmsh::vectorpair hidden;
+    for (const auto& s : surfaces) {
+      if (!lower_patches.count(s.second)) hidden.push_back(s);
+    }
     gmsh::model::setVisibility(hidden, 0, false);
     gmsh::option::setNumber("Mesh.MeshOnlyVisible", 1);
     gmsh::model::mesh::generate(2);

@@ -246,7 +246,7 @@ void gmsh_periodic_head(std::ostringstream& s, int a, double length, long long p
 
 // One row per tetrahedron of phase `label`: element id (its index + 1), then its four corners
 // and, for second order, its six midside nodes (in Gmsh's order when `gmsh`: the last two
-// swapped), separated by `sep`; flushed to `out` every 4096 elements.
+// swapped), separated by `sep`; what `s` holds is written first, the rows through Rows.
 void tet_rows(const TetMesh& mesh, int label, const char* sep, bool gmsh, std::ostringstream& s,
               std::FILE* out) {
   put(out, s.str());

@@ -1354,6 +1354,49 @@ TEST(TetMesh, APieceInEachCellAndImagesInsideTheBoxGoInWhereTheyLie) {
   EXPECT_GT(count[2], 100);
 }
 
+// An ellipsoid across two faces of the box, the line where they meet passing through it: one of
+// the default scene's grains in its cell, where a cut by both planes at once left it split by one
+// of them. It is cut by both into four pieces, each brought into the box by its shift, and none
+// stands out of the box.
+TEST(TetMesh, AnEllipsoidAcrossTwoFacesIsCutByBothIntoFourPieces) {
+  InclusionSet set;
+  set.box.origin = Vec3(0.08293244355646401, 0.35371473505361006, -0.3704435513220903);
+  set.box.size = Vec3(1, 1, 1);
+  set.family_names = {"grains"};
+  Mat3 turn;
+  turn << -0.48405985629679227, 0.6724193581853188, -0.5599448743042237, 0.37854571314925045,
+      -0.41601440540893064, -0.8268223252601368, -0.7889164712301642, -0.6121962277161611,
+      -0.05316559217998035;
+  Inclusion inc;
+  inc.id = 0;
+  inc.shape = Shape::ellipsoid({0.10088007786202778, 0.059282741317188685, 0.5963969536508483},
+                               {0.06, 0.04, 0.03}, turn);
+  set.inclusions.push_back(inc);
+  TetMeshOptions options;
+  options.chord_error = 0.01;
+  options.shift_cell = false;
+  const TetMesh mesh = tet_mesh(set, options);
+  EXPECT_NO_THROW(check_conforming(mesh));
+  const auto [meshed, exact] = volumes(set, mesh);
+  for (size_t p = 0; p < exact.size(); ++p) {
+    EXPECT_NEAR(meshed[p] / exact[p], 1.0, 0.01) << mesh.phases[p].name;
+  }
+  std::set<int> quarters;  // by the sides of the faces x and z the elements lie on
+  for (size_t e = 0; e < mesh.tets.size(); ++e) {
+    if (mesh.inclusion_id[e] < 0) continue;
+    Vec3 g = Vec3::Zero();
+    for (const int n : mesh.tets[e]) g += 0.25 * mesh.nodes[n] - 0.25 * set.box.origin;
+    ASSERT_GE(g.minCoeff(), 0.0);
+    ASSERT_LE(g.maxCoeff(), 1.0);
+    Vec3 d = g + set.box.origin - inc.shape.center;
+    for (int a = 0; a < 3; ++a) d[a] -= std::round(d[a]);
+    const Vec3 local = turn.transpose() * d;  // in the ellipsoid's axes
+    EXPECT_LT(local.cwiseQuotient(inc.shape.semi_axes).norm(), 1.0 + 1e-9) << "element " << e;
+    quarters.insert((g[0] > 0.5) + 2 * (g[2] > 0.5));
+  }
+  EXPECT_EQ(quarters.size(), 4u);
+}
+
 // Coated ellipsoids: the shell's outer surface is the offset of the ellipsoid (every point
 // within t of it), which is no ellipsoid; the ellipsoid of semi-axes a + t, the nearest one, leaves
 // the shell 3-4 % short here. Two tilted ones, one of them across a box face (its core and shell

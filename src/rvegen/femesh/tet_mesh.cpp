@@ -2547,7 +2547,8 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
     std::vector<int> object_inc;
     std::vector<char> object_core;
     std::vector<Vec3> cell_shift;
-    std::vector<Image> inside_images;  // made after the cut (see below)
+    std::vector<Image> inside_images;         // made after the cut (see below)
+    std::vector<std::pair<int, int>> to_cut;  // (inclusion, bit a: it crosses planes normal to a)
     for (const auto& [inc, shifts] : shifts_of) {
       const Inclusion& in = set.inclusions[inc];
       // (The cell is the box moved off the inclusions it would graze, so many of those inside
@@ -2561,29 +2562,17 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
         inside_images.push_back({inc, t0});
         continue;
       }
-      const bool cone = in.mod.debonded() && in.mod.debond_fraction < 1.0;
-      const Mat3 axis_frame = cone ? void_frame(in, box) : Mat3::Identity();
-      const int core = add_solid(in.shape, box, 0.0, cone ? &axis_frame : nullptr);
-      objects.push_back({3, core});
-      object_inc.push_back(inc);
-      object_core.push_back(1);
-      if (in.mod.coated()) {
-        objects.push_back({3, add_solid(in.shape, box, in.mod.coating)});
-        object_inc.push_back(inc);
-        object_core.push_back(0);
-      }
-      if (in.mod.debonded()) {
-        objects.push_back({3, add_void_solid(in, box)});
-        object_inc.push_back(inc);
-        object_core.push_back(2);
-      }
+      // The axes along which its images lie in more than one cell: the planes it crosses.
+      int axes = 0;
       for (const Vec3& t : shifts) {
+        for (int a = 0; a < 3; ++a) axes |= t[a] != t0[a] ? 1 << a : 0;
         if (std::find(cell_shift.begin(), cell_shift.end(), t) == cell_shift.end()) {
           cell_shift.push_back(t);
         }
       }
+      to_cut.push_back({inc, axes});
     }
-    if (!objects.empty()) {
+    if (!to_cut.empty()) {
       // The solids are cut by the planes of the cells' faces, entered as faces (squares wider
       // than the cells): with the cells as solids, OpenCASCADE classified every face of the
       // solids against each cell, split by the solids into hundreds of faces. Each piece goes to
@@ -2597,26 +2586,102 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
           plane_at.insert({a, k + 1});
         }
       }
-      gmsh::vectorpair planes, out;
-      for (const auto& [a, k] : plane_at) {
-        const int b = (a + 1) % 3, c = (a + 2) % 3;
-        int corner[4];
-        for (int q = 0; q < 4; ++q) {
-          Vec3 p;
-          p[a] = o[a] + static_cast<double>(k) * len[a];
-          p[b] = o[b] + ((q == 1 || q == 2) ? 3.0 : -2.0) * len[b];
-          p[c] = o[c] + (q >= 2 ? 3.0 : -2.0) * len[c];
-          corner[q] = gmsh::model::occ::addPoint(p[0], p[1], p[2]);
-        }
-        std::vector<int> sides;
-        for (int q = 0; q < 4; ++q) {
-          sides.push_back(gmsh::model::occ::addLine(corner[q], corner[(q + 1) % 4]));
-        }
-        planes.push_back(
-            {2, gmsh::model::occ::addPlaneSurface({gmsh::model::occ::addCurveLoop(sides)})});
-      }
+      // The solids of an inclusion (its core, and its shell's outer surface and its void);
+      // map[k]: the pieces of objects[k] so far.
       std::vector<gmsh::vectorpair> map;
-      gmsh::model::occ::fragment(objects, planes, out, map);
+      auto make_solids = [&](int inc) {
+        const Inclusion& in = set.inclusions[inc];
+        const bool cone = in.mod.debonded() && in.mod.debond_fraction < 1.0;
+        const Mat3 axis_frame = cone ? void_frame(in, box) : Mat3::Identity();
+        objects.push_back({3, add_solid(in.shape, box, 0.0, cone ? &axis_frame : nullptr)});
+        object_inc.push_back(inc);
+        object_core.push_back(1);
+        if (in.mod.coated()) {
+          objects.push_back({3, add_solid(in.shape, box, in.mod.coating)});
+          object_inc.push_back(inc);
+          object_core.push_back(0);
+        }
+        if (in.mod.debonded()) {
+          objects.push_back({3, add_void_solid(in, box)});
+          object_inc.push_back(inc);
+          object_core.push_back(2);
+        }
+        while (map.size() < objects.size()) map.push_back({objects[map.size()]});
+      };
+      // Fragments the present pieces of objects[from, to) against the planes normal to the
+      // axes of `axes` (bits).
+      auto cut = [&](size_t from, size_t to, int axes) {
+        gmsh::vectorpair present;  // each once (a shell's pieces hold its core's)
+        std::set<int> seen;
+        for (size_t k = from; k < to; ++k) {
+          for (const auto& dt : map[k]) {
+            if (seen.insert(dt.second).second) present.push_back(dt);
+          }
+        }
+        if (present.empty()) return;
+        gmsh::vectorpair planes;
+        for (const auto& [a, k] : plane_at) {
+          if (!(axes & (1 << a))) continue;
+          const int b = (a + 1) % 3, c = (a + 2) % 3;
+          int corner[4];
+          for (int q = 0; q < 4; ++q) {
+            Vec3 p;
+            p[a] = o[a] + static_cast<double>(k) * len[a];
+            p[b] = o[b] + ((q == 1 || q == 2) ? 3.0 : -2.0) * len[b];
+            p[c] = o[c] + (q >= 2 ? 3.0 : -2.0) * len[c];
+            corner[q] = gmsh::model::occ::addPoint(p[0], p[1], p[2]);
+          }
+          std::vector<int> sides;
+          for (int q = 0; q < 4; ++q) {
+            sides.push_back(gmsh::model::occ::addLine(corner[q], corner[(q + 1) % 4]));
+          }
+          planes.push_back(
+              {2, gmsh::model::occ::addPlaneSurface({gmsh::model::occ::addCurveLoop(sides)})});
+        }
+        gmsh::vectorpair out;
+        std::vector<gmsh::vectorpair> out_map;
+        gmsh::model::occ::fragment(present, planes, out, out_map);
+        std::map<int, const gmsh::vectorpair*> became;
+        for (size_t i = 0; i < present.size() && i < out_map.size(); ++i) {
+          became[present[i].second] = &out_map[i];
+        }
+        for (size_t k = from; k < to; ++k) {
+          gmsh::vectorpair now;
+          for (const auto& dt : map[k]) {
+            for (const auto& n : *became.at(dt.second)) {
+              if (std::find(now.begin(), now.end(), n) == now.end()) now.push_back(n);
+            }
+          }
+          map[k] = std::move(now);
+        }
+        // The planes' pieces (those that bound a piece stay, as its faces): a later fragment
+        // forgets the faces of the pieces it cuts.
+        gmsh::vectorpair rest;
+        for (const auto& dt : out) {
+          if (dt.first == 2) rest.push_back(dt);
+        }
+        gmsh::model::occ::remove(rest, false);
+      };
+      // With the planes of two axes in one fragment, OpenCASCADE left an ellipsoid (a spline
+      // surface) through which the line where two planes meet passes split by one of them only
+      // (the default scene's cell, an ellipsoid across its x and z faces: its cap stood out of
+      // the cell). The solids that cross planes of two or three axes are cut one axis at a time
+      // (parallel planes never meet), and first, while the model holds little (each fragment
+      // costs about 3 s for 2,484 fibres whatever it cuts, in Gmsh's bookkeeping of the
+      // shapes it holds); the others are cut by all the planes at once.
+      auto across = [](int axes) { return (axes & (axes - 1)) != 0; };
+      for (const auto& [inc, axes] : to_cut) {
+        if (across(axes)) make_solids(inc);
+      }
+      const size_t first = objects.size();
+      for (int a = 0; a < 3; ++a) {
+        // (Each pass takes every one of them: a solid it does not cut keeps its pieces.)
+        cut(0, first, 1 << a);
+      }
+      for (const auto& [inc, axes] : to_cut) {
+        if (!across(axes)) make_solids(inc);
+      }
+      cut(first, objects.size(), 7);
       // Each piece of a solid belongs to the first inclusion whose solids hold it (where shells
       // that may touch overlap), and is a core's when one of that inclusion's cores holds it.
       std::map<int, int> piece_inc;
@@ -2647,14 +2712,9 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
         const Vec3 t(-cell[0] * len[0], -cell[1] * len[1], -cell[2] * len[2]);
         if (!t.isZero()) gmsh::model::occ::translate(mine, t[0], t[1], t[2]);
       }
-      // The planes' pieces (those that bound a piece stay, as its faces), and then the curves
-      // and points they leave unused (removed with their curves, the planes' pieces took 17 s:
-      // for each curve and point of them, Gmsh scans every face and curve it holds).
-      gmsh::vectorpair rest;
-      for (const auto& dt : out) {
-        if (dt.first == 2) rest.push_back(dt);
-      }
-      gmsh::model::occ::remove(rest, false);
+      // The curves and points the planes' pieces left unused (removed with their curves, the
+      // planes' pieces took 17 s: for each curve and point of them, Gmsh scans every face and
+      // curve it holds).
       gmsh::model::occ::synchronize();
       gmsh::vectorpair curves, unused;
       gmsh::model::getEntities(curves, 1);

@@ -2836,6 +2836,11 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
     gmsh::option::setNumber("Mesh.MeshSizeExtendFromBoundary", 0);
     gmsh::option::setNumber("Mesh.MeshSizeFromPoints", 0);
     gmsh::option::setNumber("Mesh.MeshSizeFromCurvature", 0);
+    // Gmsh places a curve's nodes by integrating 1 / size along it, splitting each interval
+    // until two estimates agree within this precision (in elements; Gmsh's default 1e-9). At
+    // the default the curves of 2,484 fibres took 21 s, nearly all of it in the size callback;
+    // at 1e-5, 2.4 s, with 983,491 surface nodes against 983,863.
+    gmsh::option::setNumber("Mesh.LcIntegrationPrecision", 1e-5);
     gmsh::option::setNumber("Mesh.MeshSizeMax", max_size);
     gmsh::option::setNumber("Mesh.MeshSizeMin", min_size);
     gmsh::option::setNumber("Mesh.Algorithm", surface_algorithm);

@@ -1005,8 +1005,9 @@ long long keep_phase_volumes(TetMesh* mesh, const InclusionSet& set) {
       faces.push_back(f);
     }
   }
-  std::sort(faces.begin(), faces.end(),
-            [](const Face& a, const Face& b) { return a.n != b.n ? a.n < b.n : a.tet < b.tet; });
+  parallel_sort(faces.begin(), faces.end(), [](const Face& a, const Face& b) {
+    return a.n != b.n ? a.n < b.n : a.tet < b.tet;
+  });
   // Per node: its surface (2 k for inclusion k's core, 2 k + 1 for its shell's outer surface;
   // -1 none yet, -2 on two surfaces or on an interface of no single surface), the image shift of
   // the inclusion, and its triangles' area and area times gap.
@@ -1015,39 +1016,60 @@ long long keep_phase_volumes(TetMesh* mesh, const InclusionSet& set) {
   std::vector<double> area(nn, 0.0), gap(nn, 0.0);
   std::vector<double> deficit(2 * set.inclusions.size(), 0.0);  // per surface
   const Box& box = mesh->box;
+  // The interface triangles (faces that elements of two regions share), and for each, on both
+  // cores, its surface (-1: of no single surface, or straight along a void's cone), the image it
+  // lies on, its area and its mean gap; then their sums per node and surface, in order.
+  struct Triangle {
+    size_t face;
+    int which = -1;
+    Vec3 shift = Vec3::Zero();
+    double area = 0.0, gap = 0.0;
+  };
+  std::vector<Triangle> triangles;
   for (size_t k = 0; k + 1 < faces.size(); ++k) {
     if (faces[k].n != faces[k + 1].n) continue;
     const size_t e1 = faces[k].tet, e2 = faces[k + 1].tet;
     ++k;
     if (region(e1) == region(e2)) continue;
     // Which surface: a core against the matrix or its own shell; a shell against the matrix.
-    const int which =
-        interface_surface(by_id, mesh->inclusion_id[e1], mesh->phases[mesh->phase[e1]].kind,
-                          mesh->inclusion_id[e2], mesh->phases[mesh->phase[e2]].kind);
-    const std::array<int32_t, 3>& n = faces[k].n;
-    if (which < 0) {
-      for (int32_t i : n) surface[i] = -2;
-      continue;
-    }
-    const Inclusion& in = set.inclusions[which / 2];
-    const double grown = (which & 1) ? outer_offset(in.mod) : 0.0;
+    Triangle t;
+    t.face = k;
+    t.which = interface_surface(by_id, mesh->inclusion_id[e1], mesh->phases[mesh->phase[e1]].kind,
+                                mesh->inclusion_id[e2], mesh->phases[mesh->phase[e2]].kind);
+    triangles.push_back(t);
+  }
+  parallel_for(size_t{0}, triangles.size(), [&](size_t j) {
+    Triangle& t = triangles[j];
+    if (t.which < 0) return;
+    const std::array<int32_t, 3>& n = faces[t.face].n;
+    const Inclusion& in = set.inclusions[t.which / 2];
+    const double grown = (t.which & 1) ? outer_offset(in.mod) : 0.0;
     const Vec3 &p0 = mesh->nodes[n[0]], &p1 = mesh->nodes[n[1]], &p2 = mesh->nodes[n[2]];
     // The inclusion's periodic image the triangle lies on: the one nearest its centre's surface.
     Vec3 nrm;
     bool feature;
     double centre_gap;
-    const Vec3 best =
-        nearest_image(in.shape, grown, box.size, (p0 + p1 + p2) / 3.0, &centre_gap, &feature);
-    if ((which & 1) && on_void_cone(in, best, p0, p1, p2)) {  // straight along the rays: stays
+    t.shift = nearest_image(in.shape, grown, box.size, (p0 + p1 + p2) / 3.0, &centre_gap, &feature);
+    if ((t.which & 1) && on_void_cone(in, t.shift, p0, p1, p2)) {  // straight along the rays
+      t.which = -1;
+      return;
+    }
+    const Shape s = in.shape.translated(t.shift);
+    t.area = 0.5 * (p1 - p0).cross(p2 - p0).norm();
+    t.gap = -(surface_distance(s, grown, 0.5 * (p0 + p1), &nrm, &feature) +
+              surface_distance(s, grown, 0.5 * (p1 + p2), &nrm, &feature) +
+              surface_distance(s, grown, 0.5 * (p0 + p2), &nrm, &feature)) /
+            3.0;
+  });
+  for (const Triangle& t : triangles) {
+    const std::array<int32_t, 3>& n = faces[t.face].n;
+    const int which = t.which;
+    if (which < 0) {
       for (int32_t i : n) surface[i] = -2;
       continue;
     }
-    const Shape s = in.shape.translated(best);
-    const double a = 0.5 * (p1 - p0).cross(p2 - p0).norm();
-    const double g = -(surface_distance(s, grown, 0.5 * (p0 + p1), &nrm, &feature) +
-                       surface_distance(s, grown, 0.5 * (p1 + p2), &nrm, &feature) +
-                       surface_distance(s, grown, 0.5 * (p0 + p2), &nrm, &feature)) /
-                     3.0;
+    const Vec3& best = t.shift;
+    const double a = t.area, g = t.gap;
     deficit[which] += a * g;
     for (int32_t i : n) {
       if (surface[i] == -2) continue;
@@ -1068,16 +1090,18 @@ long long keep_phase_volumes(TetMesh* mesh, const InclusionSet& set) {
   std::vector<uint8_t> movable(nn, 0);
   std::vector<Vec3> normal(nn, Vec3::Zero());
   std::vector<double> given(deficit.size(), 0.0);
-  for (size_t i = 0; i < nn; ++i) {
-    if (surface[i] < 0 || !(area[i] > 0.0) || !std::isfinite(gap[i])) continue;
-    if (ends[i][0] >= 0 || ends[i][1] >= 0 || ends[i][2] >= 0) continue;
+  parallel_for(size_t{0}, nn, [&](size_t i) {
+    if (surface[i] < 0 || !(area[i] > 0.0) || !std::isfinite(gap[i])) return;
+    if (ends[i][0] >= 0 || ends[i][1] >= 0 || ends[i][2] >= 0) return;
     const Inclusion& in = set.inclusions[surface[i] / 2];
     const double grown = (surface[i] & 1) ? outer_offset(in.mod) : 0.0;
     bool feature;
     surface_distance(in.shape.translated(shift[i]), grown, before[i], &normal[i], &feature);
-    if (feature || gap[i] == 0.0) continue;
+    if (feature || gap[i] == 0.0) return;
     movable[i] = 1;
-    given[surface[i]] += gap[i] / 3.0;
+  });
+  for (size_t i = 0; i < nn; ++i) {
+    if (movable[i]) given[surface[i]] += gap[i] / 3.0;
   }
   std::vector<uint8_t> moved(nn, 0);
   long long count = 0;
@@ -1090,28 +1114,44 @@ long long keep_phase_volumes(TetMesh* mesh, const InclusionSet& set) {
     ++count;
   }
   // Undone where an element would suffer (a few passes: undoing one move changes its other
-  // elements back too, never for the worse).
+  // elements back too, never for the worse). Each pass tells the elements apart on all cores,
+  // then walks them in order, as one thread would: an element with a node undone earlier in
+  // the walk is looked at again there.
+  auto suffers = [&](const std::array<int32_t, 4>& t) {
+    if (!(tet_volume(mesh->nodes, t) > 0.0)) return true;
+    const double now = least_dihedral(*mesh, t);
+    if (now >= 5.0) return false;
+    const Vec3 p[4] = {before[t[0]], before[t[1]], before[t[2]], before[t[3]]};
+    return now < least_dihedral(p);
+  };
+  auto any_moved = [&](const std::array<int32_t, 4>& t) {
+    return moved[t[0]] || moved[t[1]] || moved[t[2]] || moved[t[3]];
+  };
+  std::vector<uint8_t> suffered(ne, 0), undone(nn, 0);
+  std::vector<int32_t> undone_list;
   for (bool again = true; again;) {
     again = false;
-    for (const auto& t : mesh->tets) {
-      if (!(moved[t[0]] || moved[t[1]] || moved[t[2]] || moved[t[3]])) continue;
-      bool bad = !(tet_volume(mesh->nodes, t) > 0.0);
-      if (!bad) {
-        const double now = least_dihedral(*mesh, t);
-        if (now < 5.0) {
-          const Vec3 p[4] = {before[t[0]], before[t[1]], before[t[2]], before[t[3]]};
-          bad = now < least_dihedral(p);
-        }
-      }
-      if (!bad) continue;
+    parallel_for(size_t{0}, ne, [&](size_t e) {
+      const auto& t = mesh->tets[e];
+      suffered[e] = any_moved(t) && suffers(t);
+    });
+    for (size_t e = 0; e < ne; ++e) {
+      const auto& t = mesh->tets[e];
+      if (!any_moved(t)) continue;
+      const bool seen_change = undone[t[0]] || undone[t[1]] || undone[t[2]] || undone[t[3]];
+      if (!(seen_change ? suffers(t) : suffered[e])) continue;
       for (int32_t n : t) {
         if (!moved[n]) continue;
         mesh->nodes[n] = before[n];
         moved[n] = 0;
+        undone[n] = 1;
+        undone_list.push_back(n);
         --count;
         again = true;
       }
     }
+    for (int32_t n : undone_list) undone[n] = 0;
+    undone_list.clear();
   }
   return count;
 }

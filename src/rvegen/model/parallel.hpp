@@ -92,4 +92,15 @@ void parallel_sort(It first, It last) {
 #endif
 }
 
+/// The same with a comparison `less` (a strict order: elements it does not tell apart come out
+/// in any order).
+template <typename It, typename Less>
+void parallel_sort(It first, It last, const Less& less) {
+#ifdef RVEGEN_TSAN
+  std::sort(first, last, less);
+#else
+  tbb::parallel_sort(first, last, less);
+#endif
+}
+
 }  // namespace rvegen

@@ -792,7 +792,9 @@ namespace {
 // The least dihedral angle of a tetrahedron, in degrees: at each edge, the angle between the
 // other two vertices seen across it.
 double least_dihedral(const Vec3 (&p)[4]) {
-  double m = 180.0;
+  // The least angle has the largest cosine: one arc cosine, of that (acos is monotonic, so the
+  // angle is the same to the last bit as the least of the six).
+  double m = -1.0;
   for (int i = 0; i < 4; ++i) {
     for (int j = i + 1; j < 4; ++j) {
       int other[2], n = 0;
@@ -803,11 +805,10 @@ double least_dihedral(const Vec3 (&p)[4]) {
       Vec3 u = p[other[0]] - p[i], w = p[other[1]] - p[i];
       u -= u.dot(axis) * axis;
       w -= w.dot(axis) * axis;
-      const double c = std::clamp(u.normalized().dot(w.normalized()), -1.0, 1.0);
-      m = std::min(m, std::acos(c) * 180.0 / M_PI);
+      m = std::max(m, std::clamp(u.normalized().dot(w.normalized()), -1.0, 1.0));
     }
   }
-  return m;
+  return std::acos(m) * 180.0 / M_PI;
 }
 
 double least_dihedral(const TetMesh& mesh, const std::array<int32_t, 4>& t) {

@@ -753,36 +753,54 @@ void check_conforming(const TetMesh& mesh) {
 // for the elements' six, then the edges alone.
 void add_midside_nodes(TetMesh* mesh) {
   if (!mesh->mid.empty()) return;
-  auto key = [](int32_t a, int32_t b) {
-    if (a > b) std::swap(a, b);
-    return (static_cast<uint64_t>(static_cast<uint32_t>(a)) << 32) | static_cast<uint32_t>(b);
-  };
-  std::vector<uint64_t> edges;
-  edges.reserve(6 * mesh->tets.size());
+  // Each edge (a, b), a < b, listed under a: its rank among the edges in (a, b) order is the
+  // number of edges listed under the nodes before a, plus its place in a's sorted list. (A
+  // sort of all six edges of every element and a binary search of each took twice as long.)
+  const size_t nn = mesh->nodes.size(), ne = mesh->tets.size();
+  std::vector<int64_t> start(nn + 1, 0);
   for (const auto& t : mesh->tets) {
-    for (const auto& e : kTetEdges) edges.push_back(key(t[e[0]], t[e[1]]));
+    for (const auto& e : kTetEdges) ++start[std::min(t[e[0]], t[e[1]]) + 1];
   }
-  parallel_sort(edges.begin(), edges.end());
-  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
-  edges.shrink_to_fit();
-  const size_t corners = mesh->nodes.size();
-  if (corners + edges.size() > static_cast<size_t>(std::numeric_limits<int32_t>::max())) {
+  for (size_t a = 0; a < nn; ++a) start[a + 1] += start[a];
+  std::vector<int32_t> list(static_cast<size_t>(start[nn]));
+  {
+    std::vector<int64_t> fill(start.begin(), start.end() - 1);
+    for (const auto& t : mesh->tets) {
+      for (const auto& e : kTetEdges) {
+        const int32_t a = std::min(t[e[0]], t[e[1]]), b = std::max(t[e[0]], t[e[1]]);
+        list[fill[a]++] = b;
+      }
+    }
+  }
+  std::vector<int32_t> count(nn);
+  parallel_for(size_t{0}, nn, [&](size_t a) {
+    const auto first = list.begin() + start[a], last = list.begin() + start[a + 1];
+    std::sort(first, last);
+    count[a] = static_cast<int32_t>(std::unique(first, last) - first);
+  });
+  std::vector<int64_t> rank(nn + 1, 0);  // the edges listed under the nodes before a
+  for (size_t a = 0; a < nn; ++a) rank[a + 1] = rank[a] + count[a];
+  const size_t corners = nn, edges = static_cast<size_t>(rank[nn]);
+  if (corners + edges > static_cast<size_t>(std::numeric_limits<int32_t>::max())) {
     throw MeshError("mesh_tet: too many nodes for second order (" +
-                    std::to_string(corners + edges.size()) + ")");
+                    std::to_string(corners + edges) + ")");
   }
-  mesh->nodes.resize(corners + edges.size());
-  for (size_t i = 0; i < edges.size(); ++i) {
-    const int32_t a = static_cast<int32_t>(edges[i] >> 32);
-    const int32_t b = static_cast<int32_t>(edges[i] & 0xffffffffu);
-    mesh->nodes[corners + i] = 0.5 * (mesh->nodes[a] + mesh->nodes[b]);
-  }
-  mesh->mid.resize(mesh->tets.size());
-  parallel_for(size_t{0}, mesh->tets.size(), [&](size_t e) {
+  mesh->nodes.resize(corners + edges);
+  parallel_for(size_t{0}, nn, [&](size_t a) {
+    for (int32_t k = 0; k < count[a]; ++k) {
+      const int32_t b = list[start[a] + k];
+      mesh->nodes[corners + rank[a] + k] = 0.5 * (mesh->nodes[a] + mesh->nodes[b]);
+    }
+  });
+  mesh->mid.resize(ne);
+  parallel_for(size_t{0}, ne, [&](size_t e) {
     const auto& t = mesh->tets[e];
     for (int k = 0; k < 6; ++k) {
-      const uint64_t x = key(t[kTetEdges[k][0]], t[kTetEdges[k][1]]);
-      const size_t rank = std::lower_bound(edges.begin(), edges.end(), x) - edges.begin();
-      mesh->mid[e][k] = static_cast<int32_t>(corners + rank);
+      const int32_t a = std::min(t[kTetEdges[k][0]], t[kTetEdges[k][1]]);
+      const int32_t b = std::max(t[kTetEdges[k][0]], t[kTetEdges[k][1]]);
+      const auto first = list.begin() + start[a], last = first + count[a];
+      mesh->mid[e][k] =
+          static_cast<int32_t>(corners + rank[a] + (std::lower_bound(first, last, b) - first));
     }
   });
 }

@@ -2977,11 +2977,10 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
       if (refused.empty() && types.empty()) refused = last_gmsh_error();
     }
     if (const std::string& e = refused; !e.empty()) throw SurfacesRefused(e);
-    stage(0.85, 0.95, "mesh_tet: moving nodes of the worst elements");
-    // HXT's own optimiser left a few elements under 5 degrees; moving their nodes (Gmsh's
-    // Relocate3D) lifted them (test scene: 4.98 to 5.38 degrees, the least angle now at a
-    // surface).
-    gmsh::model::mesh::optimize("Relocate3D", false, 3);
+    // (The elements HXT's optimiser leaves under 5 degrees are lifted by repair_slivers below.
+    // Gmsh's node relocation (Relocate3D) before it changed nothing it leaves: the same least
+    // angle before the repair, the same 1, 5 and 50 % quantiles after it, for 12 s on 2,484
+    // fibres and 5.6 s on the default scene.)
 
     // Nodes (renumbered from 0), then the tetrahedra of every volume with its phase.
     std::vector<std::size_t> tags;
@@ -3028,7 +3027,7 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
     throw MeshError("mesh_tet: the mesher failed: " + last_gmsh_error());
   }
 
-  stage(0.95, 1.0, "mesh_tet: checking the mesh");
+  stage(0.85, 1.0, "mesh_tet: checking the mesh");
   if (mesh.tets.empty()) throw MeshError("mesh_tet: the volume mesher made no elements");
   mesh.merged_nodes = merge_coincident_nodes(&mesh);
   mesh.flat_elements_removed = remove_flat_face_elements(&mesh);

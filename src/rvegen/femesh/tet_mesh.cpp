@@ -2177,7 +2177,8 @@ void check_tet_meshable(const InclusionSet& set) {
 
 namespace {
 
-// HXT refused the surface mesh (see mesh_with).
+// The surface mesher failed, or HXT refused the surface mesh (see mesh_with): what() says which,
+// after "mesh_tet: ". tet_mesh meshes again from the start, another way.
 struct SurfacesRefused : MeshError {
   using MeshError::MeshError;
 };
@@ -2954,13 +2955,14 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
     if (const std::string& e = surface_error; !e.empty()) {
       // Where Gmsh fails on a curved surface it refines every curve around it and meshes it
       // again; a curve tied to its image on the opposite face then has nodes its image lacks.
-      const bool refined_copy = e.find("periodic counterpart of node") != std::string::npos &&
-                                e.find("of curve") != std::string::npos;
-      throw MeshError("mesh_tet: the surface mesher failed: " + e +
-                      (refined_copy ? " (Gmsh refined the curves of a curved surface it could "
-                                      "not mesh, one of them a copy of a curve on the opposite "
-                                      "box face: try a smaller mesh_tet.chord_error)"
-                                    : ""));
+      const bool refined_copy = e.find("periodic counterpart") != std::string::npos &&
+                                e.find("curve") != std::string::npos;
+      throw SurfacesRefused("the surface mesher failed: " + e +
+                            (refined_copy
+                                 ? " (Gmsh refined the curves of a curved surface it could not "
+                                   "mesh, one of them a copy of a curve on the opposite box "
+                                   "face: try a smaller mesh_tet.chord_error)"
+                                 : ""));
     }
     mesh.raised_triangles = raise_flat_triangles(box, tol);
     stage(0.35, 0.85, "mesh_tet: meshing the volumes");
@@ -2976,7 +2978,9 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
       gmsh::model::mesh::getElementTypes(types, 3, v.second);
       if (refused.empty() && types.empty()) refused = last_gmsh_error();
     }
-    if (const std::string& e = refused; !e.empty()) throw SurfacesRefused(e);
+    if (const std::string& e = refused; !e.empty()) {
+      throw SurfacesRefused("the volume mesher refused the surfaces: " + e);
+    }
     // (The elements HXT's optimiser leaves under 5 degrees are lifted by repair_slivers below.
     // Gmsh's node relocation (Relocate3D) before it changed nothing it leaves: the same least
     // angle before the repair, the same 1, 5 and 50 % quantiles after it, for 12 s on 2,484
@@ -3685,8 +3689,12 @@ TetMesh tet_mesh(const InclusionSet& set_in, const TetMeshOptions& options,
     // Meshed from the start with Gmsh's Delaunay surface mesher, all three went through.
     // (Meshing the surfaces again in the same model gave no elements; Gmsh's Delaunay volume
     // mesher on the first surfaces gave none either.)
-    if (!steady(shown, std::string("mesh_tet: the volume mesher refused the surfaces (") +
-                           e.what() + "); meshing them again with Delaunay"))
+    // The surface mesher's own failures go the same way: Gmsh's Frontal-Delaunay failed on an
+    // ellipsoid's spline surface cut by a box face, refined the curves around it and left a
+    // curve and its image on the opposite face with other nodes ("Can't find periodic
+    // counterpart of mesh edge", 273 ellipsoids at 0.4, seed 13).
+    if (!steady(shown, std::string("mesh_tet: ") + e.what() +
+                           "; meshing the surfaces again with Delaunay"))
       throw Cancelled();
   }
   try {
@@ -3697,17 +3705,16 @@ TetMesh tet_mesh(const InclusionSet& set_in, const TetMeshOptions& options,
     // ("PLC Error: Two segments intersect", with either surface mesher: seen in 2 of 8 packings
     // of 311 fibres of L/D 10 at chord error 0.1). Curves divided as a chord error of
     // kFinerCurveChord asks do not cross there; the surfaces keep the sizes asked.
-    if (!(options.chord_error > kFinerCurveChord)) {
-      throw MeshError(std::string("mesh_tet: the volume mesher failed: ") + e.what());
-    }
-    if (!steady(shown, std::string("mesh_tet: the volume mesher refused the surfaces again (") +
-                           e.what() + "); meshing them again with curves divided finer"))
+    if (!(options.chord_error > kFinerCurveChord))
+      throw MeshError("mesh_tet: " + std::string(e.what()));
+    if (!steady(shown, std::string("mesh_tet: again, ") + e.what() +
+                           "; meshing them again with curves divided finer"))
       throw Cancelled();
   }
   try {
     return mesh_with(set, options, steady, 6, kFinerCurveChord);
   } catch (const SurfacesRefused& e) {
-    throw MeshError(std::string("mesh_tet: the volume mesher failed: ") + e.what());
+    throw MeshError("mesh_tet: " + std::string(e.what()));
   }
 }
 

@@ -583,8 +583,7 @@ TEST(TetMesh, AFaceCuttingAFibreNearlyAlongItIsMeshedWithFinerCurves) {
 
 // The repairs run in rounds: none on a mesh with no element under 5 degrees; one where a round
 // lifts them all (a node inside the region moved, or elements remade where no node may move); and a
-// round that leaves as many as it found ends them (the sliver between two regions, which no pass
-// may lift).
+// round that changes nothing ends them (the sliver between two regions, which no pass may lift).
 TEST(TetMesh, SliverRepairsRunInRoundsUntilNoneIsLeftOrARoundLiftsNone) {
   TetMesh clean = kuhn_cube();
   const std::vector<Vec3> nodes = clean.nodes;

@@ -2145,14 +2145,20 @@ int repair_slivers(TetMesh* mesh, const InclusionSet& set, double angle) {
   std::vector<double> least;
   size_t before = elements_under(*mesh, angle, &least).size();
   int rounds = 0;
+  // A round may leave more than it found (an inserted node's new elements) and the next lift
+  // them: two meshes of spheres and fibres saved before the repairs went from 7 and 6 elements
+  // under 5 degrees to 14 and 13 in the first round and to none in the second. The rounds end
+  // when one changes nothing.
   while (before > 0 && rounds < 4) {
     ++rounds;
-    mesh->relocated_nodes += lift_slivers(mesh, set, angle);
-    mesh->remade_slivers += remake_slivers(mesh, angle);
-    mesh->inserted_nodes += insert_nodes_in_slivers(mesh, angle);
-    const size_t after = elements_under(*mesh, angle, &least).size();
-    if (after >= before) break;
-    before = after;
+    const long long lifted = lift_slivers(mesh, set, angle);
+    const long long remade = remake_slivers(mesh, angle);
+    const long long inserted = insert_nodes_in_slivers(mesh, angle);
+    mesh->relocated_nodes += lifted;
+    mesh->remade_slivers += remade;
+    mesh->inserted_nodes += inserted;
+    before = elements_under(*mesh, angle, &least).size();
+    if (lifted == 0 && remade == 0 && inserted == 0) break;
   }
   return rounds;
 }

@@ -286,8 +286,8 @@ long long insert_nodes_in_slivers(TetMesh* mesh, double angle = 5.0);
 /// adding up to the box's to 1e-9). tet_mesh calls it on every mesh.
 /// Lifts the elements under `angle` degrees by rounds of lift_slivers, remake_slivers and
 /// insert_nodes_in_slivers, each round on what the one before left (a remake or an inserted node
-/// can give a node room that it lacked), until none is left under `angle`, a round leaves as
-/// many as it found, or 4 rounds; the three passes' counts add to the mesh's relocated_nodes,
+/// can give a node room that it lacked), until none is left under `angle`, a round changes
+/// nothing, or 4 rounds; the three passes' counts add to the mesh's relocated_nodes,
 /// remade_slivers and inserted_nodes. tet_mesh calls it after keep_phase_volumes. Returns the
 /// rounds run (0: none was under `angle`).
 int repair_slivers(TetMesh* mesh, const InclusionSet& set, double angle = 5.0);

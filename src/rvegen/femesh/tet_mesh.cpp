@@ -2157,8 +2157,8 @@ int repair_slivers(TetMesh* mesh, const InclusionSet& set, double angle) {
     mesh->relocated_nodes += lifted;
     mesh->remade_slivers += remade;
     mesh->inserted_nodes += inserted;
-    before = elements_under(*mesh, angle, &least).size();
     if (lifted == 0 && remade == 0 && inserted == 0) break;
+    before = elements_under(*mesh, angle, &least).size();
   }
   return rounds;
 }

@@ -14,6 +14,7 @@
 #include <tbb/parallel_sort.h>
 
 #include <algorithm>
+#include <functional>
 
 #if defined(__has_feature)
 #if __has_feature(thread_sanitizer)
@@ -81,19 +82,10 @@ void parallel_for_range(const Range& range, const Fn& f, const Partitioner&... p
 #endif
 }
 
-/// tbb::parallel_sort(first, last); under ThreadSanitizer std::sort (its pieces of work cannot be
-/// told the fork). The same order either way for keys whose equal ones are equal.
-template <typename It>
-void parallel_sort(It first, It last) {
-#ifdef RVEGEN_TSAN
-  std::sort(first, last);
-#else
-  tbb::parallel_sort(first, last);
-#endif
-}
-
-/// The same with a comparison `less` (a strict order: elements it does not tell apart come out
-/// in any order).
+/// tbb::parallel_sort(first, last, less); under ThreadSanitizer std::sort (its pieces of work
+/// cannot be told the fork). The same order either way for keys whose equal ones are equal
+/// (`less` a strict order: elements it does not tell apart come out in any order); without
+/// `less`, std::less.
 template <typename It, typename Less>
 void parallel_sort(It first, It last, const Less& less) {
 #ifdef RVEGEN_TSAN
@@ -101,6 +93,10 @@ void parallel_sort(It first, It last, const Less& less) {
 #else
   tbb::parallel_sort(first, last, less);
 #endif
+}
+template <typename It>
+void parallel_sort(It first, It last) {
+  parallel_sort(first, last, std::less<>());
 }
 
 }  // namespace rvegen

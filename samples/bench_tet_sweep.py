@@ -15,6 +15,8 @@ samples/charts/tet_sweep_table.md.
 
 usage: /usr/bin/python3 samples/bench_tet_sweep.py [BUILD_DIR] [--seeds 11,12,13]
                                                    [--kinds coated,ellipsoids,mix,fibres]
+                                                   [--name tet_sweep]
+(--name: the table's file name, samples/charts/NAME_table.md)
 """
 import json
 import os
@@ -26,12 +28,15 @@ from bench_util import machine, timed
 
 args = sys.argv[1:]
 seeds, kinds = [11, 12, 13], ["ellipsoids", "mix", "fibres", "coated"]
-for flag in ("--seeds", "--kinds"):
+name_out = "tet_sweep"
+for flag in ("--seeds", "--kinds", "--name"):
     if flag in args:
         i = args.index(flag)
         values = args[i + 1].split(",")
         if flag == "--seeds":
             seeds = [int(v) for v in values]
+        elif flag == "--name":
+            name_out = args[i + 1]
         else:
             kinds = values
         args = args[:i] + args[i + 2:]
@@ -89,7 +94,7 @@ try:
 finally:
     shutil.rmtree(work, ignore_errors=True)
 
-with open(os.path.join(here, "charts", "tet_sweep_table.md"), "w") as f:
+with open(os.path.join(here, "charts", name_out + "_table.md"), "w") as f:
     f.write("Machine: %s\n\n" % machine())
     f.write("| kind | seed | exit | wall s | peak MiB | elements | least degrees | under 5 | "
             "note |\n|---|---|---|---|---|---|---|---|---|\n")

@@ -6,6 +6,7 @@
 #include <array>
 #include <atomic>
 #include <cmath>
+#include <cstdlib>
 #include <initializer_list>
 #include <iterator>
 #include <limits>
@@ -480,22 +481,27 @@ int revolved_solid(int profile, std::initializer_list<int> centres) {
   return solid;
 }
 
+// The frame of rank `rank` among kFrames by frame_score, best first (equal scores in the order
+// of the frames; a shape that crosses no face scores alike in every frame).
+int ranked_frame(const Shape& s, const Box& box, int rank) {
+  std::vector<std::pair<std::vector<double>, int>> scored;
+  const std::vector<double> first = frame_score(s, seam_of(s, frame(s, 0)), box);
+  scored.emplace_back(first, 0);
+  for (int k = 1; k < kFrames && (!first.empty() || rank > 0); ++k) {
+    scored.emplace_back(frame_score(s, seam_of(s, frame(s, k)), box), k);
+  }
+  std::stable_sort(scored.begin(), scored.end(),
+                   [](const auto& a, const auto& b) { return b.first < a.first; });
+  return scored[static_cast<size_t>(rank) % scored.size()].second;
+}
+
 // The OCC solid of a shape grown by `offset` (every point within it of the shape: an
 // interphase shell's outer surface), built in the frame that keeps its
-// seam and poles off the faces of `box` it crosses (the shape's own, whatever the offset); its
-// tag.
-int add_solid(const Shape& s, const Box& box, double offset = 0.0, const Mat3* given = nullptr) {
-  int best = 0;
-  std::vector<double> best_score;
-  if (!given) best_score = frame_score(s, seam_of(s, frame(s, 0)), box);
-  for (int k = 1; k < kFrames && !best_score.empty(); ++k) {
-    const std::vector<double> score = frame_score(s, seam_of(s, frame(s, k)), box);
-    if (best_score < score) {
-      best = k;
-      best_score = score;
-    }
-  }
-  const Mat3 P = given ? *given : frame(s, best);
+// seam and poles off the faces of `box` it crosses (the shape's own, whatever the offset), or
+// in the frame of rank `rank` by that measure; its tag.
+int add_solid(const Shape& s, const Box& box, double offset = 0.0, const Mat3* given = nullptr,
+              int rank = 0) {
+  const Mat3 P = given ? *given : frame(s, ranked_frame(s, box, rank));
   const Vec3 c = s.center;
   auto turn = [&](int tag, const Mat3& R) {
     const Eigen::AngleAxisd aa(R);
@@ -548,8 +554,10 @@ int add_solid(const Shape& s, const Box& box, double offset = 0.0, const Mat3* g
 
 // The OCC solid of a shape inside the box, made where it lies (its seam and poles meet no box
 // face, whatever their frame; Gmsh's moves of a solid cost in proportion to the shapes it
-// holds: 1,699 fibres turned and moved took 12 s after the cut); its tag.
-int add_inside_solid(const Shape& s, const Box& box) {
+// holds: 1,699 fibres turned and moved took 12 s after the cut); its tag. With `rank` above 0,
+// built as add_solid builds it in that frame.
+int add_inside_solid(const Shape& s, const Box& box, int rank) {
+  if (rank > 0) return add_solid(s, box, 0.0, nullptr, rank);
   const Vec3& c = s.center;
   switch (s.kind) {
     case ShapeKind::Sphere:
@@ -2187,10 +2195,16 @@ namespace {
 // after "mesh_tet: ". tet_mesh meshes again from the start, another way.
 struct SurfacesRefused : MeshError {
   using MeshError::MeshError;
+  SurfacesRefused(const std::string& what, std::vector<int> at)
+      : MeshError(what), inclusions(std::move(at)) {}
+  // The inclusions (indices in the set) whose surfaces bound the curves the message names.
+  std::vector<int> inclusions;
 };
 
 // The chord error of the curves in the last attempt (tet_mesh).
 constexpr double kFinerCurveChord = 0.01;
+// How many times tet_mesh builds the inclusions about a failed surface in another frame.
+constexpr int kFrameTurns = 2;
 
 // A patch of a box face at the upper end of an axis, and the patch at the lower end whose
 // translate it is.
@@ -2527,7 +2541,8 @@ int add_matrix(size_t box_faces, const std::vector<gmsh::vectorpair>& pieces,
 // chord error asks, where it is less than options.chord_error; the surfaces and volumes as
 // options ask.
 TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
-                  const TetMeshProgress& progress, int surface_algorithm, double curve_chord) {
+                  const TetMeshProgress& progress, int surface_algorithm, double curve_chord,
+                  const std::vector<int>& frame_rank) {
   // Progress by stages, each a span of the whole; inside a long stage the size callback reports
   // too (every 2^16 calls, from the calling thread only: the volume mesher calls it from its
   // own threads as well), creeping towards the stage's end. Once progress returns false the
@@ -2659,11 +2674,13 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
         const Inclusion& in = set.inclusions[inc];
         const bool cone = in.mod.debonded() && in.mod.debond_fraction < 1.0;
         const Mat3 axis_frame = cone ? void_frame(in, box) : Mat3::Identity();
-        objects.push_back({3, add_solid(in.shape, box, 0.0, cone ? &axis_frame : nullptr)});
+        objects.push_back(
+            {3, add_solid(in.shape, box, 0.0, cone ? &axis_frame : nullptr, frame_rank[inc])});
         object_inc.push_back(inc);
         object_core.push_back(1);
         if (in.mod.coated()) {
-          objects.push_back({3, add_solid(in.shape, box, in.mod.coating)});
+          objects.push_back(
+              {3, add_solid(in.shape, box, in.mod.coating, nullptr, frame_rank[inc])});
           object_inc.push_back(inc);
           object_core.push_back(0);
         }
@@ -2798,7 +2815,7 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
       const Inclusion& in = set.inclusions[im.inc];
       Shape image = in.shape;
       image.center += im.shift;
-      tools.push_back({3, add_inside_solid(image, box)});
+      tools.push_back({3, add_inside_solid(image, box, frame_rank[im.inc])});
       tool_inc.push_back(im.inc);
       tool_label.push_back(core_label(in.family));
     }
@@ -2958,17 +2975,40 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
       gmsh::model::mesh::generate(2);
       surface_error = logged_error();
     }
+    // The inclusions whose surfaces bound the curves a message names ("curve N"): the
+    // surfaces about a curve's mesh that has no periodic counterpart.
+    auto named_inclusions = [&owner](const std::string& e) {
+      std::set<int> at;
+      for (size_t k = e.find("curve "); k != std::string::npos; k = e.find("curve ", k + 6)) {
+        const char* digits = e.c_str() + k + 6;
+        char* end = nullptr;
+        const long curve = std::strtol(digits, &end, 10);
+        if (end == digits || curve <= 0) continue;
+        std::vector<int> faces, ends;
+        gmsh::model::getAdjacencies(1, static_cast<int>(curve), faces, ends);
+        for (const int f : faces) {
+          std::vector<int> volumes, edges;
+          gmsh::model::getAdjacencies(2, f, volumes, edges);
+          for (const int v : volumes) {
+            const auto it = owner.find(v);
+            if (it != owner.end()) at.insert(it->second.first);
+          }
+        }
+      }
+      return std::vector<int>(at.begin(), at.end());
+    };
     if (const std::string& e = surface_error; !e.empty()) {
       // Where Gmsh fails on a curved surface it refines every curve around it and meshes it
       // again; a curve tied to its image on the opposite face then has nodes its image lacks.
       const bool refined_copy = e.find("periodic counterpart") != std::string::npos &&
                                 e.find("curve") != std::string::npos;
-      throw SurfacesRefused("the surface mesher failed: " + e +
-                            (refined_copy
-                                 ? " (Gmsh refined the curves of a curved surface it could not "
-                                   "mesh, one of them a copy of a curve on the opposite box "
-                                   "face: try a smaller mesh_tet.chord_error)"
-                                 : ""));
+      throw SurfacesRefused(
+          "the surface mesher failed: " + e +
+              (refined_copy ? " (Gmsh refined the curves of a curved surface it could not "
+                              "mesh, one of them a copy of a curve on the opposite box "
+                              "face: try a smaller mesh_tet.chord_error)"
+                            : ""),
+          named_inclusions(e));
     }
     mesh.raised_triangles = raise_flat_triangles(box, tol);
     stage(0.35, 0.85, "mesh_tet: meshing the volumes");
@@ -2985,7 +3025,7 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
       if (refused.empty() && types.empty()) refused = last_gmsh_error();
     }
     if (const std::string& e = refused; !e.empty()) {
-      throw SurfacesRefused("the volume mesher refused the surfaces: " + e);
+      throw SurfacesRefused("the volume mesher refused the surfaces: " + e, named_inclusions(e));
     }
     // (The elements HXT's optimiser leaves under 5 degrees are lifted by repair_slivers below.
     // Gmsh's node relocation (Relocate3D) before it changed nothing it leaves: the same least
@@ -3687,24 +3727,43 @@ TetMesh tet_mesh(const InclusionSet& set_in, const TetMeshOptions& options,
     shown = std::max(shown, f);
     return progress ? progress(shown, line) : true;
   };
-  try {
-    return mesh_with(set, options, steady, 6, 0.0);
-  } catch (const SurfacesRefused& e) {
-    // HXT refuses some surface meshes of Gmsh's default surface mesher (Frontal-Delaunay):
-    // "Found two exactly self-intersecting facets", in 3 of 12 sphere scenes of the benchmark.
-    // Meshed from the start with Gmsh's Delaunay surface mesher, all three went through.
-    // (Meshing the surfaces again in the same model gave no elements; Gmsh's Delaunay volume
-    // mesher on the first surfaces gave none either.)
-    // The surface mesher's own failures go the same way: Gmsh's Frontal-Delaunay failed on an
-    // ellipsoid's spline surface cut by a box face, refined the curves around it and left a
-    // curve and its image on the opposite face with other nodes ("Can't find periodic
-    // counterpart of mesh edge", 273 ellipsoids at 0.4, seed 13).
-    if (!steady(shown, std::string("mesh_tet: ") + e.what() +
-                           "; meshing the surfaces again with Delaunay"))
-      throw Cancelled();
+  // Gmsh's Frontal-Delaunay fails on some spline surfaces of ellipsoids cut by a box face, in
+  // one frame of the ellipsoid and not in others (three ellipsoids of a packing at 0.4: one
+  // frame of 32 failed), refines the curves around the surface and leaves a curve and its image
+  // on the opposite face with other nodes ("Can't find periodic counterpart of mesh edge ... on
+  // curve ..."). The inclusions about the curves named are built again in their next frame,
+  // up to kFrameTurns times.
+  std::vector<int> rank(set.inclusions.size(), 0);
+  for (int turn = 0;; ++turn) {
+    try {
+      return mesh_with(set, options, steady, 6, 0.0, rank);
+    } catch (const SurfacesRefused& e) {
+      if (turn < kFrameTurns && !e.inclusions.empty()) {
+        std::string ids;
+        for (const int i : e.inclusions) {
+          ++rank[i];
+          ids += (ids.empty() ? "" : ", ") + std::to_string(set.inclusions[i].id);
+        }
+        if (!steady(shown, std::string("mesh_tet: ") + e.what() + "; meshing again with " +
+                               (e.inclusions.size() > 1 ? "inclusions " : "inclusion ") + ids +
+                               " built in another frame"))
+          throw Cancelled();
+        continue;
+      }
+      // HXT refuses some surface meshes of Gmsh's default surface mesher (Frontal-Delaunay):
+      // "Found two exactly self-intersecting facets", in 3 of 12 sphere scenes of the benchmark.
+      // Meshed from the start with Gmsh's Delaunay surface mesher, all three went through.
+      // (Meshing the surfaces again in the same model gave no elements; Gmsh's Delaunay volume
+      // mesher on the first surfaces gave none either.) The surface mesher's own failures that
+      // other frames do not end go the same way.
+      if (!steady(shown, std::string("mesh_tet: ") + e.what() +
+                             "; meshing the surfaces again with Delaunay"))
+        throw Cancelled();
+      break;
+    }
   }
   try {
-    return mesh_with(set, options, steady, 5, 0.0);
+    return mesh_with(set, options, steady, 5, 0.0, rank);
   } catch (const SurfacesRefused& e) {
     // Where two curves of a face meet at a small angle (a face cutting a fibre nearly along it
     // and its end disk), segments as long as a coarse chord error allows cross each other
@@ -3718,7 +3777,7 @@ TetMesh tet_mesh(const InclusionSet& set_in, const TetMeshOptions& options,
       throw Cancelled();
   }
   try {
-    return mesh_with(set, options, steady, 6, kFinerCurveChord);
+    return mesh_with(set, options, steady, 6, kFinerCurveChord, rank);
   } catch (const SurfacesRefused& e) {
     throw MeshError("mesh_tet: " + std::string(e.what()));
   }

@@ -85,7 +85,8 @@ try:
                 least = "%.2f" % mesh["min_dihedral_degrees"]["min"]
                 under = mesh["min_dihedral_degrees"]["below_5_degrees"]
             except (OSError, KeyError):
-                lines = [ln for ln in err.splitlines() if ln.strip()]
+                lines = [ln for ln in err.splitlines()
+                         if ln.strip() and not ln.startswith("Command exited")]
                 note = lines[-1][:160] if lines else ""
             row = (kind, seed, rc, "%.1f" % wall, "%.0f" % peak, elements, least, under, note)
             rows.append(row)

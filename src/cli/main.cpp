@@ -226,6 +226,7 @@ nlohmann::ordered_json tet_mesh_report(const rvegen::InclusionSet& set,
   r["nodes"] = mesh.nodes.size();
   r["periodic_pairs"] = mesh.periodic.size();
   r["merged_nodes"] = mesh.merged_nodes;
+  r["snapped_nodes"] = mesh.snapped_nodes;
   // Interface nodes moved along the normal to keep the phases' volumes (mesh_tet.keep_volumes).
   r["moved_nodes"] = mesh.moved_nodes;
   // Nodes inside one region moved to lift elements under 5 degrees.

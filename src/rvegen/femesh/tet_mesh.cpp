@@ -677,6 +677,68 @@ void drop_unused_nodes(TetMesh* mesh) {
 
 }  // namespace
 
+long long snap_periodic_nodes(TetMesh* mesh) {
+  const Box& box = mesh->box;
+  const double side = box.size.minCoeff(), on = 1e-9 * side, reach = 1e-6 * side;
+  // Masters: nodes on a lower face and on no upper face, on a grid of cells of `reach`.
+  auto cell = [&](const Vec3& x, int d) {
+    std::array<long long, 3> k;
+    for (int a = 0; a < 3; ++a) {
+      k[a] = static_cast<long long>(std::floor((x[a] - box.origin[a]) / reach)) +
+             (d / (a == 0   ? 1
+                   : a == 1 ? 3
+                            : 9)) %
+                 3 -
+             1;
+    }
+    return k;
+  };
+  auto upper = [&](const Vec3& x, int a) {
+    return std::abs(x[a] - box.origin[a] - box.size[a]) <= on;
+  };
+  std::map<std::array<long long, 3>, std::vector<int32_t>> grid;
+  std::vector<int32_t> dependent;
+  for (size_t i = 0; i < mesh->nodes.size(); ++i) {
+    const Vec3& x = mesh->nodes[i];
+    bool up = false, low = false;
+    for (int a = 0; a < 3; ++a) {
+      up = up || upper(x, a);
+      low = low || std::abs(x[a] - box.origin[a]) <= reach;
+    }
+    if (up) {
+      dependent.push_back(static_cast<int32_t>(i));
+    } else if (low) {
+      grid[cell(x, 13)].push_back(static_cast<int32_t>(i));
+    }
+  }
+  long long moved = 0;
+  for (const int32_t i : dependent) {
+    Vec3 shift = Vec3::Zero();
+    for (int a = 0; a < 3; ++a) {
+      if (upper(mesh->nodes[i], a)) shift[a] = box.size[a];
+    }
+    const Vec3 x = mesh->nodes[i] - shift;
+    int32_t master = -1;
+    double best = reach;
+    for (int d = 0; d < 27; ++d) {
+      const auto it = grid.find(cell(x, d));
+      if (it == grid.end()) continue;
+      for (const int32_t m : it->second) {
+        const double dist = (mesh->nodes[m] - x).norm();
+        if (dist <= best) {
+          best = dist;
+          master = m;
+        }
+      }
+    }
+    if (master < 0) continue;
+    const Vec3 exact = mesh->nodes[master] + shift;
+    if ((exact - mesh->nodes[i]).norm() > on) ++moved;
+    mesh->nodes[i] = exact;
+  }
+  return moved;
+}
+
 // The volume mesher rarely leaves two nodes at one position, each used by elements on its own
 // side (a crack in the mesh: seen in 3 runs in 10 of the test scene). Such nodes are merged
 // (the lowest number kept); nodes no element uses are dropped and the rest renumbered in order.
@@ -3079,6 +3141,7 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
 
   stage(0.85, 1.0, "mesh_tet: checking the mesh");
   if (mesh.tets.empty()) throw MeshError("mesh_tet: the volume mesher made no elements");
+  mesh.snapped_nodes = snap_periodic_nodes(&mesh);
   mesh.merged_nodes = merge_coincident_nodes(&mesh);
   mesh.flat_elements_removed = remove_flat_face_elements(&mesh);
   if (options.keep_volumes) mesh.moved_nodes = keep_phase_volumes(&mesh, set);

@@ -60,6 +60,9 @@ struct TetMesh {
   std::vector<std::array<int32_t, 2>> periodic;
   /// Nodes the volume mesher left at the position of another, merged (merge_coincident_nodes).
   long long merged_nodes = 0;
+  /// Nodes on upper box faces that were more than 1e-9 of the box off the translates of their
+  /// images, put there (snap_periodic_nodes).
+  long long snapped_nodes = 0;
   /// Interface nodes moved off the exact surface to keep the phases' volumes
   /// (keep_phase_volumes).
   long long moved_nodes = 0;
@@ -199,6 +202,14 @@ Nudged nudge_off_cell(InclusionSet* set, const Vec3& origin, double min_gap);
 /// the cell tet_mesh chooses for the moved set is the one the last round cleared; `moved` counts
 /// the inclusions that any round moved, `stuck` the last round's.
 Nudged nudge_off_chosen_cell(InclusionSet* set, double min_gap);
+
+/// Puts each node that lies on an upper box face (within 1e-9 of the box's least side, the
+/// tolerance of the periodic pairs) exactly at the translate of its image on the lower faces,
+/// where one lies within 1e-6 of that side of where the image should be. Gmsh places the nodes
+/// of a curve it meshes as the copy of its periodic image on the curve itself: rarely, one
+/// lands 1e-8 off the translate of its image's. Returns the number of nodes moved by more than
+/// 1e-9 of the side (those the pairs would miss; most others move by a rounding error).
+long long snap_periodic_nodes(TetMesh* mesh);
 
 /// Merges nodes at one position (each element then uses the lowest-numbered one), drops nodes
 /// no element uses and renumbers the rest in order. Throws MeshError if an element is left with

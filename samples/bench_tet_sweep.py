@@ -9,8 +9,9 @@ settings at their defaults), whole command under GNU time. Kinds:
               min_gap 0.004;
   fibres:     isotropic fibres (radius 0.0117, L/D 10) at 0.2, box 0.6, min_gap 0.002.
 
-Prints one row per run: exit code, wall seconds, peak MiB, elements, least dihedral angle and
-elements under 5 degrees (from report.json), or the error's last line; writes the table to
+Prints one row per run: exit code, wall seconds, peak MiB, elements, least dihedral angle,
+elements under 5 degrees and the attempts that failed before the mesh was made, with their
+messages (from report.json), or the error's last line; writes the table to
 samples/charts/tet_sweep_table.md.
 
 usage: /usr/bin/python3 samples/bench_tet_sweep.py [BUILD_DIR] [--seeds 11,12,13]
@@ -68,7 +69,8 @@ def scene(kind, seed):
 
 work = tempfile.mkdtemp(prefix="rvegen-tet-sweep-")
 rows = []
-print("kind\tseed\texit\twall_s\tpeak_MiB\telements\tleast_deg\tunder_5\tnote", flush=True)
+print("kind\tseed\texit\twall_s\tpeak_MiB\telements\tleast_deg\tunder_5\tretries\tnote",
+      flush=True)
 try:
     for seed in seeds:
         for kind in kinds:
@@ -78,17 +80,21 @@ try:
                 json.dump(scene(kind, seed), f)
             rc, wall, peak, err = timed([exe, "generate", "-q", path, "-o", out])
             elements = least = under = note = ""
+            retries = ""
             try:
                 with open(os.path.join(out, "report.json")) as f:
                     mesh = json.load(f)["mesh_tet"]
                 elements = mesh["tetrahedra"]
                 least = "%.2f" % mesh["min_dihedral_degrees"]["min"]
                 under = mesh["min_dihedral_degrees"]["below_5_degrees"]
+                retries = len(mesh.get("retries", []))
+                note = "; ".join(r[:100] for r in mesh.get("retries", []))
             except (OSError, KeyError):
                 lines = [ln for ln in err.splitlines()
                          if ln.strip() and not ln.startswith("Command exited")]
                 note = lines[-1][:160] if lines else ""
-            row = (kind, seed, rc, "%.1f" % wall, "%.0f" % peak, elements, least, under, note)
+            row = (kind, seed, rc, "%.1f" % wall, "%.0f" % peak, elements, least, under, retries,
+                   note)
             rows.append(row)
             print("\t".join(str(v) for v in row), flush=True)
             shutil.rmtree(out, ignore_errors=True)
@@ -98,6 +104,6 @@ finally:
 with open(os.path.join(here, "charts", name_out + "_table.md"), "w") as f:
     f.write("Machine: %s\n\n" % machine())
     f.write("| kind | seed | exit | wall s | peak MiB | elements | least degrees | under 5 | "
-            "note |\n|---|---|---|---|---|---|---|---|---|\n")
+            "retries | note |\n|---|---|---|---|---|---|---|---|---|---|\n")
     for row in rows:
         f.write("| " + " | ".join(str(v) for v in row) + " |\n")

@@ -1478,6 +1478,9 @@ TEST(TetMesh, AnEllipsoidWhoseSurfaceTheMesherFailsOnIsBuiltInAnotherFrame) {
   EXPECT_TRUE(said("the surface mesher failed: Can't find periodic counterpart"));
   EXPECT_TRUE(said("meshing again with inclusion 0 built in another frame"));
   EXPECT_FALSE(said("again with Delaunay"));
+  // The mesh says so too (report.json's "retries").
+  ASSERT_EQ(mesh.retries.size(), 1u);
+  EXPECT_NE(mesh.retries[0].find("built in another frame"), std::string::npos);
 }
 
 // Coated ellipsoids: the shell's outer surface is the offset of the ellipsoid (every point

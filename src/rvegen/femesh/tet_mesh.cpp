@@ -3797,9 +3797,19 @@ TetMesh tet_mesh(const InclusionSet& set_in, const TetMeshOptions& options,
   // curve ..."). The inclusions about the curves named are built again in their next frame,
   // up to kFrameTurns times.
   std::vector<int> rank(set.inclusions.size(), 0);
+  // Each failure and what comes next: said as progress, and kept in the mesh made at last.
+  std::vector<std::string> retries;
+  auto retry = [&](const std::string& line) {
+    retries.push_back(line);
+    if (!steady(shown, "mesh_tet: " + line)) throw Cancelled();
+  };
+  auto made = [&](TetMesh mesh) {
+    mesh.retries = retries;
+    return mesh;
+  };
   for (int turn = 0;; ++turn) {
     try {
-      return mesh_with(set, options, steady, 6, 0.0, rank);
+      return made(mesh_with(set, options, steady, 6, 0.0, rank));
     } catch (const SurfacesRefused& e) {
       if (turn < kFrameTurns && !e.inclusions.empty()) {
         std::string ids;
@@ -3807,10 +3817,9 @@ TetMesh tet_mesh(const InclusionSet& set_in, const TetMeshOptions& options,
           ++rank[i];
           ids += (ids.empty() ? "" : ", ") + std::to_string(set.inclusions[i].id);
         }
-        if (!steady(shown, std::string("mesh_tet: ") + e.what() + "; meshing again with " +
-                               (e.inclusions.size() > 1 ? "inclusions " : "inclusion ") + ids +
-                               " built in another frame"))
-          throw Cancelled();
+        retry(std::string(e.what()) + "; meshing again with " +
+              (e.inclusions.size() > 1 ? "inclusions " : "inclusion ") + ids +
+              " built in another frame");
         continue;
       }
       // HXT refuses some surface meshes of Gmsh's default surface mesher (Frontal-Delaunay):
@@ -3819,14 +3828,12 @@ TetMesh tet_mesh(const InclusionSet& set_in, const TetMeshOptions& options,
       // (Meshing the surfaces again in the same model gave no elements; Gmsh's Delaunay volume
       // mesher on the first surfaces gave none either.) The surface mesher's own failures that
       // other frames do not end go the same way.
-      if (!steady(shown, std::string("mesh_tet: ") + e.what() +
-                             "; meshing the surfaces again with Delaunay"))
-        throw Cancelled();
+      retry(std::string(e.what()) + "; meshing the surfaces again with Delaunay");
       break;
     }
   }
   try {
-    return mesh_with(set, options, steady, 5, 0.0, rank);
+    return made(mesh_with(set, options, steady, 5, 0.0, rank));
   } catch (const SurfacesRefused& e) {
     // Where two curves of a face meet at a small angle (a face cutting a fibre nearly along it
     // and its end disk), segments as long as a coarse chord error allows cross each other
@@ -3835,12 +3842,10 @@ TetMesh tet_mesh(const InclusionSet& set_in, const TetMeshOptions& options,
     // kFinerCurveChord asks do not cross there; the surfaces keep the sizes asked.
     if (!(options.chord_error > kFinerCurveChord))
       throw MeshError("mesh_tet: " + std::string(e.what()));
-    if (!steady(shown, std::string("mesh_tet: again, ") + e.what() +
-                           "; meshing them again with curves divided finer"))
-      throw Cancelled();
+    retry("again, " + std::string(e.what()) + "; meshing them again with curves divided finer");
   }
   try {
-    return mesh_with(set, options, steady, 6, kFinerCurveChord, rank);
+    return made(mesh_with(set, options, steady, 6, kFinerCurveChord, rank));
   } catch (const SurfacesRefused& e) {
     throw MeshError("mesh_tet: " + std::string(e.what()));
   }

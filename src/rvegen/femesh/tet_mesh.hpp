@@ -82,6 +82,9 @@ struct TetMesh {
   long long raised_triangles = 0;
   /// Flat elements lying in a box face, removed (remove_flat_face_elements).
   long long flat_elements_removed = 0;
+  /// What ended each attempt before the one that made this mesh (empty when the first did), in
+  /// order: the mesher's message and what was done next.
+  std::vector<std::string> retries;
 };
 
 /// A tetrahedron's edges as pairs of its corners, in the order of the midside nodes of Abaqus's

@@ -88,7 +88,9 @@ try:
                 least = "%.2f" % mesh["min_dihedral_degrees"]["min"]
                 under = mesh["min_dihedral_degrees"]["below_5_degrees"]
                 retries = len(mesh.get("retries", []))
-                note = "; ".join(r[:100] for r in mesh.get("retries", []))
+                # Each retry: the start of the message and what followed it.
+                note = " / ".join(r[:70] + " ... " + r.rsplit("; ", 1)[-1]
+                                  for r in mesh.get("retries", []))
             except (OSError, KeyError):
                 lines = [ln for ln in err.splitlines()
                          if ln.strip() and not ln.startswith("Command exited")]

@@ -680,16 +680,13 @@ void drop_unused_nodes(TetMesh* mesh) {
 long long snap_periodic_nodes(TetMesh* mesh) {
   const Box& box = mesh->box;
   const double side = box.size.minCoeff(), on = 1e-9 * side, reach = 1e-6 * side;
-  // Masters: nodes on a lower face and on no upper face, on a grid of cells of `reach`.
+  // Masters: nodes on a lower face and on no upper face, on a grid of cells of `reach`; the
+  // cell of x, or its neighbour d (0 to 26, 13 itself).
   auto cell = [&](const Vec3& x, int d) {
+    const int step[3] = {d % 3 - 1, d / 3 % 3 - 1, d / 9 - 1};
     std::array<long long, 3> k;
     for (int a = 0; a < 3; ++a) {
-      k[a] = static_cast<long long>(std::floor((x[a] - box.origin[a]) / reach)) +
-             (d / (a == 0   ? 1
-                   : a == 1 ? 3
-                            : 9)) %
-                 3 -
-             1;
+      k[a] = static_cast<long long>(std::floor((x[a] - box.origin[a]) / reach)) + step[a];
     }
     return k;
   };

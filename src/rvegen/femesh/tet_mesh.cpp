@@ -675,13 +675,19 @@ void drop_unused_nodes(TetMesh* mesh) {
   }
 }
 
-}  // namespace
-
-long long snap_periodic_nodes(TetMesh* mesh) {
-  const Box& box = mesh->box;
-  const double side = box.size.minCoeff(), on = 1e-9 * side, reach = 1e-6 * side;
-  // Masters: nodes on a lower face and on no upper face, on a grid of cells of `reach`; the
-  // cell of x, or its neighbour d (0 to 26, 13 itself).
+// Each node on an upper box face (within `on` of it) and the node on the lower faces nearest
+// its translate there, within `reach` (-1 when none), in the order of the nodes. The candidates
+// are the nodes within `reach` of a lower face and on no upper one, on a grid of cells of
+// `reach`.
+std::vector<std::pair<int32_t, int32_t>> lower_images(const TetMesh& mesh, double on,
+                                                      double reach) {
+  const Box& box = mesh.box;
+  struct KeyHash {
+    size_t operator()(const std::array<long long, 3>& k) const {
+      return std::hash<long long>()(k[0] * 73856093LL ^ k[1] * 19349663LL ^ k[2] * 83492791LL);
+    }
+  };
+  // The cell of x, or its neighbour d (0 to 26, 13 itself).
   auto cell = [&](const Vec3& x, int d) {
     const int step[3] = {d % 3 - 1, d / 3 % 3 - 1, d / 9 - 1};
     std::array<long long, 3> k;
@@ -693,43 +699,55 @@ long long snap_periodic_nodes(TetMesh* mesh) {
   auto upper = [&](const Vec3& x, int a) {
     return std::abs(x[a] - box.origin[a] - box.size[a]) <= on;
   };
-  std::map<std::array<long long, 3>, std::vector<int32_t>> grid;
-  std::vector<int32_t> dependent;
-  for (size_t i = 0; i < mesh->nodes.size(); ++i) {
-    const Vec3& x = mesh->nodes[i];
+  std::unordered_map<std::array<long long, 3>, std::vector<int32_t>, KeyHash> grid;
+  std::vector<std::pair<int32_t, int32_t>> out;
+  for (size_t i = 0; i < mesh.nodes.size(); ++i) {
+    const Vec3& x = mesh.nodes[i];
     bool up = false, low = false;
     for (int a = 0; a < 3; ++a) {
       up = up || upper(x, a);
       low = low || std::abs(x[a] - box.origin[a]) <= reach;
     }
     if (up) {
-      dependent.push_back(static_cast<int32_t>(i));
+      out.push_back({static_cast<int32_t>(i), -1});
     } else if (low) {
       grid[cell(x, 13)].push_back(static_cast<int32_t>(i));
     }
   }
-  long long moved = 0;
-  for (const int32_t i : dependent) {
-    Vec3 shift = Vec3::Zero();
+  for (auto& [i, master] : out) {
+    Vec3 x = mesh.nodes[i];
     for (int a = 0; a < 3; ++a) {
-      if (upper(mesh->nodes[i], a)) shift[a] = box.size[a];
+      if (upper(mesh.nodes[i], a)) x[a] -= box.size[a];
     }
-    const Vec3 x = mesh->nodes[i] - shift;
-    int32_t master = -1;
     double best = reach;
     for (int d = 0; d < 27; ++d) {
       const auto it = grid.find(cell(x, d));
       if (it == grid.end()) continue;
       for (const int32_t m : it->second) {
-        const double dist = (mesh->nodes[m] - x).norm();
+        const double dist = (mesh.nodes[m] - x).norm();
         if (dist <= best) {
           best = dist;
           master = m;
         }
       }
     }
+  }
+  return out;
+}
+
+}  // namespace
+
+long long snap_periodic_nodes(TetMesh* mesh) {
+  const double side = mesh->box.size.minCoeff(), on = 1e-9 * side;
+  long long moved = 0;
+  for (const auto& [i, master] : lower_images(*mesh, on, 1e-6 * side)) {
     if (master < 0) continue;
-    const Vec3 exact = mesh->nodes[master] + shift;
+    // The master's position, moved along the axes whose upper face i lies on.
+    Vec3 exact = mesh->nodes[master];
+    for (int a = 0; a < 3; ++a) {
+      if (std::abs(mesh->nodes[i][a] - mesh->box.origin[a] - mesh->box.size[a]) <= on)
+        exact[a] += mesh->box.size[a];
+    }
     if ((exact - mesh->nodes[i]).norm() > on) ++moved;
     mesh->nodes[i] = exact;
   }
@@ -3147,50 +3165,9 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
   if (options.order == 2) add_midside_nodes(&mesh);
 
   // Periodic pairs by coordinates: every node with a coordinate at an upper end, and the node
-  // at its coordinates brought to the lower ends.
-  const double tol = 1e-9 * side;
-  auto key_of = [&](const Vec3& x) {
-    std::array<long long, 3> k;
-    for (int a = 0; a < 3; ++a) k[a] = std::llround((x[a] - box.origin[a]) / tol);
-    return k;
-  };
-  struct KeyHash {
-    size_t operator()(const std::array<long long, 3>& k) const {
-      return std::hash<long long>()(k[0] * 73856093LL ^ k[1] * 19349663LL ^ k[2] * 83492791LL);
-    }
-  };
-  std::unordered_map<std::array<long long, 3>, int32_t, KeyHash> at;
-  std::vector<int32_t> dependent;
-  // (Only nodes on a lower face can be masters: the map holds those, not all the nodes.)
-  for (size_t i = 0; i < mesh.nodes.size(); ++i) {
-    const Vec3& x = mesh.nodes[i];
-    bool upper = false, lower = false;
-    for (int a = 0; a < 3; ++a) {
-      upper = upper || std::abs(x[a] - box.origin[a] - box.size[a]) <= tol;
-      lower = lower || std::abs(x[a] - box.origin[a]) <= 3.0 * tol;  // the keys' reach
-    }
-    if (upper) {
-      dependent.push_back(static_cast<int32_t>(i));
-    } else if (lower) {
-      at[key_of(x)] = static_cast<int32_t>(i);
-    }
-  }
-  for (int32_t i : dependent) {
-    Vec3 x = mesh.nodes[i];
-    for (int a = 0; a < 3; ++a) {
-      if (std::abs(x[a] - box.origin[a] - box.size[a]) <= tol) x[a] = box.origin[a];
-    }
-    // Within the tolerance of the key's rounding: the neighbouring keys too.
-    const auto k = key_of(x);
-    int32_t master = -1;
-    for (int dx = -1; dx <= 1 && master < 0; ++dx) {
-      for (int dy = -1; dy <= 1 && master < 0; ++dy) {
-        for (int dz = -1; dz <= 1 && master < 0; ++dz) {
-          const auto it = at.find({k[0] + dx, k[1] + dy, k[2] + dz});
-          if (it != at.end()) master = it->second;
-        }
-      }
-    }
+  // at its coordinates brought to the lower ends, within 3e-9 of the side (the reach of the
+  // rounded keys that found it before; snap_periodic_nodes has put the corners exactly).
+  for (const auto& [i, master] : lower_images(mesh, 1e-9 * side, 3e-9 * side)) {
     if (master < 0) {
       const Vec3& y = mesh.nodes[i];
       throw MeshError("mesh_tet: the node at (" + std::to_string(y[0]) + ", " +

@@ -219,7 +219,7 @@ nlohmann::ordered_json tet_mesh_report(const rvegen::InclusionSet& set,
   for (double& v : exact) v *= set.box.volume();
   nlohmann::ordered_json r;
   r["files"] = {"mesh_tet.inp", "mesh_tet.msh", "mesh_tet.vtu"};
-  r["mesher"] = "Gmsh (OpenCASCADE, HXT)";
+  r["mesher"] = "Gmsh (OpenCASCADE, " + mesh.volume_mesher + ")";
   r["tetrahedra"] = mesh.tets.size();
   // 1: 4-node tetrahedra (C3D4); 2: 10-node (C3D10), straight edges (mesh_tet.order).
   r["order"] = mesh.mid.empty() ? 1 : 2;

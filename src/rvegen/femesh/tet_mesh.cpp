@@ -2283,6 +2283,13 @@ constexpr double kFinerCurveChord = 0.01;
 // How many times tet_mesh builds the inclusions about a failed surface in another frame.
 constexpr int kFrameTurns = 2;
 
+// Whether the volume mesher, not the surface mesher, refused (mesh_with's words).
+bool refused_volumes(const SurfacesRefused& e) {
+  return std::string(e.what()).rfind("the volume mesher refused", 0) == 0;
+}
+constexpr const char* kDelaunayRetry =
+    "meshing the volumes again with Gmsh's Delaunay mesher (one thread, several times slower)";
+
 // A patch of a box face at the upper end of an axis, and the patch at the lower end whose
 // translate it is.
 struct FacePair {
@@ -2469,14 +2476,65 @@ void copy_face_meshes(const std::vector<FacePair>& pairs, const Vec3& len, doubl
   }
 }
 
+// Flips each of `chords` (edges of triangles flat in a box face) that joins two triangles of
+// the surface, one of them with a node off that face: triangles (u, v, w1) and (v, u, w2)
+// become (u, w2, w1) and (v, w1, w2). Such an edge is a chord of the face's cut of the surface
+// and lies in the face, over the face's own triangles on one side of the cut or the other,
+// which the volume mesher refuses ("A segment and a facet intersect", "Two segments
+// intersect"); splitting the flat triangle about a node off the face keeps it. Flipped only
+// where both new triangles face the way the two old ones do, and the new edge is not one
+// already. Returns the edges flipped.
+template <class FacesOf>
+long long flip_chords(std::vector<std::array<std::size_t, 3>>* triangles,
+                      const std::vector<std::array<std::size_t, 2>>& chords,
+                      const std::unordered_map<std::size_t, Vec3>& at, const FacesOf& faces_of) {
+  auto& tris = *triangles;
+  auto key = [](std::size_t a, std::size_t b) {
+    return std::make_pair(std::min(a, b), std::max(a, b));
+  };
+  auto normal = [&](std::size_t a, std::size_t b, std::size_t c) {
+    const Vec3 n = (at.at(b) - at.at(a)).cross(at.at(c) - at.at(a));
+    return Vec3(n / std::max(n.norm(), 1e-300));
+  };
+  long long flipped = 0;
+  for (const auto& [u0, v0] : chords) {
+    std::map<std::pair<std::size_t, std::size_t>, std::vector<size_t>> edges;
+    for (size_t t = 0; t < tris.size(); ++t) {
+      for (int k = 0; k < 3; ++k) edges[key(tris[t][k], tris[t][(k + 1) % 3])].push_back(t);
+    }
+    const auto it = edges.find(key(u0, v0));
+    if (it == edges.end() || it->second.size() != 2) continue;
+    // t1 holds the edge as u -> v, t2 as v -> u.
+    size_t t1 = it->second[0], t2 = it->second[1];
+    int k1 = 0;
+    while (k1 < 3 && !(tris[t1][k1] == u0 || tris[t1][k1] == v0)) ++k1;
+    if (tris[t1][(k1 + 1) % 3] != u0 && tris[t1][(k1 + 1) % 3] != v0) k1 = (k1 + 2) % 3;
+    const std::size_t u = tris[t1][k1], v = tris[t1][(k1 + 1) % 3], w1 = tris[t1][(k1 + 2) % 3];
+    std::size_t w2 = 0;
+    for (const std::size_t x : tris[t2]) {
+      if (x != u && x != v) w2 = x;
+    }
+    const int face = faces_of(at.at(u)) & faces_of(at.at(v));
+    if ((face & faces_of(at.at(w1)) & faces_of(at.at(w2))) != 0) continue;
+    if (edges.count(key(w1, w2))) continue;
+    const Vec3 before = normal(u, v, w1) + normal(v, u, w2);
+    if (normal(u, w2, w1).dot(before) <= 0.0 || normal(v, w1, w2).dot(before) <= 0.0) continue;
+    tris[t1] = {u, w2, w1};
+    tris[t2] = {v, w1, w2};
+    ++flipped;
+  }
+  return flipped;
+}
+
 // A curved surface's triangle whose three nodes lie on one box face is flat in that face, over
 // the cut the face makes there (the surface meets the face along a curve, and where a strip of
 // the surface between the face and another curve is thinner than the elements, the surface
 // mesher joins three nodes of that curve). The face's own triangles then lie under it: two
 // facets that overlap, which the volume mesher refuses ("Found two exactly self-intersecting
 // facets", a 2,500-fibre scene). Each such triangle gets a node on the surface, at the point of
-// the surface nearest its centre, and is split into three about it. Returns the triangles split;
-// those whose nearest surface point is not inside the box are left.
+// the surface nearest its centre, and is split into three about it (those whose nearest surface
+// point is not inside the box are left); then its edges that are not on a curve are flipped off
+// the face (flip_chords). Returns the triangles split and the edges flipped.
 long long raise_flat_triangles(const Box& box, double tol) {
   long long raised = 0;
   std::size_t next_tag = 0;
@@ -2521,11 +2579,13 @@ long long raise_flat_triangles(const Box& box, double tol) {
     std::vector<std::size_t> own;
     std::vector<double> own_xyz, own_uv;
     gmsh::model::mesh::getNodes(own, own_xyz, own_uv, 2, s.second, false, true);
-    std::vector<std::size_t> triangles;
+    std::vector<std::array<std::size_t, 3>> triangles;
+    std::vector<std::array<std::size_t, 2>> chords;  // the flat triangles' edges
     for (size_t e = 0; e < flat.size(); ++e) {
       const std::size_t* n = &tri[3 * e];
       bool split = false;
       if (flat[e]) {
+        for (int k = 0; k < 3; ++k) chords.push_back({n[k], n[(k + 1) % 3]});
         const Vec3 c = (at[n[0]] + at[n[1]] + at[n[2]]) / 3.0;
         std::vector<double> near, uv;
         gmsh::model::getClosestPoint(2, s.second, {c[0], c[1], c[2]}, near, uv);
@@ -2535,18 +2595,20 @@ long long raise_flat_triangles(const Box& box, double tol) {
           own.push_back(++next_tag);
           own_xyz.insert(own_xyz.end(), {m[0], m[1], m[2]});
           own_uv.insert(own_uv.end(), {uv[0], uv[1]});
-          for (int k = 0; k < 3; ++k) {
-            triangles.insert(triangles.end(), {n[k], n[(k + 1) % 3], next_tag});
-          }
+          at[next_tag] = m;
+          for (int k = 0; k < 3; ++k) triangles.push_back({n[k], n[(k + 1) % 3], next_tag});
           split = true;
           ++raised;
         }
       }
-      if (!split) triangles.insert(triangles.end(), {n[0], n[1], n[2]});
+      if (!split) triangles.push_back({n[0], n[1], n[2]});
     }
+    raised += flip_chords(&triangles, chords, at, faces_of);
     gmsh::model::mesh::clear({{2, s.second}});
     if (!own.empty()) gmsh::model::mesh::addNodes(2, s.second, own, own_xyz, own_uv);
-    gmsh::model::mesh::addElementsByType(s.second, 2, {}, triangles);
+    std::vector<std::size_t> flat_list;
+    for (const auto& t : triangles) flat_list.insert(flat_list.end(), t.begin(), t.end());
+    gmsh::model::mesh::addElementsByType(s.second, 2, {}, flat_list);
   }
   return raised;
 }
@@ -2613,13 +2675,17 @@ int add_matrix(size_t box_faces, const std::vector<gmsh::vectorpair>& pieces,
   return matrix;
 }
 
-// One attempt, with Gmsh's 2D algorithm `surface_algorithm` (6: Frontal-Delaunay, 5: Delaunay).
-// With curve_chord > 0, the curves (the faces' cuts and the shells' rims) are divided as that
-// chord error asks, where it is less than options.chord_error; the surfaces and volumes as
-// options ask.
+// Gmsh's volume meshers: HXT (parallel, with its own optimiser) and Delaunay (one volume after
+// another on one thread, Gmsh's optimiser).
+constexpr int kHxt = 10, kDelaunay3d = 1;
+
+// One attempt, with Gmsh's 2D algorithm `surface_algorithm` (6: Frontal-Delaunay, 5: Delaunay)
+// and 3D algorithm `volume_algorithm` (kHxt or kDelaunay3d). With curve_chord > 0, the curves
+// (the faces' cuts and the shells' rims) are divided as that chord error asks, where it is less
+// than options.chord_error; the surfaces and volumes as options ask.
 TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
                   const TetMeshProgress& progress, int surface_algorithm, double curve_chord,
-                  const std::vector<int>& frame_rank) {
+                  const std::vector<int>& frame_rank, int volume_algorithm = kHxt) {
   // Progress by stages, each a span of the whole; inside a long stage the size callback reports
   // too (every 2^16 calls, from the calling thread only: the volume mesher calls it from its
   // own threads as well), creeping towards the stage's end. Once progress returns false the
@@ -3004,7 +3070,7 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
     gmsh::option::setNumber("Mesh.MeshSizeMax", max_size);
     gmsh::option::setNumber("Mesh.MeshSizeMin", min_size);
     gmsh::option::setNumber("Mesh.Algorithm", surface_algorithm);
-    gmsh::option::setNumber("Mesh.Algorithm3D", 10);  // HXT: parallel, with its optimiser
+    gmsh::option::setNumber("Mesh.Algorithm3D", volume_algorithm);
     gmsh::option::setNumber("Mesh.Optimize", options.optimize_threshold > 0.0 ? 1 : 0);
     gmsh::option::setNumber("Mesh.OptimizeThreshold", options.optimize_threshold);
     gmsh::option::setNumber("General.NumThreads", threads);
@@ -3814,12 +3880,28 @@ TetMesh tet_mesh(const InclusionSet& set_in, const TetMeshOptions& options,
     // ("PLC Error: Two segments intersect", with either surface mesher: seen in 2 of 8 packings
     // of 311 fibres of L/D 10 at chord error 0.1). Curves divided as a chord error of
     // kFinerCurveChord asks do not cross there; the surfaces keep the sizes asked.
-    if (!(options.chord_error > kFinerCurveChord))
-      throw MeshError("mesh_tet: " + std::string(e.what()));
-    retry("again, " + std::string(e.what()) + "; meshing them again with curves divided finer");
+    if (options.chord_error > kFinerCurveChord) {
+      retry("again, " + std::string(e.what()) + "; meshing them again with curves divided finer");
+      try {
+        return made(mesh_with(set, options, steady, 6, kFinerCurveChord, rank));
+      } catch (const SurfacesRefused& again) {
+        if (!refused_volumes(again)) throw MeshError("mesh_tet: " + std::string(again.what()));
+        retry("again, " + std::string(again.what()) + "; " + kDelaunayRetry);
+      }
+    } else {
+      if (!refused_volumes(e)) throw MeshError("mesh_tet: " + std::string(e.what()));
+      retry("again, " + std::string(e.what()) + "; " + kDelaunayRetry);
+    }
   }
+  // HXT's boundary recovery fails on some surface meshes that show no overlap, fold or
+  // sliver triangle (a packing of 429 fibres at 0.2: "failed to recover constrained
+  // lines/triangles", after all three attempts above), and Gmsh's Delaunay volume mesher takes
+  // the first attempt's surfaces: 3.6 M elements, least angle 5.04 degrees, but in 189 s on one
+  // thread against HXT's 10 s on two. So it comes last.
   try {
-    return made(mesh_with(set, options, steady, 6, kFinerCurveChord, rank));
+    TetMesh mesh = made(mesh_with(set, options, steady, 6, 0.0, rank, kDelaunay3d));
+    mesh.volume_mesher = "Delaunay";
+    return mesh;
   } catch (const SurfacesRefused& e) {
     throw MeshError("mesh_tet: " + std::string(e.what()));
   }

@@ -78,13 +78,16 @@ struct TetMesh {
   /// Rounds of the three repairs above (repair_slivers).
   int sliver_rounds = 0;
   /// Triangles of curved surfaces that lay flat in a box face, split about a node on the
-  /// surface (raise_flat_triangles).
+  /// surface, and their edges that lay in the face flipped off it (raise_flat_triangles).
   long long raised_triangles = 0;
   /// Flat elements lying in a box face, removed (remove_flat_face_elements).
   long long flat_elements_removed = 0;
   /// What ended each attempt before the one that made this mesh (empty when the first did), in
   /// order: the mesher's message and what was done next.
   std::vector<std::string> retries;
+  /// Gmsh's volume mesher that made it: "HXT", or "Delaunay" where HXT refused every attempt's
+  /// surfaces.
+  std::string volume_mesher = "HXT";
 };
 
 /// A tetrahedron's edges as pairs of its corners, in the order of the midside nodes of Abaqus's

@@ -237,6 +237,7 @@ nlohmann::ordered_json tet_mesh_report(const rvegen::InclusionSet& set,
   r["sliver_rounds"] = mesh.sliver_rounds;
   r["flat_elements_removed"] = mesh.flat_elements_removed;
   r["raised_triangles"] = mesh.raised_triangles;
+  r["flipped_chords"] = mesh.flipped_chords;
   r["retries"] = mesh.retries;
   // The cell meshed: the box, or the box moved along its axes (mesh_tet.shift_cell).
   r["cell_origin"] = {mesh.box.origin[0], mesh.box.origin[1], mesh.box.origin[2]};

@@ -383,13 +383,13 @@ double inverse_cube_integral(const SizeField& size, const Vec3& lo, const Vec3& 
 
 // OpenCASCADE's spheres (and the ellipsoids made of them) have two poles and a seam, the
 // meridian through +x of their frame (poles at +-z); its cylinders a seam along the mantle at
-// +x. They are edges of the surfaces: a box face that passes near a pole, or runs along a seam,
-// cuts a sliver between the two, and the elements there are slivers too (seen: a face 3e-5 of
-// the size from an ellipsoid's pole; a face nearly along a fibre's seam). Each solid that
-// crosses a box face is built in the frame, of a fixed set, that keeps them farthest from the
-// faces: its score is the least, over the seam's points near each face, of the larger of the
-// point's distance to the face (over the shape's extent across it) and the sine of the seam's
-// angle to the face (0 at the poles).
+// +x, between two vertices on the rims. They are edges of the surfaces: a box face that passes near
+// a pole, or runs along a seam, cuts a sliver between the two, and the elements there are slivers
+// too (seen: a face 3e-5 of the size from an ellipsoid's pole; a face nearly along a fibre's seam).
+// Each solid that crosses a box face is built in the frame, of a fixed set, that keeps them
+// farthest from the faces: its score is the least, over the seam's points near each face, of the
+// larger of the point's distance to the face (over the shape's extent across it) and the sine of
+// the seam's angle to the face (0 at the poles and at a cylinder seam's ends).
 //
 // The seam of a shape in frame P: points x(t) of the unit shape's seam and their unit tangents,
 // mapped by x -> c + M P x (M: the shape's own map; a cylinder's P turns about its axis).
@@ -404,7 +404,12 @@ Seam seam_of(const Shape& s, const Mat3& P) {
     for (int k = 0; k < kSeamPoints; ++k) {
       const double t = -1.0 + 2.0 * k / (kSeamPoints - 1);
       seam.at.push_back(s.center + s.radius * side + t * along);
-      seam.tangent.push_back(along.normalized());
+      // Its ends are vertices on the rims, scored by their distance alone (as poles are): a
+      // seam that crosses a face steeply scores well wherever it lies, and one fibre's seam
+      // ended 1.1e-5 from the face that cut its end disk (10 elements of 2.1-4.3 degrees
+      // between that vertex and the face's cut, whatever the sizes).
+      const bool end = k == 0 || k == kSeamPoints - 1;
+      seam.tangent.push_back(end ? Vec3::Zero() : Vec3(along.normalized()));
     }
     return seam;
   }
@@ -2534,8 +2539,8 @@ long long flip_chords(std::vector<std::array<std::size_t, 3>>* triangles,
 // facets", a 2,500-fibre scene). Each such triangle gets a node on the surface, at the point of
 // the surface nearest its centre, and is split into three about it (those whose nearest surface
 // point is not inside the box are left); then its edges that are not on a curve are flipped off
-// the face (flip_chords). Returns the triangles split and the edges flipped.
-long long raise_flat_triangles(const Box& box, double tol) {
+// the face (flip_chords; counted in `flipped`). Returns the triangles split.
+long long raise_flat_triangles(const Box& box, double tol, long long* flipped) {
   long long raised = 0;
   std::size_t next_tag = 0;
   gmsh::vectorpair surfaces;
@@ -2603,7 +2608,7 @@ long long raise_flat_triangles(const Box& box, double tol) {
       }
       if (!split) triangles.push_back({n[0], n[1], n[2]});
     }
-    raised += flip_chords(&triangles, chords, at, faces_of);
+    *flipped += flip_chords(&triangles, chords, at, faces_of);
     gmsh::model::mesh::clear({{2, s.second}});
     if (!own.empty()) gmsh::model::mesh::addNodes(2, s.second, own, own_xyz, own_uv);
     std::vector<std::size_t> flat_list;
@@ -3153,7 +3158,7 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
                             : ""),
           named_inclusions(e));
     }
-    mesh.raised_triangles = raise_flat_triangles(box, tol);
+    mesh.raised_triangles = raise_flat_triangles(box, tol, &mesh.flipped_chords);
     stage(0.35, 0.85, "mesh_tet: meshing the volumes");
     gmsh::model::mesh::generate(3);
     gmsh::option::setNumber("Mesh.MeshOnlyEmpty", 0);

@@ -78,8 +78,10 @@ struct TetMesh {
   /// Rounds of the three repairs above (repair_slivers).
   int sliver_rounds = 0;
   /// Triangles of curved surfaces that lay flat in a box face, split about a node on the
-  /// surface, and their edges that lay in the face flipped off it (raise_flat_triangles).
+  /// surface (raise_flat_triangles).
   long long raised_triangles = 0;
+  /// Edges of those triangles that lay in the face and on no curve, flipped off it.
+  long long flipped_chords = 0;
   /// Flat elements lying in a box face, removed (remove_flat_face_elements).
   long long flat_elements_removed = 0;
   /// What ended each attempt before the one that made this mesh (empty when the first did), in

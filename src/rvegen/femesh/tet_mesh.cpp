@@ -3884,7 +3884,9 @@ TetMesh tet_mesh(const InclusionSet& set_in, const TetMeshOptions& options,
     // and its end disk), segments as long as a coarse chord error allows cross each other
     // ("PLC Error: Two segments intersect", with either surface mesher: seen in 2 of 8 packings
     // of 311 fibres of L/D 10 at chord error 0.1). Curves divided as a chord error of
-    // kFinerCurveChord asks do not cross there; the surfaces keep the sizes asked.
+    // kFinerCurveChord asks do not cross there; the surfaces keep the sizes asked. (The one of
+    // them kept as a test was a flat triangle's chord in the face, which raise_flat_triangles
+    // now flips: it meshes at the first attempt. The other was not kept.)
     if (options.chord_error > kFinerCurveChord) {
       retry("again, " + std::string(e.what()) + "; meshing them again with curves divided finer");
       try {

@@ -2501,12 +2501,12 @@ long long flip_chords(std::vector<std::array<std::size_t, 3>>* triangles,
     const Vec3 n = (at.at(b) - at.at(a)).cross(at.at(c) - at.at(a));
     return Vec3(n / std::max(n.norm(), 1e-300));
   };
+  std::map<std::pair<std::size_t, std::size_t>, std::vector<size_t>> edges;
+  for (size_t t = 0; t < tris.size(); ++t) {
+    for (int k = 0; k < 3; ++k) edges[key(tris[t][k], tris[t][(k + 1) % 3])].push_back(t);
+  }
   long long flipped = 0;
   for (const auto& [u0, v0] : chords) {
-    std::map<std::pair<std::size_t, std::size_t>, std::vector<size_t>> edges;
-    for (size_t t = 0; t < tris.size(); ++t) {
-      for (int k = 0; k < 3; ++k) edges[key(tris[t][k], tris[t][(k + 1) % 3])].push_back(t);
-    }
     const auto it = edges.find(key(u0, v0));
     if (it == edges.end() || it->second.size() != 2) continue;
     // t1 holds the edge as u -> v, t2 as v -> u.
@@ -2526,6 +2526,12 @@ long long flip_chords(std::vector<std::array<std::size_t, 3>>* triangles,
     if (normal(u, w2, w1).dot(before) <= 0.0 || normal(v, w1, w2).dot(before) <= 0.0) continue;
     tris[t1] = {u, w2, w1};
     tris[t2] = {v, w1, w2};
+    // The edges' triangles as they are now: u-v is gone, w1-w2 is new, v-w1 moved to t2 and
+    // u-w2 to t1.
+    edges.erase(key(u, v));
+    edges[key(w1, w2)] = {t1, t2};
+    std::replace(edges[key(v, w1)].begin(), edges[key(v, w1)].end(), t1, t2);
+    std::replace(edges[key(u, w2)].begin(), edges[key(u, w2)].end(), t2, t1);
     ++flipped;
   }
   return flipped;
@@ -3887,17 +3893,21 @@ TetMesh tet_mesh(const InclusionSet& set_in, const TetMeshOptions& options,
     // kFinerCurveChord asks do not cross there; the surfaces keep the sizes asked. (The one of
     // them kept as a test was a flat triangle's chord in the face, which raise_flat_triangles
     // now flips: it meshes at the first attempt. The other was not kept.)
+    // A refusal of the volume mesher goes on to the Delaunay volume mesher (below); any other
+    // failure ends here.
+    auto to_delaunay = [&](const SurfacesRefused& refusal) {
+      if (!refused_volumes(refusal)) throw MeshError("mesh_tet: " + std::string(refusal.what()));
+      retry("again, " + std::string(refusal.what()) + "; " + kDelaunayRetry);
+    };
     if (options.chord_error > kFinerCurveChord) {
       retry("again, " + std::string(e.what()) + "; meshing them again with curves divided finer");
       try {
         return made(mesh_with(set, options, steady, 6, kFinerCurveChord, rank));
       } catch (const SurfacesRefused& again) {
-        if (!refused_volumes(again)) throw MeshError("mesh_tet: " + std::string(again.what()));
-        retry("again, " + std::string(again.what()) + "; " + kDelaunayRetry);
+        to_delaunay(again);
       }
     } else {
-      if (!refused_volumes(e)) throw MeshError("mesh_tet: " + std::string(e.what()));
-      retry("again, " + std::string(e.what()) + "; " + kDelaunayRetry);
+      to_delaunay(e);
     }
   }
   // HXT's boundary recovery fails on some surface meshes that show no overlap, fold or

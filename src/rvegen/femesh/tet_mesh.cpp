@@ -3054,6 +3054,16 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
       }
     }
     tie_face_curves(face_pairs, len, tol);
+    // The fragment can leave a curve inside a box face's patch, not on its boundary, which Gmsh
+    // then meshes with the patch as an edge its triangles must follow: a line of 8.8e-6 that
+    // continued a face's cut of a fibre's end disk past the mantle's cut (the face met the disk
+    // near its rim). Inside an upper patch, whose triangles are the lower one's translate, it
+    // was a line the volume mesher could not recover ("failed to recover constrained
+    // lines/triangles") or, recovered, a node with no image on the lower face. The patches
+    // follow their boundaries only.
+    for (const FacePair& fp : face_pairs) {
+      gmsh::model::mesh::removeEmbedded({{2, fp.upper}, {2, fp.lower}});
+    }
 
     const SizeField size(set, options, max_size, min_size);
     TetMeshOptions curve_options = options;

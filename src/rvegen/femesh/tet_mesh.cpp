@@ -3920,11 +3920,13 @@ TetMesh tet_mesh(const InclusionSet& set_in, const TetMeshOptions& options,
       to_delaunay(e);
     }
   }
-  // HXT's boundary recovery fails on some surface meshes that show no overlap, fold or
-  // sliver triangle (a packing of 429 fibres at 0.2: "failed to recover constrained
-  // lines/triangles", after all three attempts above), and Gmsh's Delaunay volume mesher takes
-  // the first attempt's surfaces: 3.6 M elements, least angle 5.04 degrees, but in 189 s on one
-  // thread against HXT's 10 s on two. So it comes last.
+  // Where HXT refuses the surfaces of all three attempts, Gmsh's Delaunay volume mesher takes
+  // the first attempt's surfaces, in several times HXT's time (one thread). It meshed the two
+  // refusals seen: a packing of 429 fibres at 0.2 ("failed to recover constrained
+  // lines/triangles"; 3.6 M elements in 189 s against HXT's 10 s, least angle 5.04 degrees),
+  // since meshed at once with HXT (its cause, a curve inside a box face, is no longer meshed),
+  // and fibres pushed to exactly min_gap apart by a move off the cell's faces that was not
+  // kept ("No elements in volume"). So it comes last.
   try {
     TetMesh mesh = made(mesh_with(set, options, steady, 6, 0.0, rank, kDelaunay3d));
     mesh.volume_mesher = "Delaunay";

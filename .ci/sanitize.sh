@@ -44,7 +44,7 @@ costs="$B/Testing/Temporary/CTestCostData.txt"
 if [ ! -s "$costs" ]; then
   mkdir -p "$(dirname "$costs")"
   cat >"$costs" <<'EOF'
-ChainRestarts.IntertwinedChainsGoBackToTheBestConfigurationAndPackFurther 1 88
+ChainRestarts.IntertwinedChainsGoBackToTheBestConfigurationAndPackFurther 1 45
 TetMesh.OverlappingShellsAreMeshedOnceAndTheirVolumesAreExact 1 25
 Md.MixedShapesWithLawsNonPeriodicAndGap 1 23
 DeformedSupport.PackingReachesHalfAndTrueSurfacesDoNotOverlap 1 17

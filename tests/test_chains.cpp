@@ -309,14 +309,15 @@ TEST(Chains, WavyFibresPackPastTheirEnvelopesWithoutTrueOverlap) {
   EXPECT_TRUE(find_overlaps(read_inclusions_json(write_inclusions_json(r.set))).empty());
 }
 
-// Coated fibres of four waves (amplitude = radius) asked at 0.30, beyond what they pack: by step
-// 500 the chains are intertwined at the contacts' scale (overlaps of 0.3-0.5 of a size, some
-// pairs at once) and no scale above the best, 0.2052, is certified again; held there, the run
-// stayed at 0.2052 to step 1,300. Going back to the best configuration (after three holds with
-// such overlaps) at half the pressure, it packs further within the same 1,000 steps, and what
-// it returns passes the audit.
+// Coated fibres of four waves (amplitude = radius) asked at 0.30, beyond what they pack: the
+// chains get intertwined at the contacts' scale (overlaps of 0.3-0.5 of a size, some pairs at
+// once) and no scale above the best is certified again. Held there, the run stops at 0.1879
+// after 1,000 steps (this scene with the going back switched off; in a 0.4 box with seed 1,
+// 0.2052, and it stayed there to step 1,300). Going back to the best configuration (after three
+// holds with such overlaps) at half the pressure, it packs further within the same 1,000 steps
+// (0.2224, twice going back), and what it returns passes the audit.
 TEST(ChainRestarts, IntertwinedChainsGoBackToTheBestConfigurationAndPackFurther) {
-  const Scene s = parse_scene(R"({"box":{"size":[0.4,0.4,0.4]},"seed":1,
+  const Scene s = parse_scene(R"({"box":{"size":[0.3,0.3,0.3]},"seed":2,
       "md":{"max_steps":1000},"families":[
       {"shape":"cylinder","radius":0.02,"aspect_ratio":8,"volume_fraction":0.3,
        "waviness":{"amplitude":0.02,"wavelength":0.08},"coating":{"thickness":0.005}}]})");
@@ -325,7 +326,7 @@ TEST(ChainRestarts, IntertwinedChainsGoBackToTheBestConfigurationAndPackFurther)
   EXPECT_EQ(r.stop_reason, StopReason::kStepBudget);
   double v = 0.0;
   for (const auto& inc : r.set.inclusions) v += inc.shape.volume();
-  EXPECT_GT(v / r.set.box.volume(), 0.212);
+  EXPECT_GT(v / r.set.box.volume(), 0.205);
   EXPECT_TRUE(find_overlaps(r.set).empty());
 }
 

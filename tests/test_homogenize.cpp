@@ -297,6 +297,60 @@ TEST(Conductivity, ProgressCanStopTheSolve) {
   EXPECT_LT(last, 1.0);
 }
 
+// The solver keeps its residual in Fourier space and sums |r|^2 there (Parseval, each stored
+// frequency counted with its conjugate). The residual it reports is that of the field it returns:
+// |P[k (E + x)]| / |P[k E]|, computed here in real space, after one and four iterations (far
+// from convergence), on grids with an even and an odd number of voxels along x (the planes of
+// frequencies stored once differ).
+TEST(Conductivity, ReportedResidualIsThatOfTheReturnedField) {
+  const Vec3 box(1.0, 1.2, 0.9);
+  for (const std::array<int, 3> d : {std::array<int, 3>{8, 6, 5}, std::array<int, 3>{7, 6, 4}}) {
+    SCOPED_TRACE(std::to_string(d[0]) + "x" + std::to_string(d[1]) + "x" + std::to_string(d[2]));
+    const size_t n = static_cast<size_t>(d[0]) * d[1] * d[2];
+    std::mt19937 rng(3);
+    std::vector<double> k(n);
+    for (double& v : k) v = rng() % 3 == 0 ? 10.0 : 1.0;
+    spectral::Grid grid(d, box, GradientScheme::kRotated, 0);
+    // |P f| for a 3-component field f (component-major).
+    auto projected_norm = [&](std::vector<double> f) {
+      const spectral::Grid::Projector project = [&](size_t lo, size_t hi, double* const* v,
+                                                    const double* inv_norm) {
+        grid.for_each_unit_direction(lo, hi, inv_norm, [&](size_t at, const double* xi) {
+          for (size_t part = 2 * (at - lo); part < 2 * (at - lo) + 2; ++part) {
+            const double s = xi[0] * v[0][part] + xi[1] * v[1][part] + xi[2] * v[2][part];
+            for (int a = 0; a < 3; ++a) v[a][part] = xi[a] * s;
+          }
+        });
+      };
+      std::vector<spectral::Spectrum> spectra(3);
+      for (auto& s : spectra) s.resize(grid.spectrum_size());
+      grid.load(f.data(), spectra);
+      grid.convolve(spectra, project);
+      grid.unload(spectra, f.data());
+      double sum = 0.0;
+      for (double v : f) sum += v * v;
+      return std::sqrt(sum);
+    };
+    for (int iterations : {1, 4}) {
+      ConductivityOptions opt;
+      opt.tolerance = 1e-14;
+      opt.max_iterations = iterations;
+      std::vector<std::vector<double>> fields(3);
+      opt.field = [&](int load, const std::vector<double>& g) { fields[load] = g; };
+      const ConductivityResult res = effective_conductivity(d, box, k, opt);
+      for (int load = 0; load < 3; ++load) {
+        std::vector<double> flux_e(3 * n, 0.0), flux(3 * n);
+        for (size_t i = 0; i < n; ++i) flux_e[load * n + i] = k[i];
+        for (size_t i = 0; i < 3 * n; ++i) flux[i] = k[i % n] * fields[load][i];
+        const double residual = projected_norm(flux) / projected_norm(flux_e);
+        EXPECT_EQ(res.iterations[load], iterations);
+        EXPECT_GT(res.residual[load], 1e-3);
+        EXPECT_NEAR(res.residual[load] / residual, 1.0, 1e-9) << "load " << load;
+      }
+    }
+  }
+}
+
 }  // namespace
 }  // namespace rvegen
 

@@ -1,5 +1,6 @@
 #include "rvegen/homogenize/conductivity.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <string>
@@ -17,14 +18,26 @@ constexpr double kTensorRounding = 1e-12;
 
 // The orthogonal projection onto discrete gradient fields, k k^H / |k|^2 = xi xi^T at each
 // frequency (xi the real unit direction of k), on 3-component fields.
+// The projection onto gradients at one frequency, xi (xi . v): a gradient's potential is the
+// one complex value xi . v. Real coefficients: the real and the imaginary parts as one pair.
 struct GradientKernel {
   static constexpr int kComponents = 3;
-  // Real coefficients: the real and the imaginary parts as one pair.
-  static void project(double* const* v, size_t i, const double* xi) {
-    const spectral::Pair s = xi[0] * spectral::load_pair(v[0] + i) +
-                             xi[1] * spectral::load_pair(v[1] + i) +
-                             xi[2] * spectral::load_pair(v[2] + i);
+  static constexpr int kPotentials = 1;
+  using Pair = spectral::Pair;
+  static void reduce(double* const* v, size_t i, const double* xi, Pair* w) {
+    w[0] = xi[0] * spectral::load_pair(v[0] + i) + xi[1] * spectral::load_pair(v[1] + i) +
+           xi[2] * spectral::load_pair(v[2] + i);
+  }
+  static void expand(const Pair* w, const double* xi, double scale, double* const* v, size_t i) {
+    const Pair s = scale * w[0];
     for (int a = 0; a < 3; ++a) spectral::store_pair(v[a] + i, xi[a] * s);
+  }
+  // |xi w|^2 for |xi| = 1 (w is 0 where xi is).
+  static Pair norm(const Pair* w, const double*) { return w[0] * w[0]; }
+  static void project(double* const* v, size_t i, const double* xi) {
+    Pair w[1];
+    reduce(v, i, xi, w);
+    expand(w, xi, 1.0, v, i);
   }
 };
 using GradientProjection = spectral::Projection<GradientKernel>;
@@ -87,9 +100,9 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
   GradientProjection project(dims, box_size, opt.scheme, opt.threads, opt.comm);
   const spectral::Grid& grid = project.grid();
   ConductivityResult res;
-  // For conjugate gradients, the solver's residual and direction (products computed in place:
-  // the projection reads every component before it writes one), and x only for the local
-  // fields; for the fixed-point scheme x, tmp, e and r.
+  // For conjugate gradients, the solver's r and s as potentials, one complex value a frequency
+  // (spectral::GalerkinFields; p and x too for the local fields, and x's field); for the
+  // fixed-point scheme x, tmp, e and r.
   const bool fixed_point = opt.solver == LinearSolver::kFixedPoint;
   std::vector<double> x(fixed_point || opt.field ? 3 * n : 0), tmp, e, r;
   if (fixed_point) tmp.resize(3 * n), e.resize(3 * n), r.resize(3 * n);
@@ -110,85 +123,126 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
   auto times_k = [&](const std::vector<double>& f, std::vector<double>* out) {
     times(f, out, 0.0);
   };
-  std::vector<double> b, work;  // the right-hand side, and the solver's (kept over the loads)
+  std::vector<double> b;            // the fixed-point scheme's right-hand side
+  spectral::GalerkinFields fields;  // the solver's (kept over the loads)
+  spectral::GalerkinOperator op;
+  op.components = 3;
+  op.potentials = GradientKernel::kPotentials;
+  // Isotropic tensors (the phases; composite voxels have general ones) by their one number.
+  std::vector<double> scalar(medium.tensors.size(), -1.0);  // -1: not isotropic
+  for (size_t t = 0; t < medium.tensors.size(); ++t) {
+    const Mat3& k = medium.tensors[t];
+    if (k == k(0, 0) * Mat3::Identity()) scalar[t] = k(0, 0);
+  }
+  op.flux = [&](double* const* v, size_t lo, size_t hi, double* sums) {
+    using spectral::load_pair;
+    using spectral::Pair;
+    using spectral::store_pair;
+    // Runs of up to 64 voxels: where every voxel of a run is isotropic, two voxels at a time
+    // from their conductivities, gathered first; otherwise voxel by voxel. The sums in two
+    // lanes, added at the end of each run.
+    constexpr size_t kRun = 64;
+    double k[kRun];
+    double dot = 0.0, m[3] = {0.0, 0.0, 0.0};
+    for (size_t first = lo; first < hi; first += kRun) {
+      const size_t width = std::min(kRun, hi - first), o = first - lo;
+      bool isotropic = width % 2 == 0;
+      for (size_t j = 0; j < width && isotropic; ++j) {
+        k[j] = scalar[medium.index[first + j]];
+        isotropic = k[j] >= 0.0;
+      }
+      if (isotropic) {
+        Pair pdot = {0.0, 0.0}, pm[3] = {{0.0, 0.0}, {0.0, 0.0}, {0.0, 0.0}};
+        for (size_t j = 0; j < width; j += 2) {
+          const Pair kj = load_pair(k + j);
+          for (int c = 0; c < 3; ++c) {
+            const Pair g = load_pair(v[c] + o + j), q = kj * g;
+            store_pair(v[c] + o + j, q);
+            pdot += g * q;
+            pm[c] += q;
+          }
+        }
+        dot += pdot[0] + pdot[1];
+        for (int c = 0; c < 3; ++c) m[c] += pm[c][0] + pm[c][1];
+        continue;
+      }
+      for (size_t i = first, j = o; i < first + width; ++i, ++j) {
+        const Vec3 g(v[0][j], v[1][j], v[2][j]);
+        const Vec3 q = medium.at(i) * g;
+        double gq = 0.0;
+        for (int c = 0; c < 3; ++c) {
+          v[c][j] = q[c];
+          gq += g[c] * q[c];
+          m[c] += q[c];
+        }
+        dot += gq;
+      }
+    }
+    sums[0] += dot;
+    for (int c = 0; c < 3; ++c) sums[1 + c] += m[c];
+  };
+  op.step = [&](const spectral::GalerkinStep& st) { return project.galerkin_step(st); };
   for (int load = 0; load < 3; ++load) {
     // Mean gradient E = unit vector along `load`; unknown: the fluctuation x (a gradient field
     // with zero mean); equilibrium: P[k (E + x)] = 0, i.e. P[k x] = -P[k E].
-    b.assign(3 * n, 0.0);
-    std::fill(b.begin() + load * n, b.begin() + (load + 1) * n, 1.0);
-    const std::vector<double> mean =
-        opt.solver == LinearSolver::kFixedPoint ? b : std::vector<double>();
-    times_k(b, &b);
-    project.apply(b.data(), b.data());
-    for (double& v : b) v = -v;
-    const double bnorm = std::sqrt(grid.dot(b, b));
     auto progress = [&](int it, double rel) {
       return !opt.progress || opt.progress(load, it, rel);
     };
     spectral::CgOutcome out;
+    bool solved = false;  // a right-hand side of 0 asks for nothing
     if (opt.solver == LinearSolver::kConjugateGradient) {
-      spectral::GalerkinOperator op;
-      op.components = 3;
-      op.flux = [&](const double* p, double* const* out, size_t lo, size_t hi, size_t at,
-                    double* sums) {
-        double* o[3] = {out[0] + at, out[1] + at, out[2] + at};
-        double dot = 0.0, m[3] = {0.0, 0.0, 0.0};
-        const size_t nx = hi - lo;
-        for (size_t i = lo, j = 0; i < hi; ++i, ++j) {
-          const Vec3 v(p[j], p[nx + j], p[2 * nx + j]);
-          const Vec3 q = medium.at(i) * v;
-          double pq = 0.0;
-          for (int c = 0; c < 3; ++c) {
-            o[c][j] = q[c];
-            pq += v[c] * q[c];
-            m[c] += q[c];
-          }
-          dot += pq;
-        }
-        sums[0] += dot;
-        for (int c = 0; c < 3; ++c) sums[1 + c] += m[c];
-      };
-      op.project = project.projector();
+      double e[3] = {0.0, 0.0, 0.0};
+      e[load] = 1.0;
       std::vector<double> flux;
-      out = spectral::conjugate_gradients_galerkin(project.grid(), project.spectra(), op, b, work,
+      out = spectral::conjugate_gradients_galerkin(project.grid(), project.spectra(), op, e, fields,
                                                    opt.field ? &x : nullptr, &flux, opt.tolerance,
                                                    opt.max_iterations, progress);
+      solved = out.iterations > 0;
       // The mean flux: that of E plus the mean of k x, summed as the solver went.
       res.tensor.col(load) = mean_tensor.col(load) + Vec3(flux[0], flux[1], flux[2]);
-    } else if (bnorm > 0.0) {
-      // Basic scheme with the reference k0 = (kmin + kmax) / 2: x <- -P[(k - k0)(E + x)] / k0;
-      // the residual is the gradient part of the flux of the new iterate.
-      const double k0 = 0.5 * (kmin + kmax);
-      std::fill(x.begin(), x.end(), 0.0);
-      for (int it = 1; it <= opt.max_iterations; ++it) {
-        for (size_t i = 0; i < 3 * n; ++i) e[i] = mean[i] + x[i];
-        times(e, &tmp, k0);
-        project.apply(tmp.data(), x.data());
-        for (double& v : x) v /= -k0;
-        for (size_t i = 0; i < 3 * n; ++i) e[i] = mean[i] + x[i];
-        times_k(e, &tmp);
-        project.apply(tmp.data(), r.data());
-        out.iterations = it;
-        out.residual = std::sqrt(grid.dot(r, r)) / bnorm;
-        if (grid.sum(progress(it, out.residual) ? 0.0 : 1.0) > 0.0) {  // on any rank
-          out.stopped = true;
-          break;
-        }
-        if (out.residual < opt.tolerance) break;
-      }
     } else {
-      std::fill(x.begin(), x.end(), 0.0);
-      res.tensor.col(load) = mean_tensor.col(load);
+      b.assign(3 * n, 0.0);
+      std::fill(b.begin() + load * n, b.begin() + (load + 1) * n, 1.0);
+      const std::vector<double> mean = b;
+      times_k(b, &b);
+      project.apply(b.data(), b.data());
+      const double bnorm = std::sqrt(grid.dot(b, b));
+      solved = bnorm > 0.0;
+      if (solved) {
+        // Basic scheme with the reference k0 = (kmin + kmax) / 2: x <- -P[(k - k0)(E + x)] / k0;
+        // the residual is the gradient part of the flux of the new iterate.
+        const double k0 = 0.5 * (kmin + kmax);
+        std::fill(x.begin(), x.end(), 0.0);
+        for (int it = 1; it <= opt.max_iterations; ++it) {
+          for (size_t i = 0; i < 3 * n; ++i) e[i] = mean[i] + x[i];
+          times(e, &tmp, k0);
+          project.apply(tmp.data(), x.data());
+          for (double& v : x) v /= -k0;
+          for (size_t i = 0; i < 3 * n; ++i) e[i] = mean[i] + x[i];
+          times_k(e, &tmp);
+          project.apply(tmp.data(), r.data());
+          out.iterations = it;
+          out.residual = std::sqrt(grid.dot(r, r)) / bnorm;
+          if (grid.sum(progress(it, out.residual) ? 0.0 : 1.0) > 0.0) {  // on any rank
+            out.stopped = true;
+            break;
+          }
+          if (out.residual < opt.tolerance) break;
+        }
+      } else {
+        std::fill(x.begin(), x.end(), 0.0);
+        res.tensor.col(load) = mean_tensor.col(load);
+      }
     }
     if (out.stopped) throw Cancelled();
     res.iterations[load] = out.iterations;
     res.residual[load] = out.residual;
-    if (bnorm > 0.0 && !(out.residual < opt.tolerance)) res.converged = false;
+    if (solved && !(out.residual < opt.tolerance)) res.converged = false;
     // The local gradient E + x (x is reset by the next solve).
     if (!x.empty()) {
       for (size_t i = 0; i < n; ++i) x[load * n + i] += 1.0;
     }
-    if (fixed_point && bnorm > 0.0) {
+    if (fixed_point && solved) {
       // The fixed-point scheme's mean flux, voxel by voxel in order.
       Vec3 sum = Vec3::Zero();
       for (size_t i = 0; i < n; ++i) sum += medium.at(i) * Vec3(x[i], x[n + i], x[2 * n + i]);

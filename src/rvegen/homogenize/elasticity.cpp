@@ -1,5 +1,6 @@
 #include "rvegen/homogenize/elasticity.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <map>
@@ -21,10 +22,12 @@ const double kInvSqrt2 = 1.0 / std::sqrt(2.0);
 // inverted by Sherman-Morrison with |xi| = 1; c meets its conjugate and drops out).
 struct StrainKernel {
   static constexpr int kComponents = 6;
-  // P on one frequency of each component's spectrum (its real and imaginary parts at v[c][i]
-  // and v[c][i + 1], as one pair: the coefficients are real).
-  static void project(double* const* v, size_t i, const double* xi) {
-    using spectral::Pair;
+  // A compatible strain's potential: the displacement u, three complex values.
+  static constexpr int kPotentials = 3;
+  using Pair = spectral::Pair;
+  // u of P on one frequency of each component's spectrum (its real and imaginary parts at
+  // v[c][i] and v[c][i + 1], as one pair: the coefficients are real).
+  static void reduce(double* const* v, size_t i, const double* xi, Pair* u) {
     // The tensor from its Mandel components, T xi, and xi . T xi.
     const Pair t00 = spectral::load_pair(v[0] + i), t11 = spectral::load_pair(v[1] + i),
                t22 = spectral::load_pair(v[2] + i);
@@ -35,14 +38,32 @@ struct StrainKernel {
     const Pair d1 = t01 * xi[0] + t11 * xi[1] + t12 * xi[2];
     const Pair d2 = t02 * xi[0] + t12 * xi[1] + t22 * xi[2];
     const Pair kd = xi[0] * d0 + xi[1] * d1 + xi[2] * d2;
-    const Pair u0 = 2.0 * d0 - xi[0] * kd, u1 = 2.0 * d1 - xi[1] * kd, u2 = 2.0 * d2 - xi[2] * kd;
+    u[0] = 2.0 * d0 - xi[0] * kd;
+    u[1] = 2.0 * d1 - xi[1] * kd;
+    u[2] = 2.0 * d2 - xi[2] * kd;
+  }
+  // scale sym(xi (x) u) in Mandel components (shear: sqrt 2 (xi_i u_j + xi_j u_i) / 2).
+  static void expand(const Pair* w, const double* xi, double scale, double* const* v, size_t i) {
+    const Pair u0 = scale * w[0], u1 = scale * w[1], u2 = scale * w[2];
     spectral::store_pair(v[0] + i, xi[0] * u0);
     spectral::store_pair(v[1] + i, xi[1] * u1);
     spectral::store_pair(v[2] + i, xi[2] * u2);
-    // Mandel shear components: sqrt 2 (xi_i u_j + xi_j u_i) / 2.
     spectral::store_pair(v[3] + i, (xi[1] * u2 + xi[2] * u1) * kInvSqrt2);
     spectral::store_pair(v[4] + i, (xi[0] * u2 + xi[2] * u0) * kInvSqrt2);
     spectral::store_pair(v[5] + i, (xi[0] * u1 + xi[1] * u0) * kInvSqrt2);
+  }
+  // |sym(xi (x) u)|^2 = (|u|^2 + (xi . u)^2) / 2 for |xi| = 1, lane by lane (u is 0 where xi
+  // is: there reduce gives 0).
+  static Pair norm(const Pair* u, const double* xi) {
+    const Pair xu = xi[0] * u[0] + xi[1] * u[1] + xi[2] * u[2];
+    const Pair uu = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+    return 0.5 * (uu + xu * xu);
+  }
+  // P on one frequency.
+  static void project(double* const* v, size_t i, const double* xi) {
+    Pair u[3];
+    reduce(v, i, xi, u);
+    expand(u, xi, 1.0, v, i);
   }
 };
 using StrainProjection = spectral::Projection<StrainKernel>;
@@ -146,74 +167,93 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
   for (uint32_t i : medium.index) {
     if (i >= medium.tensors.size()) throw InputError("homogenization: a voxel has no tensor");
   }
-  // Stress of a strain field (6 Mandel components, component-major).
-  auto stress = [&](const std::vector<double>& e, std::vector<double>* s) {
-    spectral::parallel_blocks(n, [&](size_t lo, size_t hi) {
-      Vec6 v;
-      for (size_t i = lo; i < hi; ++i) {
-        for (int c = 0; c < 6; ++c) v[c] = e[c * n + i];
-        const Vec6 t = medium.at(i) * v;
-        for (int c = 0; c < 6; ++c) (*s)[c * n + i] = t[c];
-      }
-    });
-  };
   StrainProjection project(dims, box_size, opt.scheme, opt.threads, opt.comm);
   ElasticityResult res;
-  // At peak: the solver's residual and direction (two 6-component fields, and x only for the
-  // local fields) and the six spectra (the flux is formed in them and transformed in place);
-  // the right-hand side's stress and its projection are computed in place (the projection
-  // reads every component before it writes one).
-  std::vector<double> x(opt.field ? 6 * n : 0);
+  // At peak: the six buffers the transforms run in, and the solver's r and s (p and x too for
+  // the local fields, and x's field) as displacements, three complex values a frequency.
+  std::vector<double> x;
   // The mean of the stiffnesses: the mean stress of a uniform strain.
   Mat6 mean_tensor = medium.sum();
   sum_over_ranks(mean_tensor.data(), 36, opt.comm);
   mean_tensor /= static_cast<double>(whole);
   spectral::GalerkinOperator op;
   op.components = 6;
+  op.potentials = StrainKernel::kPotentials;
   // Isotropic stiffnesses (the phases; composite voxels have general ones) by their three
   // numbers: 7 products instead of 36.
   const std::vector<IsotropicPart> iso = isotropic_parts(medium.tensors);
-  op.flux = [&](const double* p, double* const* out, size_t lo, size_t hi, size_t at,
-                double* sums) {
-    double* o[6];
-    for (int c = 0; c < 6; ++c) o[c] = out[c] + at;
+  op.flux = [&](double* const* v, size_t lo, size_t hi, double* sums) {
+    using spectral::load_pair;
+    using spectral::Pair;
+    using spectral::store_pair;
+    // Runs of up to 64 voxels: where every voxel of a run is isotropic, two voxels at a time
+    // from their three numbers, gathered first; otherwise voxel by voxel. The sums in two lanes,
+    // added at the end of each run.
+    constexpr size_t kRun = 64;
+    double normal[kRun], lambda[kRun], two_mu[kRun];
     double dot = 0.0, m[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
-    Vec6 v, t;
-    const size_t nx = hi - lo;
-    for (size_t i = lo, j = 0; i < hi; ++i, ++j) {
-      for (int k = 0; k < 6; ++k) v[k] = p[k * nx + j];
-      const uint32_t id = medium.index[i];
-      const IsotropicPart& ip = iso[id];
-      if (ip.isotropic) {
-        const double l = ip.lambda * (v[0] + v[1] + v[2]);
-        for (int c = 0; c < 3; ++c) t[c] = ip.normal * v[c] + l;
-        for (int c = 3; c < 6; ++c) t[c] = ip.two_mu * v[c];
-      } else {
-        t = medium.tensors[id] * v;
+    for (size_t first = lo; first < hi; first += kRun) {
+      const size_t width = std::min(kRun, hi - first), o = first - lo;
+      bool isotropic = width % 2 == 0;
+      for (size_t j = 0; j < width && isotropic; ++j) {
+        const IsotropicPart& ip = iso[medium.index[first + j]];
+        isotropic = ip.isotropic;
+        normal[j] = ip.normal;
+        lambda[j] = ip.lambda;
+        two_mu[j] = ip.two_mu;
       }
-      double pt = 0.0;
-      for (int c = 0; c < 6; ++c) {
-        o[c][j] = t[c];
-        pt += v[c] * t[c];
-        m[c] += t[c];
+      if (isotropic) {
+        Pair pdot = {0.0, 0.0}, pm[6];
+        for (Pair& q : pm) q = Pair{0.0, 0.0};
+        for (size_t j = 0; j < width; j += 2) {
+          Pair e[6];
+          for (int c = 0; c < 6; ++c) e[c] = load_pair(v[c] + o + j);
+          const Pair nor = load_pair(normal + j), mu2 = load_pair(two_mu + j);
+          const Pair l = load_pair(lambda + j) * (e[0] + e[1] + e[2]);
+          for (int c = 0; c < 6; ++c) {
+            const Pair t = c < 3 ? nor * e[c] + l : mu2 * e[c];
+            store_pair(v[c] + o + j, t);
+            pdot += e[c] * t;
+            pm[c] += t;
+          }
+        }
+        dot += pdot[0] + pdot[1];
+        for (int c = 0; c < 6; ++c) m[c] += pm[c][0] + pm[c][1];
+        continue;
       }
-      dot += pt;
+      Vec6 e, t;
+      for (size_t i = first, j = o; i < first + width; ++i, ++j) {
+        for (int k = 0; k < 6; ++k) e[k] = v[k][j];
+        const uint32_t id = medium.index[i];
+        const IsotropicPart& ip = iso[id];
+        if (ip.isotropic) {
+          const double l = ip.lambda * (e[0] + e[1] + e[2]);
+          for (int c = 0; c < 3; ++c) t[c] = ip.normal * e[c] + l;
+          for (int c = 3; c < 6; ++c) t[c] = ip.two_mu * e[c];
+        } else {
+          t = medium.tensors[id] * e;
+        }
+        double et = 0.0;
+        for (int c = 0; c < 6; ++c) {
+          v[c][j] = t[c];
+          et += e[c] * t[c];
+          m[c] += t[c];
+        }
+        dot += et;
+      }
     }
     sums[0] += dot;
     for (int c = 0; c < 6; ++c) sums[1 + c] += m[c];
   };
-  op.project = project.projector();
-  std::vector<double> b, work;  // the right-hand side, and the solver's (kept over the loads)
+  op.step = [&](const spectral::GalerkinStep& st) { return project.galerkin_step(st); };
+  spectral::GalerkinFields fields;  // the solver's (kept over the loads)
   for (int load = 0; load < 6; ++load) {
-    // Right-hand side: minus the projected stress of the uniform unit strain `load`.
-    b.assign(6 * n, 0.0);
-    std::fill(b.begin() + load * n, b.begin() + (load + 1) * n, 1.0);
-    stress(b, &b);
-    project.apply(b.data(), b.data());
-    for (double& v : b) v = -v;
+    // The uniform unit strain `load`; the solver finds the fluctuation x with P C (E + x) = 0.
+    double e[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+    e[load] = 1.0;
     std::vector<double> flux;
     const spectral::CgOutcome out = spectral::conjugate_gradients_galerkin(
-        project.grid(), project.spectra(), op, b, work, opt.field ? &x : nullptr, &flux,
+        project.grid(), project.spectra(), op, e, fields, opt.field ? &x : nullptr, &flux,
         opt.tolerance, opt.max_iterations,
         [&](int it, double rel) { return !opt.progress || opt.progress(load, it, rel); });
     if (out.stopped) throw Cancelled();
@@ -223,7 +263,7 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
     // The mean stress: that of the unit strain plus the mean of C x, summed as the solver went.
     res.stiffness.col(load) = mean_tensor.col(load) + Eigen::Map<const Vec6>(flux.data());
     if (opt.field) {
-      // The local strain: the unit strain plus the fluctuation (x is reset by the next solve).
+      // The local strain: the unit strain plus the fluctuation.
       for (size_t i = 0; i < n; ++i) x[load * n + i] += 1.0;
       opt.field(load, x);
     }

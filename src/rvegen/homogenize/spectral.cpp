@@ -411,43 +411,65 @@ std::vector<double> Grid::sweep(std::vector<Spectrum>& spectra, bool finish, boo
   return total;
 }
 
-void Grid::middle(std::vector<Spectrum>& spectra, const Projector& project) {
-  const size_t d = spectra.size();
+std::vector<double> Grid::frequency_pass(std::vector<Spectrum>& spectra, bool forward, bool inverse,
+                                         int slots, const FrequencyPass& f) {
+  const size_t d = spectra.size(), k = static_cast<size_t>(std::max(slots, 0));
   if (d > 6) throw std::logic_error("homogenization: at most six fields");
+  std::vector<double> part;
   if (comm_.set) {
+    part.assign(((nc_ + kBlock - 1) / kBlock) * k, 0.0);
     parallel_blocks(nc_, [&](size_t lo, size_t hi) {
       double* v[6];
       for (size_t c = 0; c < d; ++c) v[c] = reinterpret_cast<double*>(spectra[c].data() + lo);
-      project(lo, hi, v, inv_norm_.data() + lo);
+      f(lo, hi - lo, lo, v, inv_norm_.data() + lo, part.data() + (lo / kBlock) * k);
     });
-    return;
+  } else {
+    const size_t nz = static_cast<size_t>(dims_[2]), per_plane = nc_ / nz;
+    const size_t blocks = (per_plane + columns_ - 1) / columns_;
+    part.assign(blocks * k, 0.0);
+    tbb::parallel_for(
+        tbb::blocked_range<size_t>(0, blocks, 1),
+        [&](const tbb::blocked_range<size_t>& r) {
+          for (size_t b = r.begin(); b != r.end(); ++b) {
+            const size_t first = b * columns_, width = std::min(columns_, per_plane - first);
+            const int w = width == columns_ ? 0 : 1;
+            if (forward) {
+              for (size_t c = 0; c < d; ++c) {
+                auto* col = reinterpret_cast<fftw_complex*>(spectra[c].data() + first);
+                fftw_execute_dft(static_cast<fftw_plan>(column_plan_[w][0]), col, col);
+              }
+            }
+            double* v[6];
+            const double* inv_norm = inv_norm_.data() + first * nz;  // the blocks before are full
+            for (size_t z = 0; z < nz; ++z) {
+              const size_t at = z * per_plane + first;
+              for (size_t c = 0; c < d; ++c) {
+                v[c] = reinterpret_cast<double*>(spectra[c].data() + at);
+              }
+              f(at, width, first * nz + z * width, v, inv_norm + z * width, part.data() + b * k);
+            }
+            if (inverse) {
+              for (size_t c = 0; c < d; ++c) {
+                auto* col = reinterpret_cast<fftw_complex*>(spectra[c].data() + first);
+                fftw_execute_dft(static_cast<fftw_plan>(column_plan_[w][1]), col, col);
+              }
+            }
+          }
+        },
+        tbb::simple_partitioner());
   }
-  const size_t nz = static_cast<size_t>(dims_[2]), per_plane = nc_ / nz;
-  const size_t blocks = (per_plane + columns_ - 1) / columns_;
-  tbb::parallel_for(
-      tbb::blocked_range<size_t>(0, blocks, 1),
-      [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t b = r.begin(); b != r.end(); ++b) {
-          const size_t first = b * columns_, width = std::min(columns_, per_plane - first);
-          const int w = width == columns_ ? 0 : 1;
-          for (size_t c = 0; c < d; ++c) {
-            auto* col = reinterpret_cast<fftw_complex*>(spectra[c].data() + first);
-            fftw_execute_dft(static_cast<fftw_plan>(column_plan_[w][0]), col, col);
-          }
-          double* v[6];
-          const double* inv_norm = inv_norm_.data() + first * nz;  // the blocks before are full
-          for (size_t z = 0; z < nz; ++z) {
-            const size_t at = z * per_plane + first;
-            for (size_t c = 0; c < d; ++c) v[c] = reinterpret_cast<double*>(spectra[c].data() + at);
-            project(at, at + width, v, inv_norm + z * width);
-          }
-          for (size_t c = 0; c < d; ++c) {
-            auto* col = reinterpret_cast<fftw_complex*>(spectra[c].data() + first);
-            fftw_execute_dft(static_cast<fftw_plan>(column_plan_[w][1]), col, col);
-          }
-        }
-      },
-      tbb::simple_partitioner());
+  std::vector<double> total(k, 0.0);
+  for (size_t b = 0; b < part.size() / std::max<size_t>(k, 1); ++b) {
+    for (size_t j = 0; j < k; ++j) total[j] += part[b * k + j];
+  }
+  sum_over_ranks(total.data(), slots, comm_);
+  return total;
+}
+
+void Grid::middle(std::vector<Spectrum>& spectra, const Projector& project) {
+  frequency_pass(spectra, true, true, 0,
+                 [&](size_t at, size_t width, size_t, double* const* v, const double* inv_norm,
+                     double*) { project(at, at + width, v, inv_norm); });
 }
 
 void Grid::convolve(std::vector<Spectrum>& spectra, const Projector& project) {
@@ -467,109 +489,95 @@ void free_aligned(void* p) {
 }
 
 CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectra,
-                                       const GalerkinOperator& op, std::vector<double>& b,
-                                       std::vector<double>& work, std::vector<double>* x,
+                                       const GalerkinOperator& op, const double* load,
+                                       GalerkinFields& fields, std::vector<double>* x,
                                        std::vector<double>* mean_flux, double tolerance,
                                        int max_iterations,
                                        const std::function<bool(int, double)>& progress) {
   CgOutcome out;
   const int d = op.components;
   const size_t dd = static_cast<size_t>(d);
-  if (x) std::fill(x->begin(), x->end(), 0.0);
-  mean_flux->assign(d, 0.0);
-  const double bnorm = std::sqrt(grid.dot(b, b));
-  if (!(bnorm > 0.0)) return out;
   const size_t n = grid.size(), nx = grid.row(), stride = grid.row_stride();
-  // The residual and the direction row by row, a row's d components one after another (row
-  // `row`, component c, voxel j of the row at (row d + c) nx + j): the passes then stream two
-  // fields instead of 2 d, which is what bounds them, and each component's values stay
-  // contiguous for the vector units. b's storage becomes the direction.
-  std::vector<double>& r = work;
-  r.resize(dd * n);
-  parallel_blocks(n, [&](size_t lo, size_t hi) {
-    for (size_t i = lo; i < hi; ++i) {
-      const size_t block = (i / nx) * dd * nx, j = i % nx;
-      for (size_t c = 0; c < dd; ++c) r[block + c * nx + j] = b[c * n + i];
-    }
-  });
-  std::vector<double>& p = b;
-  std::copy(r.begin(), r.end(), p.begin());
+  const size_t potentials = static_cast<size_t>(op.potentials) * grid.frequencies();
+  for (Spectrum* f : {&fields.r, &fields.s}) f->resize(potentials);
+  if (x) fields.p.resize(potentials), fields.x.resize(potentials);
+  mean_flux->assign(d, 0.0);
   std::vector<double*> buffer(d);
   for (int c = 0; c < d; ++c) buffer[c] = reinterpret_cast<double*>(spectra[c].data());
   const double inv_n = 1.0 / static_cast<double>(grid.voxels());
-  // x (component-major) += alpha p at the whole rows [first, last).
-  auto add_direction = [&](double alpha, size_t first, size_t last) {
-    for (size_t row = first; row < last; ++row) {
-      const double* pr = p.data() + row * dd * nx;
-      for (size_t c = 0; c < dd; ++c) {
-        double* xc = x->data() + c * n + row * nx;
-        for (size_t j = 0; j < nx; ++j) xc[j] += alpha * pr[c * nx + j];
+  // The sweeps' pass: C times the field in the buffers' rows, in place (after writing E there
+  // when `fill`).
+  auto flux = [&](bool fill) -> Grid::RowPass {
+    return [&, fill](size_t first, size_t last, double* sums) {
+      double* v[6];
+      for (size_t row = first; row < last; ++row) {
+        for (size_t c = 0; c < dd; ++c) {
+          v[c] = buffer[c] + row * stride;
+          if (fill) std::fill(v[c], v[c] + nx, load[c]);
+        }
+        op.flux(v, row * nx, (row + 1) * nx, sums);
       }
-    }
+    };
   };
-  double rr = bnorm * bnorm, alpha = 0.0, beta = 0.0;
-  bool x_behind = false;  // x lacks alpha p for the current direction
-  out.residual = 1.0;
-  for (int it = 1; it <= max_iterations; ++it) {
-    // The first sweep, row by row while the row is in cache: x += alpha p and p = r + beta p
-    // (from the second iteration), C p into the buffers' padded rows, p . C p and the sums of
-    // C p; the transforms start plane by plane behind it.
-    const bool step = it > 1, with_x = x && x_behind;
-    const std::vector<double> sums =
-        grid.sweep(spectra, false, true, d + 1, [&](size_t first, size_t last, double* sum) {
-          for (size_t row = first; row < last; ++row) {
-            const size_t lo = row * nx, hi = lo + nx, at = row * stride;
-            if (with_x) add_direction(alpha, row, row + 1);
-            if (step) {
-              double* pr = p.data() + lo * dd;
-              const double* rr_row = r.data() + lo * dd;
-              for (size_t i = 0; i < nx * dd; ++i) pr[i] = rr_row[i] + beta * pr[i];
-            }
-            op.flux(p.data() + lo * dd, buffer.data(), lo, hi, at, sum);
-          }
-        });
-    x_behind = false;
-    const double pap = sums[0];
-    if (!(pap > 0.0)) break;  // nothing left to reduce (round-off)
-    alpha = rr / pap;
-    x_behind = true;
-    for (int c = 0; c < d; ++c) (*mean_flux)[c] += alpha * sums[1 + c] * inv_n;
-    grid.middle(spectra, op.project);
-    // The second sweep, the transforms ending plane by plane ahead of it: r -= alpha P C p,
-    // |r|^2.
-    const double a = alpha * inv_n;
-    const double rr_new =
-        grid.sweep(spectra, true, false, 1, [&](size_t first, size_t last, double* sum) {
-          double s = 0.0;
-          for (size_t row = first; row < last; ++row) {
-            double* rr_row = r.data() + row * nx * dd;
-            const size_t at = row * stride;
-            for (size_t c = 0; c < dd; ++c) {
-              const double* q = buffer[c] + at;
-              double* rc = rr_row + c * nx;
-              for (size_t i = 0; i < nx; ++i) rc[i] -= a * q[i];
-            }
-            s += lane_dot(rr_row, rr_row, 0, nx * dd);  // while the row is in cache
-          }
-          *sum += s;
-        })[0];
-    out.iterations = it;
-    out.residual = std::sqrt(rr_new) / bnorm;
-    // A stop asked on any rank stops them all (they would wait on each other otherwise).
-    if (grid.sum(progress && !progress(it, out.residual) ? 1.0 : 0.0) > 0.0) {
-      out.stopped = true;
-      return out;
+  GalerkinStep step;
+  step.scale = inv_n;  // the buffers then hold the fields themselves after the inverse transforms
+  step.with_x = x != nullptr;
+  step.fields = &fields;
+  const Grid::FrequencyPass at_frequencies = op.step(step);
+  // The right-hand side b = -P C E is the first residual.
+  grid.sweep(spectra, false, true, d + 1, flux(true));
+  double gamma = grid.frequency_pass(spectra, true, true, 1, at_frequencies)[0] * inv_n;
+  const double bnorm = std::sqrt(gamma);
+  std::vector<double> mean_direction(dd, 0.0);  // the mean of C p
+  if (bnorm > 0.0) {
+    double gamma_before = 0.0, alpha_before = 0.0;
+    out.residual = 1.0;
+    for (int it = 1; it <= max_iterations; ++it) {
+      // r . A r = r . C r (r lies in the range of the orthogonal projection), and the sums of
+      // C r; the transforms of C r start behind the sweep.
+      const std::vector<double> sums = grid.sweep(spectra, true, true, d + 1, flux(false));
+      const double beta = it > 1 ? gamma / gamma_before : 0.0;
+      const double denominator = it > 1 ? sums[0] - beta * gamma / alpha_before : sums[0];
+      if (!(denominator > 0.0)) break;  // nothing left to reduce (round-off)
+      const double alpha = gamma / denominator;
+      for (size_t c = 0; c < dd; ++c) {
+        mean_direction[c] = sums[1 + c] * inv_n + beta * mean_direction[c];
+        (*mean_flux)[c] += alpha * mean_direction[c];
+      }
+      step.mode = GalerkinStep::kIterate;
+      step.alpha = alpha;
+      step.beta = beta;
+      const double gamma_next =
+          grid.frequency_pass(spectra, true, true, 1, at_frequencies)[0] * inv_n;
+      out.iterations = it;
+      out.residual = std::sqrt(gamma_next) / bnorm;
+      // A stop asked on any rank stops them all (they would wait on each other otherwise).
+      if (grid.sum(progress && !progress(it, out.residual) ? 1.0 : 0.0) > 0.0) {
+        out.stopped = true;
+        return out;
+      }
+      if (out.residual < tolerance) break;
+      gamma_before = gamma;
+      alpha_before = alpha;
+      gamma = gamma_next;
     }
-    if (out.residual < tolerance) break;
-    beta = rr_new / rr;
-    rr = rr_new;
   }
-  if (x && x_behind) {
-    const size_t rows = n / nx;
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, rows),
-                      [&](const tbb::blocked_range<size_t>& range) {
-                        add_direction(alpha, range.begin(), range.end());
-                      });
+  if (x) {
+    x->resize(dd * n);
+    if (bnorm > 0.0) {
+      step.mode = GalerkinStep::kField;
+      grid.frequency_pass(spectra, false, true, 1, at_frequencies);
+      grid.sweep(spectra, true, false, 0, [&](size_t first, size_t last, double*) {
+        for (size_t row = first; row < last; ++row) {
+          for (size_t c = 0; c < dd; ++c) {
+            const double* from = buffer[c] + row * stride;
+            std::copy(from, from + nx, x->data() + c * n + row * nx);
+          }
+        }
+      });
+    } else {
+      std::fill(x->begin(), x->end(), 0.0);
+    }
   }
   return out;
 }

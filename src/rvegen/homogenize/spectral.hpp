@@ -176,7 +176,21 @@ class Grid {
   /// slots' totals, added in block order and then over the ranks.
   std::vector<double> sweep(std::vector<Spectrum>& spectra, bool finish, bool start, int slots,
                             const RowPass& pass);
-  /// The middle: `project` at every frequency held here.
+  /// A pass over the frequencies held here, a run of neighbouring ones at a time:
+  /// f(at, width, seq, v, inv_norm, sums) for the frequencies [at, at + width), whose values lie
+  /// at v[c] (component c; frequency at's real and imaginary parts at v[c][0] and v[c][1], then
+  /// the next's), their 1 / |k| at inv_norm, adding to `sums` (slots of its own). seq is the
+  /// place of frequency at in the order the pass visits them (the same for every pass over the
+  /// grid): arrays kept in that order are read in sequence. On one process, with `forward` the
+  /// transforms along z before f and with `inverse` those after it, a block of columns at a
+  /// time while in cache; with a communicator the sweeps make the whole transforms and the two
+  /// flags change nothing. Returns the slots' totals, added in block order and then over the
+  /// ranks (the same bits whatever the number of threads).
+  using FrequencyPass = std::function<void(size_t at, size_t width, size_t seq, double* const* v,
+                                           const double* inv_norm, double* sums)>;
+  std::vector<double> frequency_pass(std::vector<Spectrum>& spectra, bool forward, bool inverse,
+                                     int slots, const FrequencyPass& f);
+  /// The middle: `project` at every frequency held here, between the transforms along z.
   void middle(std::vector<Spectrum>& spectra, const Projector& project);
   /// All of it: voxels() times the projected fields, in the buffers' padded rows.
   void convolve(std::vector<Spectrum>& spectra, const Projector& project);
@@ -206,6 +220,29 @@ class Grid {
   std::vector<double> inv_norm_;
 };
 
+/// What the conjugate-gradient solver keeps, in Fourier space. A field in the range of the
+/// projection P is, at each stored frequency, Kernel::expand of Kernel::kPotentials complex
+/// values (the displacement of a compatible strain, the potential of a gradient), fewer than
+/// its components: the residual r, s = P C p (p the direction), and the direction and the
+/// solution x when x is asked for (each kPotentials values a frequency, in the order
+/// Grid::frequency_pass visits them).
+struct GalerkinFields {
+  Spectrum r, p, s, x;
+};
+/// One pass of the solver over the frequencies (Projection::galerkin_step): with the spectra
+/// of C times a field in the buffers, kStart sets r = -P C E (the right-hand side; p, s and x to
+/// 0) and kIterate makes, with w = P C r, s = w + beta s, r -= alpha s and, when with_x,
+/// p = r + beta p and x += alpha p; both write scale times r's components into the buffers and add
+/// Parseval's sum of |r|^2 (voxels() times the sum over the grid) to the pass's slot. kField
+/// writes scale times x's components.
+struct GalerkinStep {
+  enum Mode { kStart, kIterate, kField };
+  Mode mode = kStart;
+  double alpha = 0.0, beta = 0.0, scale = 1.0;
+  bool with_x = false;
+  GalerkinFields* fields = nullptr;
+};
+
 /// A grid with one buffer per component and the projection made of Kernel::project(v, i, xi):
 /// P on one frequency whose real and imaginary parts lie at v[c] + i and v[c] + i + 1 (c <
 /// Kernel::kComponents), xi its real unit direction (Grid::for_each_unit_direction). Applied to
@@ -233,10 +270,99 @@ class Projection {
       });
     };
   }
+  /// The solver's pass at the frequencies for `step` (read when the pass runs): Kernel::reduce
+  /// gives the potentials of P v, Kernel::expand a field's components from its potentials, and
+  /// Kernel::norm the squares of those components (lane by lane).
+  Grid::FrequencyPass galerkin_step(const GalerkinStep& step) const {
+    return [this, &step](size_t lo, size_t width, size_t seq, double* const* v,
+                         const double* inv_norm, double* sums) {
+      const GalerkinStep st = step;
+      // The mode and whether x is kept, fixed for the loop.
+      if (st.mode == GalerkinStep::kField) {
+        run<GalerkinStep::kField, false>(st, lo, width, seq, v, inv_norm, sums);
+      } else if (st.mode == GalerkinStep::kStart) {
+        if (st.with_x) {
+          run<GalerkinStep::kStart, true>(st, lo, width, seq, v, inv_norm, sums);
+        } else {
+          run<GalerkinStep::kStart, false>(st, lo, width, seq, v, inv_norm, sums);
+        }
+      } else if (st.with_x) {
+        run<GalerkinStep::kIterate, true>(st, lo, width, seq, v, inv_norm, sums);
+      } else {
+        run<GalerkinStep::kIterate, false>(st, lo, width, seq, v, inv_norm, sums);
+      }
+    };
+  }
   Grid& grid() { return grid_; }
   std::vector<Spectrum>& spectra() { return spectra_; }
 
  private:
+  template <GalerkinStep::Mode kMode, bool kWithX>
+  void run(const GalerkinStep& st, size_t lo, size_t width, size_t seq, double* const* v,
+           const double* inv_norm, double* sums) const {
+    constexpr int kp = Kernel::kPotentials;
+    auto base = [&](Spectrum& f) { return reinterpret_cast<double*>(f.data()) + 2 * kp * seq; };
+    double* r = base(st.fields->r);
+    // The direction only for x: the mean flux follows it through scalars.
+    double* p = kWithX && kMode != GalerkinStep::kField ? base(st.fields->p) : nullptr;
+    double* s = kMode == GalerkinStep::kField ? nullptr : base(st.fields->s);
+    double* x = kWithX || kMode == GalerkinStep::kField ? base(st.fields->x) : nullptr;
+    const double alpha = st.alpha, beta = st.beta, scale = st.scale;
+    // Each stored frequency stands for itself and its conjugate, except on the kx = 0 plane
+    // and (even rows) the kx = N / 2 plane, whose conjugates are themselves or also stored.
+    const size_t hx = grid_.row() / 2 + 1, nyquist = grid_.row() % 2 == 0 ? hx - 1 : 0;
+    size_t kx = lo % hx;
+    Pair twice = {0.0, 0.0}, once = {0.0, 0.0};
+    grid_.for_each_unit_direction(lo, lo + width, inv_norm, [&](size_t f, const double* xi) {
+      const size_t i = 2 * (f - lo), at = 2 * kp * (f - lo);
+      Pair w[kp];
+      if (kMode == GalerkinStep::kField) {
+        for (int a = 0; a < kp; ++a) w[a] = load_pair(x + at + 2 * a);
+        Kernel::expand(w, xi, scale, v, i);
+        return;
+      }
+      Kernel::reduce(v, i, xi, w);
+      // Every value read before any is written (the arrays may alias as far as the compiler
+      // knows).
+      Pair ra[kp], pa[kp], sa[kp], xa[kp];
+      if (kMode == GalerkinStep::kStart) {
+        for (int a = 0; a < kp; ++a) {
+          ra[a] = -w[a];
+          pa[a] = sa[a] = xa[a] = Pair{0.0, 0.0};
+        }
+      } else {
+        for (int a = 0; a < kp; ++a) {
+          ra[a] = load_pair(r + at + 2 * a);
+          if (kWithX) pa[a] = load_pair(p + at + 2 * a);
+          sa[a] = load_pair(s + at + 2 * a);
+          if (kWithX) xa[a] = load_pair(x + at + 2 * a);
+        }
+        for (int a = 0; a < kp; ++a) {
+          if (kWithX) pa[a] = ra[a] + beta * pa[a];
+          sa[a] = w[a] + beta * sa[a];
+          if (kWithX) xa[a] += alpha * pa[a];
+          ra[a] -= alpha * sa[a];
+        }
+      }
+      for (int a = 0; a < kp; ++a) {
+        store_pair(r + at + 2 * a, ra[a]);
+        if (kWithX) store_pair(p + at + 2 * a, pa[a]);
+        store_pair(s + at + 2 * a, sa[a]);
+        if (kWithX) store_pair(x + at + 2 * a, xa[a]);
+        w[a] = ra[a];
+      }
+      const Pair squares = Kernel::norm(w, xi);
+      if (kx == 0 || kx == nyquist) {
+        once += squares;
+      } else {
+        twice += squares;
+      }
+      if (++kx == hx) kx = 0;
+      Kernel::expand(w, xi, scale, v, i);
+    });
+    sums[0] += 2.0 * (twice[0] + twice[1]) + (once[0] + once[1]);
+  }
+
   Grid grid_;
   std::vector<Spectrum> spectra_;
 };
@@ -259,34 +385,33 @@ struct CgOutcome {
   double residual = 0.0;
   bool stopped = false;
 };
-/// The Galerkin operator A = P C of the Lippmann-Schwinger solvers, given by parts so that
-/// conjugate_gradients_galerkin can keep three fields. `flux(p, out, lo, hi, at, sums)` writes
-/// C p at the voxels [lo, hi) of one row, component c of voxel i to out[c][at + i - lo], from
-/// the row's direction (component c of voxel i at p[c (hi - lo) + i - lo]), and adds
-/// p . C p over them to sums[0] and the sum of component c of C p to sums[1 + c], voxel by
-/// voxel in order, while the values are in registers; `project` applies P to the spectra
-/// (Grid::convolve).
+/// The Galerkin operator A = P C of the Lippmann-Schwinger solvers, by parts.
+/// `flux(v, lo, hi, sums)` replaces the field at the voxels [lo, hi) of one row (component c of
+/// voxel i at v[c][i - lo]) by C times it, in place, and adds v . C v over them to sums[0] and
+/// the sum of component c of C v to sums[1 + c], voxel by voxel in order, while the values are
+/// in registers. `step` is the physics' pass at the frequencies (Projection::galerkin_step),
+/// `potentials` its complex values a frequency.
 struct GalerkinOperator {
   int components = 0;
-  std::function<void(const double*, double* const*, size_t, size_t, size_t, double*)> flux;
-  Grid::Projector project;
+  int potentials = 0;
+  std::function<void(double* const*, size_t, size_t, double*)> flux;
+  std::function<Grid::FrequencyPass(const GalerkinStep&)> step;
 };
-/// Conjugate gradients for P C x = b with the residual and the direction only (x starts at
-/// 0; `spectra` holds one buffer per component; b and x are component-major: `components`
-/// blocks of n values). Each iteration makes two sweeps over the voxels (Grid::sweep), the
-/// middle of the transforms between them: the first (x's and the direction's updates, C p
-/// written into the buffers' padded rows, p . C p and the means of C p) with the transforms
-/// starting behind it, the second (the residual's update, |r|^2) with them ending ahead of it.
-/// The direction stays in the range of the orthogonal projection P, so p . P C p = p . C p;
-/// the product is never stored as a field of its own. `mean_flux` (components values) gets the
-/// mean of C x over the grid, summed from the directions' means as they pass; x itself is
-/// formed only when `x` is given (it costs a field and its traffic). Stops when |r| / |b| <
-/// tolerance, after max_iterations, or when progress returns false. `b` becomes the direction
-/// and `work` the residual: a caller that solves again passes the same two and their pages are
-/// not mapped again.
+/// Conjugate gradients for P C x = -P C E (E the uniform field `load`, `components` values; x
+/// the fluctuation, in the range of P, from 0), in the variant of Chronopoulos and Gear (1989):
+/// the two sums an iteration needs, r . A r and |r|^2, come from one sweep each, so an
+/// iteration is one sweep over the voxels (r's field from its transforms, C r in place, r . C r
+/// and the sums of C r, the transforms of C r started) and one pass over the frequencies (the
+/// transforms along z, then A r = P C r and the updates of r, p, s = A p and x there, |r|^2 by
+/// Parseval, r's field formed for the next sweep). r, p, s and x are kept in Fourier space as
+/// their potentials (`fields`, sized here; a caller that solves again passes the same and their
+/// pages are not mapped again); the voxels hold only the buffers. `mean_flux` (components
+/// values) gets the mean of C x, summed from the sweeps' means of C r as they pass; the field x
+/// (component-major, `components` blocks of size() values) is formed only when `x` is given.
+/// Stops when |r| / |b| < tolerance, after max_iterations, or when progress returns false.
 CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectra,
-                                       const GalerkinOperator& op, std::vector<double>& b,
-                                       std::vector<double>& work, std::vector<double>* x,
+                                       const GalerkinOperator& op, const double* load,
+                                       GalerkinFields& fields, std::vector<double>* x,
                                        std::vector<double>* mean_flux, double tolerance,
                                        int max_iterations,
                                        const std::function<bool(int, double)>& progress);

@@ -159,7 +159,8 @@ class Grid {
   /// their 1 / |k| at inv_norm (0 where k carries no gradient), in the same order.
   using Projector =
       std::function<void(size_t lo, size_t hi, double* const* v, const double* inv_norm)>;
-  /// A pass over the rows [first, last) held here, adding to `sums` (slots of its own).
+  /// A pass over the rows [first, last) held here, adding to `sums` (slots of its own; no
+  /// slot, and a null `sums`, when the sweep asks for none).
   using RowPass = std::function<void(size_t first, size_t last, double* sums)>;
   /// The transforms of the fields in the buffers (one each, at most six) split in two halves
   /// around the projection, so that the passes over the voxels meet the values in cache. On
@@ -179,7 +180,8 @@ class Grid {
   /// A pass over the frequencies held here, a run of neighbouring ones at a time:
   /// f(at, width, seq, v, inv_norm, sums) for the frequencies [at, at + width), whose values lie
   /// at v[c] (component c; frequency at's real and imaginary parts at v[c][0] and v[c][1], then
-  /// the next's), their 1 / |k| at inv_norm, adding to `sums` (slots of its own). seq is the
+  /// the next's), their 1 / |k| at inv_norm, adding to `sums` (slots of its own; null when the
+  /// pass asks for none). seq is the
   /// place of frequency at in the order the pass visits them (the same for every pass over the
   /// grid): arrays kept in that order are read in sequence. On one process, with `forward` the
   /// transforms along z before f and with `inverse` those after it, a block of columns at a

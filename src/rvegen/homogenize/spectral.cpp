@@ -403,12 +403,7 @@ std::vector<double> Grid::sweep(std::vector<Spectrum>& spectra, bool finish, boo
   if (comm_.set && start) {
     for (auto& s : spectra) forward_in_place(s);
   }
-  std::vector<double> total(k, 0.0);
-  for (size_t b = 0; b < blocks; ++b) {
-    for (size_t j = 0; j < k; ++j) total[j] += part[b * k + j];
-  }
-  sum_over_ranks(total.data(), slots, comm_);
-  return total;
+  return totals(part, k);
 }
 
 std::vector<double> Grid::frequency_pass(std::vector<Spectrum>& spectra, bool forward, bool inverse,
@@ -458,11 +453,15 @@ std::vector<double> Grid::frequency_pass(std::vector<Spectrum>& spectra, bool fo
         },
         tbb::simple_partitioner());
   }
-  std::vector<double> total(k, 0.0);
-  for (size_t b = 0; b < part.size() / std::max<size_t>(k, 1); ++b) {
-    for (size_t j = 0; j < k; ++j) total[j] += part[b * k + j];
+  return totals(part, k);
+}
+
+std::vector<double> Grid::totals(const std::vector<double>& part, size_t slots) const {
+  std::vector<double> total(slots, 0.0);
+  for (size_t b = 0; slots > 0 && b < part.size() / slots; ++b) {
+    for (size_t j = 0; j < slots; ++j) total[j] += part[b * slots + j];
   }
-  sum_over_ranks(total.data(), slots, comm_);
+  sum_over_ranks(total.data(), static_cast<int>(slots), comm_);
   return total;
 }
 
@@ -565,16 +564,12 @@ CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectr
   if (x) {
     x->resize(dd * n);
     if (bnorm > 0.0) {
+      // x's spectrum into the buffers and back to voxels (unload divides by voxels()).
       step.mode = GalerkinStep::kField;
+      step.scale = 1.0;
       grid.frequency_pass(spectra, false, true, 1, at_frequencies);
-      grid.sweep(spectra, true, false, 0, [&](size_t first, size_t last, double*) {
-        for (size_t row = first; row < last; ++row) {
-          for (size_t c = 0; c < dd; ++c) {
-            const double* from = buffer[c] + row * stride;
-            std::copy(from, from + nx, x->data() + c * n + row * nx);
-          }
-        }
-      });
+      grid.sweep(spectra, true, false, 0, nullptr);
+      grid.unload(spectra, x->data());
     } else {
       std::fill(x->begin(), x->end(), 0.0);
     }

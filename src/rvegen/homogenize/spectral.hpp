@@ -198,6 +198,10 @@ class Grid {
   void convolve(std::vector<Spectrum>& spectra, const Projector& project);
 
  private:
+  /// The slots' totals of per-block sums (`slots` a block, in block order), then over the
+  /// ranks.
+  std::vector<double> totals(const std::vector<double>& part, size_t slots) const;
+
   size_t n_, nc_, alloc_, total_;
   Communicator comm_;
   // The stored layout's middle and slowest axes, and the first index along the slowest.

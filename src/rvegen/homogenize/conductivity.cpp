@@ -144,6 +144,9 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
     constexpr size_t kRun = 64;
     double k[kRun];
     double dot = 0.0, m[3] = {0.0, 0.0, 0.0};
+    // The rows' pointers in registers: the stores below could alias v's array as far as the
+    // compiler knows.
+    double* row[3] = {v[0], v[1], v[2]};
     for (size_t first = lo; first < hi; first += kRun) {
       const size_t width = std::min(kRun, hi - first), o = first - lo;
       bool isotropic = width % 2 == 0;
@@ -156,8 +159,8 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
         for (size_t j = 0; j < width; j += 2) {
           const Pair kj = load_pair(k + j);
           for (int c = 0; c < 3; ++c) {
-            const Pair g = load_pair(v[c] + o + j), q = kj * g;
-            store_pair(v[c] + o + j, q);
+            const Pair g = load_pair(row[c] + o + j), q = kj * g;
+            store_pair(row[c] + o + j, q);
             pdot += g * q;
             pm[c] += q;
           }
@@ -167,11 +170,11 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
         continue;
       }
       for (size_t i = first, j = o; i < first + width; ++i, ++j) {
-        const Vec3 g(v[0][j], v[1][j], v[2][j]);
+        const Vec3 g(row[0][j], row[1][j], row[2][j]);
         const Vec3 q = medium.at(i) * g;
         double gq = 0.0;
         for (int c = 0; c < 3; ++c) {
-          v[c][j] = q[c];
+          row[c][j] = q[c];
           gq += g[c] * q[c];
           m[c] += q[c];
         }

@@ -192,6 +192,10 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
     constexpr size_t kRun = 64;
     double normal[kRun], lambda[kRun], two_mu[kRun];
     double dot = 0.0, m[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+    // The rows' pointers in registers: the stores below could alias v's array as far as the
+    // compiler knows.
+    double* row[6];
+    for (int c = 0; c < 6; ++c) row[c] = v[c];
     for (size_t first = lo; first < hi; first += kRun) {
       const size_t width = std::min(kRun, hi - first), o = first - lo;
       bool isotropic = width % 2 == 0;
@@ -207,12 +211,12 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
         for (Pair& q : pm) q = Pair{0.0, 0.0};
         for (size_t j = 0; j < width; j += 2) {
           Pair e[6];
-          for (int c = 0; c < 6; ++c) e[c] = load_pair(v[c] + o + j);
+          for (int c = 0; c < 6; ++c) e[c] = load_pair(row[c] + o + j);
           const Pair nor = load_pair(normal + j), mu2 = load_pair(two_mu + j);
           const Pair l = load_pair(lambda + j) * (e[0] + e[1] + e[2]);
           for (int c = 0; c < 6; ++c) {
             const Pair t = c < 3 ? nor * e[c] + l : mu2 * e[c];
-            store_pair(v[c] + o + j, t);
+            store_pair(row[c] + o + j, t);
             pdot += e[c] * t;
             pm[c] += t;
           }
@@ -223,7 +227,7 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
       }
       Vec6 e, t;
       for (size_t i = first, j = o; i < first + width; ++i, ++j) {
-        for (int k = 0; k < 6; ++k) e[k] = v[k][j];
+        for (int k = 0; k < 6; ++k) e[k] = row[k][j];
         const uint32_t id = medium.index[i];
         const IsotropicPart& ip = iso[id];
         if (ip.isotropic) {
@@ -235,7 +239,7 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
         }
         double et = 0.0;
         for (int c = 0; c < 6; ++c) {
-          v[c][j] = t[c];
+          row[c][j] = t[c];
           et += e[c] * t[c];
           m[c] += t[c];
         }

@@ -318,16 +318,20 @@ class Projection {
     // and (even rows) the kx = N / 2 plane, whose conjugates are themselves or also stored.
     const size_t hx = grid_.row() / 2 + 1, nyquist = grid_.row() % 2 == 0 ? hx - 1 : 0;
     size_t kx = lo % hx;
+    // The components' pointers in registers: the stores could alias v's array as far as the
+    // compiler knows.
+    double* comp[Kernel::kComponents];
+    for (int c = 0; c < Kernel::kComponents; ++c) comp[c] = v[c];
     Pair twice = {0.0, 0.0}, once = {0.0, 0.0};
     grid_.for_each_unit_direction(lo, lo + width, inv_norm, [&](size_t f, const double* xi) {
       const size_t i = 2 * (f - lo), at = 2 * kp * (f - lo);
       Pair w[kp];
       if (kMode == GalerkinStep::kField) {
         for (int a = 0; a < kp; ++a) w[a] = load_pair(x + at + 2 * a);
-        Kernel::expand(w, xi, scale, v, i);
+        Kernel::expand(w, xi, scale, comp, i);
         return;
       }
-      Kernel::reduce(v, i, xi, w);
+      Kernel::reduce(comp, i, xi, w);
       // Every value read before any is written (the arrays may alias as far as the compiler
       // knows).
       Pair ra[kp], pa[kp], sa[kp], xa[kp];
@@ -364,7 +368,7 @@ class Projection {
         twice += squares;
       }
       if (++kx == hx) kx = 0;
-      Kernel::expand(w, xi, scale, v, i);
+      Kernel::expand(w, xi, scale, comp, i);
     });
     sums[0] += 2.0 * (twice[0] + twice[1]) + (once[0] + once[1]);
   }

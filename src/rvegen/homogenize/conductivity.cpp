@@ -135,54 +135,20 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
     if (k == k(0, 0) * Mat3::Identity()) scalar[t] = k(0, 0);
   }
   op.flux = [&](double* const* v, size_t lo, size_t hi, double* sums) {
-    using spectral::load_pair;
     using spectral::Pair;
-    using spectral::store_pair;
-    // Runs of up to 64 voxels: where every voxel of a run is isotropic, two voxels at a time
-    // from their conductivities, gathered first; otherwise voxel by voxel. The sums in two
-    // lanes, added at the end of each run.
-    constexpr size_t kRun = 64;
-    double k[kRun];
-    double dot = 0.0, m[3] = {0.0, 0.0, 0.0};
-    // The rows' pointers in registers: the stores below could alias v's array as far as the
-    // compiler knows.
-    double* row[3] = {v[0], v[1], v[2]};
-    for (size_t first = lo; first < hi; first += kRun) {
-      const size_t width = std::min(kRun, hi - first), o = first - lo;
-      bool isotropic = width % 2 == 0;
-      for (size_t j = 0; j < width && isotropic; ++j) {
-        k[j] = scalar[medium.index[first + j]];
-        isotropic = k[j] >= 0.0;
-      }
-      if (isotropic) {
-        Pair pdot = {0.0, 0.0}, pm[3] = {{0.0, 0.0}, {0.0, 0.0}, {0.0, 0.0}};
-        for (size_t j = 0; j < width; j += 2) {
-          const Pair kj = load_pair(k + j);
-          for (int c = 0; c < 3; ++c) {
-            const Pair g = load_pair(row[c] + o + j), q = kj * g;
-            store_pair(row[c] + o + j, q);
-            pdot += g * q;
-            pm[c] += q;
-          }
-        }
-        dot += pdot[0] + pdot[1];
-        for (int c = 0; c < 3; ++c) m[c] += pm[c][0] + pm[c][1];
-        continue;
-      }
-      for (size_t i = first, j = o; i < first + width; ++i, ++j) {
-        const Vec3 g(row[0][j], row[1][j], row[2][j]);
-        const Vec3 q = medium.at(i) * g;
-        double gq = 0.0;
-        for (int c = 0; c < 3; ++c) {
-          row[c][j] = q[c];
-          gq += g[c] * q[c];
-          m[c] += q[c];
-        }
-        dot += gq;
-      }
-    }
-    sums[0] += dot;
-    for (int c = 0; c < 3; ++c) sums[1 + c] += m[c];
+    spectral::flux_in_runs<3, 1>(
+        v, lo, hi, sums,
+        [&](size_t i, double* n) {
+          n[0] = scalar[medium.index[i]];
+          return n[0] >= 0.0;
+        },
+        [](const Pair* n, const Pair* g, Pair* q) {
+          for (int c = 0; c < 3; ++c) q[c] = n[0] * g[c];
+        },
+        [&](size_t i, const double* g, double* q) {
+          Eigen::Map<Vec3> out(q);
+          out = medium.at(i) * Eigen::Map<const Vec3>(g);
+        });
   };
   op.step = [&](const spectral::GalerkinStep& st) { return project.galerkin_step(st); };
   for (int load = 0; load < 3; ++load) {

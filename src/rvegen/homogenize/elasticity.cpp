@@ -183,71 +183,33 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
   // numbers: 7 products instead of 36.
   const std::vector<IsotropicPart> iso = isotropic_parts(medium.tensors);
   op.flux = [&](double* const* v, size_t lo, size_t hi, double* sums) {
-    using spectral::load_pair;
     using spectral::Pair;
-    using spectral::store_pair;
-    // Runs of up to 64 voxels: where every voxel of a run is isotropic, two voxels at a time
-    // from their three numbers, gathered first; otherwise voxel by voxel. The sums in two lanes,
-    // added at the end of each run.
-    constexpr size_t kRun = 64;
-    double normal[kRun], lambda[kRun], two_mu[kRun];
-    double dot = 0.0, m[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
-    // The rows' pointers in registers: the stores below could alias v's array as far as the
-    // compiler knows.
-    double* row[6];
-    for (int c = 0; c < 6; ++c) row[c] = v[c];
-    for (size_t first = lo; first < hi; first += kRun) {
-      const size_t width = std::min(kRun, hi - first), o = first - lo;
-      bool isotropic = width % 2 == 0;
-      for (size_t j = 0; j < width && isotropic; ++j) {
-        const IsotropicPart& ip = iso[medium.index[first + j]];
-        isotropic = ip.isotropic;
-        normal[j] = ip.normal;
-        lambda[j] = ip.lambda;
-        two_mu[j] = ip.two_mu;
-      }
-      if (isotropic) {
-        Pair pdot = {0.0, 0.0}, pm[6];
-        for (Pair& q : pm) q = Pair{0.0, 0.0};
-        for (size_t j = 0; j < width; j += 2) {
-          Pair e[6];
-          for (int c = 0; c < 6; ++c) e[c] = load_pair(row[c] + o + j);
-          const Pair nor = load_pair(normal + j), mu2 = load_pair(two_mu + j);
-          const Pair l = load_pair(lambda + j) * (e[0] + e[1] + e[2]);
-          for (int c = 0; c < 6; ++c) {
-            const Pair t = c < 3 ? nor * e[c] + l : mu2 * e[c];
-            store_pair(row[c] + o + j, t);
-            pdot += e[c] * t;
-            pm[c] += t;
+    spectral::flux_in_runs<6, 3>(
+        v, lo, hi, sums,
+        [&](size_t i, double* n) {
+          const IsotropicPart& ip = iso[medium.index[i]];
+          n[0] = ip.normal;
+          n[1] = ip.lambda;
+          n[2] = ip.two_mu;
+          return ip.isotropic;
+        },
+        [](const Pair* n, const Pair* e, Pair* t) {
+          const Pair l = n[1] * (e[0] + e[1] + e[2]);
+          for (int c = 0; c < 3; ++c) t[c] = n[0] * e[c] + l;
+          for (int c = 3; c < 6; ++c) t[c] = n[2] * e[c];
+        },
+        [&](size_t i, const double* e, double* t) {
+          const uint32_t id = medium.index[i];
+          const IsotropicPart& ip = iso[id];
+          if (ip.isotropic) {
+            const double l = ip.lambda * (e[0] + e[1] + e[2]);
+            for (int c = 0; c < 3; ++c) t[c] = ip.normal * e[c] + l;
+            for (int c = 3; c < 6; ++c) t[c] = ip.two_mu * e[c];
+          } else {
+            Eigen::Map<Vec6> out(t);
+            out = medium.tensors[id] * Eigen::Map<const Vec6>(e);
           }
-        }
-        dot += pdot[0] + pdot[1];
-        for (int c = 0; c < 6; ++c) m[c] += pm[c][0] + pm[c][1];
-        continue;
-      }
-      Vec6 e, t;
-      for (size_t i = first, j = o; i < first + width; ++i, ++j) {
-        for (int k = 0; k < 6; ++k) e[k] = row[k][j];
-        const uint32_t id = medium.index[i];
-        const IsotropicPart& ip = iso[id];
-        if (ip.isotropic) {
-          const double l = ip.lambda * (e[0] + e[1] + e[2]);
-          for (int c = 0; c < 3; ++c) t[c] = ip.normal * e[c] + l;
-          for (int c = 3; c < 6; ++c) t[c] = ip.two_mu * e[c];
-        } else {
-          t = medium.tensors[id] * e;
-        }
-        double et = 0.0;
-        for (int c = 0; c < 6; ++c) {
-          row[c][j] = t[c];
-          et += e[c] * t[c];
-          m[c] += t[c];
-        }
-        dot += et;
-      }
-    }
-    sums[0] += dot;
-    for (int c = 0; c < 6; ++c) sums[1 + c] += m[c];
+        });
   };
   op.step = [&](const spectral::GalerkinStep& st) { return project.galerkin_step(st); };
   spectral::GalerkinFields fields;  // the solver's (kept over the loads)

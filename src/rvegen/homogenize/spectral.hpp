@@ -5,6 +5,7 @@
 // solvers are the same code either way, with their sums taken over the ranks.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <complex>
@@ -407,6 +408,67 @@ struct GalerkinOperator {
   std::function<void(double* const*, size_t, size_t, double*)> flux;
   std::function<Grid::FrequencyPass(const GalerkinStep&)> step;
 };
+/// A GalerkinOperator::flux for media whose voxels mostly have tensors of a few numbers each
+/// (kNumbers; an isotropic phase's): C times the field at the voxels [lo, hi) of one row
+/// (component c of voxel i at v[c][i - lo], kC components), in place, adding v . C v to sums[0]
+/// and the sum of component c of C v to sums[1 + c]. Runs of up to 64 voxels: where
+/// numbers(i, n) gives true for every voxel of a run (and writes its numbers at n[0 ..
+/// kNumbers)), two voxels at a time by simple(n, e, t) (t = C e, lane by lane; n[k] the two
+/// voxels' k-th numbers); otherwise voxel by voxel by general(i, e, t). The sums go in two
+/// lanes, added at the end of each run.
+template <int kC, int kNumbers, class Numbers, class Simple, class General>
+void flux_in_runs(double* const* v, size_t lo, size_t hi, double* sums, const Numbers& numbers,
+                  const Simple& simple, const General& general) {
+  constexpr size_t kRun = 64;
+  double num[kNumbers][kRun];
+  double dot = 0.0, m[kC] = {};
+  // The rows' pointers in registers: the stores below could alias v's array as far as the
+  // compiler knows.
+  double* row[kC];
+  for (int c = 0; c < kC; ++c) row[c] = v[c];
+  for (size_t first = lo; first < hi; first += kRun) {
+    const size_t width = std::min(kRun, hi - first), o = first - lo;
+    bool fast = width % 2 == 0;
+    for (size_t j = 0; j < width && fast; ++j) {
+      double n[kNumbers];
+      fast = numbers(first + j, n);
+      for (int k = 0; k < kNumbers; ++k) num[k][j] = n[k];
+    }
+    if (fast) {
+      Pair pdot = {0.0, 0.0}, pm[kC];
+      for (Pair& q : pm) q = Pair{0.0, 0.0};
+      for (size_t j = 0; j < width; j += 2) {
+        Pair e[kC], t[kC], n[kNumbers];
+        for (int c = 0; c < kC; ++c) e[c] = load_pair(row[c] + o + j);
+        for (int k = 0; k < kNumbers; ++k) n[k] = load_pair(num[k] + j);
+        simple(n, e, t);
+        for (int c = 0; c < kC; ++c) {
+          store_pair(row[c] + o + j, t[c]);
+          pdot += e[c] * t[c];
+          pm[c] += t[c];
+        }
+      }
+      dot += pdot[0] + pdot[1];
+      for (int c = 0; c < kC; ++c) m[c] += pm[c][0] + pm[c][1];
+      continue;
+    }
+    for (size_t i = first, j = o; i < first + width; ++i, ++j) {
+      double e[kC], t[kC];
+      for (int c = 0; c < kC; ++c) e[c] = row[c][j];
+      general(i, e, t);
+      double et = 0.0;
+      for (int c = 0; c < kC; ++c) {
+        row[c][j] = t[c];
+        et += e[c] * t[c];
+        m[c] += t[c];
+      }
+      dot += et;
+    }
+  }
+  sums[0] += dot;
+  for (int c = 0; c < kC; ++c) sums[1 + c] += m[c];
+}
+
 /// Conjugate gradients for P C x = -P C E (E the uniform field `load`, `components` values; x
 /// the fluctuation, in the range of P, from 0), in the variant of Chronopoulos and Gear (1989):
 /// the two sums an iteration needs, r . A r and |r|^2, come from one sweep each, so an

@@ -222,6 +222,12 @@ int vtkRVEEffectiveProperties::RequestData(vtkInformation*, vtkInformationVector
     vtkErrorMacro(<< ex.what());
     return 0;
   }
+  const std::string not_converged = rvegen::unconverged(e, this->Tolerance);
+  if (!not_converged.empty()) {
+    vtkWarningMacro(<< "did not converge, so the table's tensors are not the RVE's effective "
+                       "properties (rows \"converged\" are 0): "
+                    << not_converged);
+  }
 
   // Every rank has the result; rank 0 alone gives the table (so that gathering the ranks'
   // tables does not repeat it).
@@ -254,6 +260,7 @@ int vtkRVEEffectiveProperties::RequestData(vtkInformation*, vtkInformationVector
       rows.Row("residual", "conductivity", l, r.residual[l]);
     }
     rows.Row("seconds", "conductivity", 0, r.seconds);
+    rows.Row("converged", "conductivity", 0, r.converged ? 1.0 : 0.0);
   }
   if (e.has_stiffness) {
     const rvegen::ElasticityResult& r = e.stiffness;
@@ -276,6 +283,7 @@ int vtkRVEEffectiveProperties::RequestData(vtkInformation*, vtkInformationVector
       rows.Row("residual", "elasticity", l, r.residual[l]);
     }
     rows.Row("seconds", "elasticity", 0, r.seconds);
+    rows.Row("converged", "elasticity", 0, r.converged ? 1.0 : 0.0);
   }
   rows.AddTo(table);
   this->UpdateProgress(1.0);

@@ -4,6 +4,7 @@ import json
 import os
 import platform
 import subprocess
+import sys
 
 
 def machine():
@@ -45,3 +46,14 @@ def generate(exe, scene, work, name, extra=()):
         raise SystemExit("rvegen generate wrote no report for %s (exit %d): %s"
                          % (name, rc, err[-500:]))
     return rc, wall, peak, report
+
+
+def option(name, default, kind=float):
+    """The comma-separated values of `--name VALUES` in sys.argv, converted by kind (and removed
+    from sys.argv), or default when it is not given."""
+    if name in sys.argv:
+        k = sys.argv.index(name)
+        value = sys.argv[k + 1]
+        del sys.argv[k:k + 2]
+        return [kind(v) for v in value.split(",")]
+    return default

@@ -23,16 +23,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from bench_util import generate, machine  # noqa: E402
-
-
-def option(name, default, kind=float):
-    if name in sys.argv:
-        k = sys.argv.index(name)
-        value = sys.argv[k + 1]
-        del sys.argv[k:k + 2]
-        return [kind(v) for v in value.split(",")]
-    return default
+from bench_util import generate, machine, option  # noqa: E402
 
 
 waves = option("--waves", [1, 2, 3, 4], int)

@@ -842,6 +842,27 @@ TEST(CompositeVoxels, ThreeLayersAreOneLaminateOfTwoLaminates) {
             1e-9 * compliance.cwiseAbs().maxCoeff());
 }
 
+// One sphere of radius a with a shell of thickness t at the centre of the unit box, on res^3
+// voxels (labels: 0 matrix, 1 core, 2 shell), and its cut voxels.
+struct CoatedSphereCell {
+  VoxelImage img;
+  CutVoxels cut;
+  std::vector<uint32_t> material;  // the labels, as rows of a material table
+};
+CoatedSphereCell coated_sphere_cell(double a, double t, int res) {
+  InclusionSet set;
+  Inclusion inc;
+  inc.shape = Shape::sphere(Vec3(0.5, 0.5, 0.5), a);
+  inc.mod.coating = t;
+  set.inclusions = {inc};
+  set.family_names = {"spheres"};
+  CoatedSphereCell c;
+  c.img = voxelize(set, {res, res, res});
+  c.cut = cut_voxels(set, c.img);
+  c.material.assign(c.img.phase.begin(), c.img.phase.end());
+  return c;
+}
+
 TEST(CompositeVoxels, ANeutralCoatedSphereLeavesTheMatrixConductivity) {
   // Hashin's neutral inclusion: a core of radius a and conductivity kc in a shell of outer
   // radius b and conductivity ks conducts, as a whole, like a matrix of
@@ -857,18 +878,11 @@ TEST(CompositeVoxels, ANeutralCoatedSphereLeavesTheMatrixConductivity) {
     const int res = side;  // (lambdas may not capture structured bindings in C++17)
     const double phi = std::pow(a / (a + t), 3);
     const double km = ks * (2 * ks + kc + 2 * (kc - ks) * phi) / (2 * ks + kc - (kc - ks) * phi);
-    InclusionSet set;
-    Inclusion inc;
-    inc.shape = Shape::sphere(Vec3(0.5, 0.5, 0.5), a);
-    inc.mod.coating = t;
-    set.inclusions = {inc};
-    set.family_names = {"spheres"};
-    const VoxelImage img = voxelize(set, {res, res, res});
-    const CutVoxels cut = cut_voxels(set, img);
-    // Labels: 0 matrix, 1 core, 2 shell.
+    const CoatedSphereCell cell = coated_sphere_cell(a, t, res);
+    const CutVoxels& cut = cell.cut;
+    const std::vector<uint32_t>& material = cell.material;
     const Mat3 I = Mat3::Identity();
     const std::vector<Mat3> rows = {km * I, kc * I, ks * I};
-    const std::vector<uint32_t> material(img.phase.begin(), img.phase.end());
     auto solve = [&](VoxelRule rule, bool outer_layer) {
       std::vector<CompositeVoxel> comp;
       for (const CutVoxel& c : cut.voxels) {
@@ -893,6 +907,74 @@ TEST(CompositeVoxels, ANeutralCoatedSphereLeavesTheMatrixConductivity) {
     EXPECT_LT(three, 0.5 * two) << "t " << t << ": " << three << " " << two;
     EXPECT_LT(three, 0.25 * plain) << "t " << t << ": " << three << " " << plain;
   }
+}
+
+TEST(CompositeVoxels, ANeutralCoatedPoreLeavesTheMatrixConductivityAndConverges) {
+  // Hashin's neutral inclusion with a core that conducts nothing (a pore of radius a in a shell
+  // of outer radius b and conductivity ks): it conducts like a matrix of
+  //   km = ks (2 - 2 phi) / (2 + phi),  phi = (a / b)^3,
+  // so the periodic medium's effective conductivity is exactly km. The laminate's tensor in
+  // the pore's cut voxels carries nothing across the pore's surface: with it, 3.6 % and 3.8 %
+  // low after 362 and 187 iterations (on packed insulating spheres conjugate gradients stalled
+  // above the tolerance). The pore's cut voxels now average what carries something in them.
+  const double a = 0.25, ks = 1.0;
+  for (const auto& [t, side] : {std::pair<double, int>{0.04, 24}, {0.07, 16}}) {
+    const int res = side;  // (lambdas may not capture structured bindings in C++17)
+    const double phi = std::pow(a / (a + t), 3);
+    const double km = ks * (2.0 - 2.0 * phi) / (2.0 + phi);
+    const CoatedSphereCell cell = coated_sphere_cell(a, t, res);
+    const Mat3 I = Mat3::Identity();
+    const std::vector<Mat3> rows = {km * I, Mat3::Zero(), ks * I};  // the core is the pore
+    std::vector<CompositeVoxel> comp;
+    for (const CutVoxel& c : cell.cut.voxels) comp.push_back(composite_of(c));
+    ConductivityOptions opt;
+    opt.tolerance = 1e-8;
+    opt.max_iterations = 1000;
+    // Measured (relative error, iterations): 1.0e-3 and 38 at 24^3, 2.6e-3 and 26 at 16^3;
+    // plain voxels 2.6e-2 and 1.9e-2.
+    double err[2];
+    int k = 0;
+    for (VoxelRule rule : {VoxelRule::kLaminate, VoxelRule::kPlain}) {
+      const ConductivityMedium m = compose_medium<3>(cell.material, rows, comp, rule);
+      const ConductivityResult r = effective_conductivity({res, res, res}, Vec3(1, 1, 1), m, opt);
+      EXPECT_TRUE(r.converged) << "t " << t << " rule " << k;
+      EXPECT_LT(*std::max_element(r.iterations.begin(), r.iterations.end()), 100);
+      err[k++] = std::abs(r.tensor.trace() / 3.0 / km - 1.0);
+    }
+    EXPECT_LT(err[0], 0.005) << "t " << t;
+    EXPECT_LT(err[0], 0.25 * err[1]) << "t " << t << ": " << err[0] << " " << err[1];
+  }
+}
+
+TEST(CompositeVoxels, APoresCutVoxelsAverageWhatCarriesAndThinEmptyLayersStayLaminates) {
+  // Rows: 0 matrix (k 2), 1 a pore (nothing), 2 a gap (nothing, thin).
+  const Mat3 I = Mat3::Identity();
+  const std::vector<Mat3> rows = {2.0 * I, Mat3::Zero(), Mat3::Zero()};
+  const std::vector<uint32_t> material(3, 0);
+  const Vec3 n = Vec3(1, 2, 2) / 3.0;
+  auto voxel = [&](size_t at, uint32_t inside, double f) {
+    CompositeVoxel v;
+    v.voxel = at;
+    v.inside = inside;
+    v.outside = 0;
+    v.fraction = f;
+    v.normal = n;
+    return v;
+  };
+  // A pore's share 0.3: the matrix's 0.7 of it, in every direction; 0.95: nothing (under a
+  // tenth of material); a gap's share 0.3: the laminate, nothing across n, 0.7 of it along.
+  const std::vector<CompositeVoxel> comp = {voxel(0, 1, 0.3), voxel(1, 1, 0.95), voxel(2, 2, 0.3)};
+  const ConductivityMedium m =
+      compose_medium<3>(material, rows, comp, VoxelRule::kLaminate, {false, false, true});
+  EXPECT_LT((m.at(0) - 1.4 * I).norm(), 1e-12) << m.at(0);
+  EXPECT_EQ(m.at(1), Mat3::Zero());
+  const Mat3 gap = m.at(2);
+  EXPECT_LT(std::abs(n.dot(gap * n)), 1e-9) << gap;
+  const Vec3 along = Vec3(2, -1, 0).normalized();
+  EXPECT_NEAR(along.dot(gap * along), 1.4, 1e-9);
+  // Without the mark the gap is a pore too.
+  const ConductivityMedium unmarked = compose_medium<3>(material, rows, comp, VoxelRule::kLaminate);
+  EXPECT_LT((unmarked.at(2) - 1.4 * I).norm(), 1e-12);
 }
 
 }  // namespace

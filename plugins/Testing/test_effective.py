@@ -50,6 +50,8 @@ eff.UpdatePipeline()
 table = rows(servermanager.Fetch(eff))
 k = {n: v for q, n, v in table if q == "conductivity"}
 check(len(k) == 9, "conductivity rows: %d" % len(k))
+converged = [v for q, n, v in table if q == "converged" and n == "conductivity"]
+check(converged == [1.0], "converged row: %s" % converged)
 if len(k) == 9:
     check(all(abs(k["k%d%d" % (i, j)] - k["k%d%d" % (j, i)]) < 1e-6 * k["k11"]
               for i in (1, 2, 3) for j in (1, 2, 3)), "conductivity not symmetric: %s" % k)

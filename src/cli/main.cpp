@@ -48,6 +48,12 @@ constexpr int kExitOutput = 1;   // generate: the outputs could not be written
 constexpr int kExitInvalid = 2;
 constexpr int kExitNotReached = 3;
 constexpr int kExitAudit = 4;
+constexpr int kExitNotConverged = 5;  // generate, homogenize: a solve stopped above its tolerance
+
+// Before unconverged()'s sentence: what a tensor that did not converge is, and the ways out.
+constexpr const char* kNotConverged =
+    "rvegen: homogenization did not converge, so its tensors are not the RVE's effective "
+    "properties (report.json: \"converged\": false): ";
 
 using rvegen::cli::kMaxSceneBytes;
 using rvegen::cli::peak_memory_mb;
@@ -97,7 +103,8 @@ const char* kGenerateUsage =
     "  invalid input or a scene too large for the memory (nothing written); 3 when the target\n"
     "  volume fraction cannot be reached (report.json says so; the best valid configuration is\n"
     "  written); 4 when the packed RVE fails the exact audit (an internal error: nothing\n"
-    "  written).\n";
+    "  written); 5 when a homogenization solve stopped above its tolerance (everything is\n"
+    "  written, report.json has \"converged\": false, and a message names the load cases).\n";
 const char* kCheckUsage =
     "usage: rvegen check FILE.json [--json] [--max-pairs N]\n"
     "  Audits an inclusion list (inclusions.json) with the exact pair tests. Exit 0 when no\n"
@@ -111,7 +118,8 @@ const char* kHomogenizeUsage =
     "  (same names, same order). Under an MPI launcher (mpirun -np N rvegen homogenize ...)\n"
     "  the ranks share the voxel grid in z slabs (FFTW's MPI transforms): each voxelizes and\n"
     "  solves its own slab, the image is never gathered, and rank 0 prints the result.\n"
-    "  Exit 0 on success, 2 on invalid input.\n";
+    "  Exit 0 on success, 2 on invalid input, 5 when a solve stopped above its tolerance (the\n"
+    "  result is printed with \"converged\": false).\n";
 const char* kDefaultSceneUsage =
     "usage: rvegen default-scene\n"
     "  Prints the built-in default scene (a scene file to start from).\n";
@@ -584,11 +592,13 @@ int cmd_generate(const std::vector<std::string>& args) {
     }
     nlohmann::ordered_json effective;
     rvegen::EffectiveProperties solved;
+    std::string not_converged;  // what the solves left above their tolerance
     std::vector<rvegen::LocalField> fields;
     if (scene.homogenization.any()) {
       timed("homogenization", [&] {
         effective = rvegen::cli::effective_properties(scene, result.set, image, progress, &solved);
       });
+      not_converged = rvegen::unconverged(solved, scene.homogenization.tolerance);
       // The local fields for rve.h5 (scene.homogenization.fields), per load case.
       auto add = [&](const char* physics, const char* what, const char* names, int count,
                      const std::vector<std::vector<float>>& per_load) {
@@ -650,6 +660,10 @@ int cmd_generate(const std::vector<std::string>& args) {
                 << rvegen::stop_reason_name(result.stop_reason)
                 << "); the best valid configuration found was written\n";
       return kExitNotReached;
+    }
+    if (!not_converged.empty()) {
+      std::cerr << kNotConverged << not_converged << "\n";
+      return kExitNotConverged;
     }
     return kExitOk;
   } catch (const rvegen::AuditFailure& e) {
@@ -727,8 +741,14 @@ int cmd_homogenize(const std::vector<std::string>& args) {
     vopt.extent = {0, res[0], 0, res[1], z[0], z[1]};
     const rvegen::VoxelImage image = rvegen::voxelize(set, res, vopt);
     const auto progress = [&](const std::string& line) { say << line << "\n"; };
-    const auto out = rvegen::cli::effective_properties(scene, set, image, progress, nullptr, comm);
+    rvegen::EffectiveProperties solved;
+    const auto out = rvegen::cli::effective_properties(scene, set, image, progress, &solved, comm);
     if (ranks.root()) std::cout << out.dump(2) << "\n";
+    const std::string not_converged = rvegen::unconverged(solved, scene.homogenization.tolerance);
+    if (!not_converged.empty()) {
+      say << kNotConverged << not_converged << "\n";
+      return kExitNotConverged;
+    }
     return kExitOk;
   } catch (const rvegen::InputError& e) {
     say << "rvegen: invalid input: " << e.what() << "\n";

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <string>
 #include <unordered_map>
@@ -75,7 +76,13 @@ TensorMedium<D> build_medium(const InclusionSet& set, const VoxelImage& image, c
     if (own[c.inclusion] >= 0) v.inside = static_cast<uint32_t>(own[c.inclusion]);
     composites.push_back(v);
   }
-  return compose_medium<D>(material, rows, composites, rule);
+  // Debonding gaps and shells are thin: one that carries nothing keeps the laminate.
+  std::vector<bool> thin(rows.size(), false);
+  for (size_t l = 0; l < image.phases.size(); ++l) {
+    thin[l] =
+        image.phases[l].kind == PhaseKind::kVoid || image.phases[l].kind == PhaseKind::kInterphase;
+  }
+  return compose_medium<D>(material, rows, composites, rule, thin);
 }
 
 // Shares of each phase label in the whole image (every rank's slab).
@@ -269,6 +276,58 @@ EffectiveProperties effective_properties(const Scene& scene, const InclusionSet&
       out.bulk_bounds = scalar_bounds(f, bulk, 4.0 / 3.0 * gmin, 4.0 / 3.0 * gmax);
       out.shear_bounds = scalar_bounds(f, shear, zeta(kmin, gmin), zeta(kmax, gmax));
     }
+  }
+  return out;
+}
+
+namespace {
+
+// "1", "1 and 2", "1, 2 and 3".
+std::string listed(const std::vector<int>& k) {
+  std::string out;
+  for (size_t i = 0; i < k.size(); ++i) {
+    if (i > 0) out += i + 1 == k.size() ? " and " : ", ";
+    out += std::to_string(k[i]);
+  }
+  return out;
+}
+
+template <size_t N>
+std::string unconverged_cases(const char* physics, const std::array<int, N>& iterations,
+                              const std::array<double, N>& residual, double tolerance) {
+  std::vector<int> cases;
+  int most = 0;
+  double worst = 0.0;
+  for (size_t l = 0; l < N; ++l) {
+    if (iterations[l] > 0 && !(residual[l] < tolerance)) {
+      cases.push_back(static_cast<int>(l) + 1);
+      most = std::max(most, iterations[l]);
+      worst = std::max(worst, residual[l]);
+    }
+  }
+  if (cases.empty()) return "";
+  char tail[160];
+  std::snprintf(tail, sizeof tail,
+                " stopped at %d iterations with relative residuals up to %.1e, above the "
+                "tolerance %.0e",
+                most, worst, tolerance);
+  return std::string(physics) + ": load case" + (cases.size() > 1 ? "s " : " ") + listed(cases) +
+         tail;
+}
+
+}  // namespace
+
+std::string unconverged(const EffectiveProperties& e, double tolerance) {
+  std::string out;
+  auto add = [&](const std::string& part) {
+    if (!part.empty()) out += (out.empty() ? "" : "; ") + part;
+  };
+  if (e.has_conductivity) {
+    add(unconverged_cases("conductivity", e.conductivity.iterations, e.conductivity.residual,
+                          tolerance));
+  }
+  if (e.has_stiffness) {
+    add(unconverged_cases("elasticity", e.stiffness.iterations, e.stiffness.residual, tolerance));
   }
   return out;
 }

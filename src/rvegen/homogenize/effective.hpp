@@ -58,4 +58,11 @@ EffectiveProperties effective_properties(const Scene& scene, const InclusionSet&
                                          const SolveProgress& progress = nullptr,
                                          const Communicator& comm = {});
 
+/// What did not converge, in one sentence ("conductivity: load cases 1, 2 and 3 stopped at 1000
+/// iterations with relative residuals up to 3.7e-04, above the tolerance 1e-06"; the physics
+/// joined by "; "), or "" when every load case reached the tolerance. A tensor that did not
+/// converge is not the RVE's effective property: the command line says so and exits 5, the VTK
+/// filter warns.
+std::string unconverged(const EffectiveProperties& e, double tolerance);
+
 }  // namespace rvegen

@@ -82,13 +82,18 @@ inline CompositeVoxel composite_of(const CutVoxel& c) {
 }
 
 /// The medium of an image: voxel v has material `material[v]` (a row of `materials`), except
-/// the composite voxels, which get the rule's tensor (each its own row). Throws InputError when
-/// a material is not symmetric positive semi-definite, an index is out of range or a composite
-/// voxel's share is outside [0, 1] or its normal not finite.
+/// the composite voxels, which get the rule's tensor (each its own row). With the laminate
+/// rule, a composite voxel whose inside or outside layer carries nothing (a zero tensor: a pore)
+/// gets the mean of its layers that carry something, or nothing when they hold under a tenth
+/// of it; rows marked in `thin` (debonding gaps, shells) that carry nothing keep the laminate,
+/// which carries nothing across them. Throws InputError when a material is not symmetric
+/// positive semi-definite, an index is out of range or a composite voxel's share is outside
+/// [0, 1] or its normal not finite.
 template <int D>
 TensorMedium<D> compose_medium(const std::vector<uint32_t>& material,
                                const std::vector<Eigen::Matrix<double, D, D>>& materials,
-                               const std::vector<CompositeVoxel>& composites, VoxelRule rule);
+                               const std::vector<CompositeVoxel>& composites, VoxelRule rule,
+                               const std::vector<bool>& thin = {});
 
 /// The rule's tensor for shares f of A and 1 - f of B with interface normal n.
 Mat3 mix_conductivity(const Mat3& a, const Mat3& b, double f, const Vec3& n, VoxelRule rule);

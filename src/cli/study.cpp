@@ -37,7 +37,8 @@ using json = nlohmann::ordered_json;
 
 namespace {
 
-constexpr int kExitOk = 0, kExitOutput = 1, kExitInvalid = 2, kExitNotReached = 3;
+constexpr int kExitOk = 0, kExitOutput = 1, kExitInvalid = 2, kExitNotReached = 3,
+              kExitNotConverged = 5;
 
 const char* kStudyUsage =
     "usage: rvegen study SCENE.json [-o DIR] [--sizes LIST] [--realizations N]\n"
@@ -58,8 +59,9 @@ const char* kStudyUsage =
     "  realization records travel to rank 0, which writes the statistics (the same as one\n"
     "  process gives).\n"
     "  Exit 0; 2 on invalid input (or DIR holding a study of another scene); 1 when DIR\n"
-    "  cannot be written; 3 when some realization did not reach its target (they are left out\n"
-    "  of the statistics, and counted).\n";
+    "  cannot be written; 3 when some realization did not reach its target, 5 when some\n"
+    "  realization's homogenization did not converge (either way they are left out of the\n"
+    "  statistics, and counted: study.json's not_reached and not_converged).\n";
 
 // A realization's seed from the scene's, the size and the realization's number: the same
 // realization always gets the same seed, however many are asked for.
@@ -135,7 +137,8 @@ std::vector<int> window_counts(const Scene& scene) {
 // The properties of one realization, by name.
 // The window method's variances go to `windows` (a list of [k, volume, windows, variance,
 // mean]).
-json realization_properties(const Scene& scene, const PackingResult& r, json* windows) {
+json realization_properties(const Scene& scene, const PackingResult& r, json* windows,
+                            std::string* not_converged) {
   json p = json::object();
   const InclusionSet& set = r.set;
   const int nf = static_cast<int>(scene.families.size());
@@ -203,6 +206,7 @@ json realization_properties(const Scene& scene, const PackingResult& r, json* wi
   }
   if (scene.homogenization.any()) {
     const EffectiveProperties e = effective_properties(scene, set, image);
+    *not_converged = unconverged(e, scene.homogenization.tolerance);
     if (e.has_conductivity) {
       const Mat3& k = e.conductivity.tensor;
       p["conductivity.k11"] = k(0, 0);
@@ -311,7 +315,8 @@ struct StudyPlan {
 struct StudyRecords {
   std::map<std::string, std::vector<std::vector<double>>> values;  // property -> size -> values
   std::vector<std::string> order;  // properties in the order first met
-  std::vector<int> not_reached;    // per size
+  std::vector<int> not_reached;    // per size: realizations that missed their target
+  std::vector<int> not_converged;  // per size: realizations whose homogenization did not converge
   // The window method's variances of the inclusions' share: size -> realization -> k.
   std::vector<std::vector<std::vector<WindowVariance>>> windows;
 };
@@ -322,6 +327,7 @@ StudyRecords read_records(const StudyPlan& plan) {
   const std::vector<double>& sizes = plan.sizes;
   StudyRecords r;
   r.not_reached.assign(sizes.size(), 0);
+  r.not_converged.assign(sizes.size(), 0);
   r.windows.resize(sizes.size());
   for (size_t i = 0; i < sizes.size(); ++i) {
     for (int k = 0; k < plan.realizations; ++k) {
@@ -332,8 +338,9 @@ StudyRecords read_records(const StudyPlan& plan) {
       } catch (const std::exception& e) {
         throw InputError(p.string() + " is not a realization record: " + e.what());
       }
-      if (rec.value("status", "") != "ok") {
-        ++r.not_reached[i];
+      const std::string status = rec.value("status", "");
+      if (status != "ok") {
+        ++(status == "not_converged" ? r.not_converged : r.not_reached)[i];
         continue;
       }
       for (auto it = rec["properties"].begin(); it != rec["properties"].end(); ++it) {
@@ -384,6 +391,7 @@ int write_statistics(const StudyPlan& plan, std::vector<double> rank_peaks_mb) {
   out["realizations"] = realizations;
   out["target_error"] = target_error;
   out["not_reached"] = not_reached;
+  out["not_converged"] = records.not_converged;
   out["ranks"] = plan.ranks;  // processes of this run (the statistics do not depend on it)
   out["law"] = "D^2(V) = K V^-alpha; relative error of the mean of n: 2 D(V) / (|mean| sqrt n)";
   json props = json::object();
@@ -500,8 +508,9 @@ int write_statistics(const StudyPlan& plan, std::vector<double> rank_peaks_mb) {
     std::cerr << "rvegen: " << e.what() << "\n";
     return kExitOutput;
   }
-  int missing = 0;
+  int missing = 0, unconverged_count = 0;
   for (int n : not_reached) missing += n;
+  for (int n : records.not_converged) unconverged_count += n;
   if (!plan.quiet) {
     std::cerr << "study: written " << (plan.dir / "study.json").string() << " and study.csv\n";
   }
@@ -509,6 +518,12 @@ int write_statistics(const StudyPlan& plan, std::vector<double> rank_peaks_mb) {
     std::cerr << "rvegen: " << missing << " realization(s) did not reach the target; they are "
               << "left out of the statistics\n";
     return kExitNotReached;
+  }
+  if (unconverged_count > 0) {
+    std::cerr << "rvegen: the homogenization of " << unconverged_count
+              << " realization(s) did not converge (their records say which load cases); they "
+              << "are left out of the statistics\n";
+    return kExitNotConverged;
   }
   return kExitOk;
 }
@@ -701,8 +716,15 @@ int cmd_study(const std::vector<std::string>& args) {
       rec["status"] = status_name(r.status);
       rec["count"] = r.set.inclusions.size();
       json windows = json::object();
-      rec["properties"] = realization_properties(s, r, &windows);
+      std::string not_converged;
+      rec["properties"] = realization_properties(s, r, &windows, &not_converged);
       if (!windows.empty()) rec["windows"] = windows;
+      // A tensor that did not converge is no effective property: the realization is left out
+      // of the statistics, as one that missed its target is.
+      if (r.status == PackingStatus::kOk && !not_converged.empty()) {
+        rec["status"] = "not_converged";
+        rec["not_converged"] = not_converged;
+      }
     } catch (const NothingPlaced&) {
       rec["status"] = "nothing_placed";
     } catch (const std::exception& e) {

@@ -788,6 +788,19 @@ head -1 "$WORK/study_a/study.csv" | grep -q "^property,size,volume,n,mean,sd,ci9
 echo '{"box":{"size":[0.4,0.4,0.4]},"seed":3,"families":[{"shape":"sphere","radius":0.04,"volume_fraction":0.2}]}' >"$WORK/study_other.json"
 expect_rc 2 "$RVEGEN" study "$WORK/study_other.json" -o "$WORK/study_a" --realizations 1 -q
 grep -q "holds a study of another scene" "$WORK/last.err" || fail "study: other scene not named"
+# Realizations whose homogenization stopped above its tolerance are counted and left out of
+# the statistics (exit 5), as missed targets are.
+sed 's/"physics":\["conductivity"\]/"physics":["conductivity"],"max_iterations":2/' "$WORK/study.json" >"$WORK/study_short.json"
+expect_rc 5 "$RVEGEN" study "$WORK/study_short.json" -o "$WORK/study_short" --sizes 1 --realizations 2 -q
+grep -q "homogenization of 2 realization(s) did not converge" "$WORK/last.err" \
+  || fail "study: unconverged realizations not named: $(cat "$WORK/last.err")"
+$py - "$WORK/study_short" <<'PY' || fail "study: unconverged realizations in the statistics"
+import json, sys
+s = json.load(open(sys.argv[1] + "/study.json"))
+assert s["not_converged"] == [2] and s["not_reached"] == [0], (s["not_converged"], s["not_reached"])
+r = json.load(open(sys.argv[1] + "/realizations/size_1_0.json"))
+assert r["status"] == "not_converged" and "stopped at 2 iterations" in r["not_converged"], r
+PY
 expect_rc 2 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_c" --sizes 1,-2 -q
 grep -q -- "--sizes" "$WORK/last.err" || fail "study: bad --sizes not named"
 expect_rc 2 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_c" --realizations 0 -q

@@ -626,7 +626,9 @@ CutLaminate cut_laminate(const std::array<int, 3>& d) {
 }
 
 TEST(CompositeVoxels, LaminateRuleMakesACutConductingLaminateExactAtAnyResolution) {
-  for (double contrast : {10.0, 1000.0}) {
+  // (1e-3: the weaker phase inside, as a soft inclusion's core; pores, 1e-4 and under, are
+  // mixed otherwise.)
+  for (double contrast : {10.0, 1000.0, 1e-3}) {
     const double fa = CutLaminate{}.share_a;
     const double harmonic = 1.0 / (fa / contrast + (1.0 - fa)),
                  arithmetic = fa * contrast + (1.0 - fa);
@@ -975,6 +977,12 @@ TEST(CompositeVoxels, APoresCutVoxelsAverageWhatCarriesAndThinEmptyLayersStayLam
   // Without the mark the gap is a pore too.
   const ConductivityMedium unmarked = compose_medium<3>(material, rows, comp, VoxelRule::kLaminate);
   EXPECT_LT((unmarked.at(2) - 1.4 * I).norm(), 1e-12);
+  // A core with 1e-6 of the matrix's conductivity is a pore; one with 1e-3 a laminate's layer.
+  const std::vector<Mat3> weak = {2.0 * I, 2e-6 * I, 2e-3 * I};
+  const ConductivityMedium w =
+      compose_medium<3>(material, weak, {voxel(0, 1, 0.3), voxel(1, 2, 0.3)}, VoxelRule::kLaminate);
+  EXPECT_LT((w.at(0) - 1.4 * I).norm(), 1e-12) << w.at(0);
+  EXPECT_NEAR(n.dot(w.at(1) * n), 1.0 / (0.3 / 2e-3 + 0.7 / 2.0), 1e-12);
 }
 
 }  // namespace

@@ -849,7 +849,8 @@ TEST(CompositeVoxels, ThreeLayersAreOneLaminateOfTwoLaminates) {
 struct CoatedSphereCell {
   VoxelImage img;
   CutVoxels cut;
-  std::vector<uint32_t> material;  // the labels, as rows of a material table
+  std::vector<uint32_t> material;         // the labels, as rows of a material table
+  std::vector<CompositeVoxel> composite;  // the cut voxels, layers by label
 };
 CoatedSphereCell coated_sphere_cell(double a, double t, int res) {
   InclusionSet set;
@@ -862,6 +863,7 @@ CoatedSphereCell coated_sphere_cell(double a, double t, int res) {
   c.img = voxelize(set, {res, res, res});
   c.cut = cut_voxels(set, c.img);
   c.material.assign(c.img.phase.begin(), c.img.phase.end());
+  for (const CutVoxel& v : c.cut.voxels) c.composite.push_back(composite_of(v));
   return c;
 }
 
@@ -927,8 +929,6 @@ TEST(CompositeVoxels, ANeutralCoatedPoreLeavesTheMatrixConductivityAndConverges)
     const CoatedSphereCell cell = coated_sphere_cell(a, t, res);
     const Mat3 I = Mat3::Identity();
     const std::vector<Mat3> rows = {km * I, Mat3::Zero(), ks * I};  // the core is the pore
-    std::vector<CompositeVoxel> comp;
-    for (const CutVoxel& c : cell.cut.voxels) comp.push_back(composite_of(c));
     ConductivityOptions opt;
     opt.tolerance = 1e-8;
     opt.max_iterations = 1000;
@@ -937,7 +937,7 @@ TEST(CompositeVoxels, ANeutralCoatedPoreLeavesTheMatrixConductivityAndConverges)
     double err[2];
     int k = 0;
     for (VoxelRule rule : {VoxelRule::kLaminate, VoxelRule::kPlain}) {
-      const ConductivityMedium m = compose_medium<3>(cell.material, rows, comp, rule);
+      const ConductivityMedium m = compose_medium<3>(cell.material, rows, cell.composite, rule);
       const ConductivityResult r = effective_conductivity({res, res, res}, Vec3(1, 1, 1), m, opt);
       EXPECT_TRUE(r.converged) << "t " << t << " rule " << k;
       EXPECT_LT(*std::max_element(r.iterations.begin(), r.iterations.end()), 100);
@@ -946,6 +946,44 @@ TEST(CompositeVoxels, ANeutralCoatedPoreLeavesTheMatrixConductivityAndConverges)
     EXPECT_LT(err[0], 0.005) << "t " << t;
     EXPECT_LT(err[0], 0.25 * err[1]) << "t " << t << ": " << err[0] << " " << err[1];
   }
+}
+
+TEST(CompositeVoxels, ANeutralCoatedPoreLeavesTheMatrixBulkModulus) {
+  // Hashin's neutral inclusion for the bulk modulus: a pore of radius a in a shell of outer
+  // radius b (bulk ks, shear gs) has, as a whole, the bulk modulus
+  //   km = ks - phi ks / (1 - (1 - phi) ks / (ks + 4 gs / 3)),  phi = (a / b)^3;
+  // in a matrix of bulk modulus km (any shear modulus) it leaves a hydrostatic strain
+  // undisturbed, so the periodic medium answers a hydrostatic strain exactly as the matrix:
+  // the sum of C_ij over i, j < 3 is 9 km.
+  const double a = 0.25, t = 0.05, young_s = 1.0, poisson_s = 0.3;
+  const int res = 24;
+  const double ks = young_s / (3.0 * (1.0 - 2.0 * poisson_s));
+  const double gs = young_s / (2.0 * (1.0 + poisson_s));
+  const double phi = std::pow(a / (a + t), 3);
+  const double km = ks - phi * ks / (1.0 - (1.0 - phi) * ks / (ks + 4.0 * gs / 3.0));
+  // The matrix: bulk km, shear modulus gs.
+  const double young_m = 9.0 * km * gs / (3.0 * km + gs);
+  const double poisson_m = (3.0 * km - 2.0 * gs) / (2.0 * (3.0 * km + gs));
+  const CoatedSphereCell cell = coated_sphere_cell(a, t, res);
+  const std::vector<Mat6> rows = {isotropic_stiffness(young_m, poisson_m), Mat6::Zero(),
+                                  isotropic_stiffness(young_s, poisson_s)};
+  ElasticityOptions opt;
+  opt.tolerance = 1e-8;
+  opt.max_iterations = 1000;
+  // Measured (relative error, iterations): 7.9e-4 and 72; plain voxels 1.7e-2; the laminate
+  // before pores were mixed apart, 7.1e-2 after 1,000 iterations, not converged.
+  double err[2];
+  int k = 0;
+  for (VoxelRule rule : {VoxelRule::kLaminate, VoxelRule::kPlain}) {
+    const ElasticityResult r =
+        effective_stiffness({res, res, res}, Vec3(1, 1, 1),
+                            compose_medium<6>(cell.material, rows, cell.composite, rule), opt);
+    EXPECT_TRUE(r.converged) << "rule " << k;
+    EXPECT_LT(*std::max_element(r.iterations.begin(), r.iterations.end()), 200);
+    err[k++] = std::abs(r.stiffness.topLeftCorner<3, 3>().sum() / (9.0 * km) - 1.0);
+  }
+  EXPECT_LT(err[0], 0.003);
+  EXPECT_LT(err[0], 0.25 * err[1]) << err[0] << " " << err[1];
 }
 
 TEST(CompositeVoxels, APoresCutVoxelsAverageWhatCarriesAndThinEmptyLayersStayLaminates) {

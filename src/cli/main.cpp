@@ -50,7 +50,7 @@ constexpr int kExitNotReached = 3;
 constexpr int kExitAudit = 4;
 constexpr int kExitNotConverged = 5;  // generate, homogenize: a solve stopped above its tolerance
 
-// Before unconverged()'s sentence: what a tensor that did not converge is, and the ways out.
+// Before unconverged()'s sentence: what a tensor that did not converge is not.
 constexpr const char* kNotConverged =
     "rvegen: homogenization did not converge, so its tensors are not the RVE's effective "
     "properties (report.json: \"converged\": false): ";

@@ -1,7 +1,7 @@
 // Homogenization benchmark: cost of the FFT solvers against the FFTs alone, iterations against
 // contrast, and the whole elasticity solve. Prints a table (tab-separated):
 //   physics res contrast threads seconds iterations s_per_iteration fft_s ratio peak_MiB fft3d_s
-//   split_s iteration_s iteration_ratio
+//   split_s iteration_s iteration_ratio passes
 // fft_s is the time of the transforms one iteration needs (3 or 6 forward and as many inverse)
 // on the same grid in the same run, the faster of FFTW's 3D transforms (fft3d_s) and the same
 // transforms split as the solver runs them (split_s), each the median of sets timed before and
@@ -9,9 +9,10 @@
 // process's peak resident memory after the row (it only grows: run one size per process to read
 // bytes per voxel). iteration_s is an iteration alone (between the solver's reports of two
 // consecutive iterations: no set-up, no right-hand side), iteration_ratio = iteration_s / fft_s.
+// passes: "wide" when the passes over the frequencies take two at a time (AVX2), else "narrow".
 // The image: spheres packed at 0.3 (radius 0.12 of a unit box, seed 7), labels at
 // voxel centres. usage: rvegen_bench_homogenize RES [conductivity|elasticity] [THREADS] [CONTRAST
-// ...]
+// ...] [narrow]
 #include <sys/resource.h>
 #include <tbb/global_control.h>
 
@@ -54,8 +55,16 @@ int main(int argc, char** argv) {
   const int res = std::atoi(argv[1]);
   const std::string physics = argc > 2 ? argv[2] : "conductivity";
   const int threads = argc > 3 ? std::atoi(argv[3]) : 0;
+  // "narrow" among the contrasts keeps the passes over the frequencies to one frequency at a
+  // time (spectral::allow_wide_passes), to compare with the four-lane passes in the same build.
   std::vector<double> contrasts;
-  for (int i = 4; i < argc; ++i) contrasts.push_back(std::atof(argv[i]));
+  for (int i = 4; i < argc; ++i) {
+    if (std::string(argv[i]) == "narrow") {
+      rvegen::spectral::allow_wide_passes(false);
+    } else {
+      contrasts.push_back(std::atof(argv[i]));
+    }
+  }
   if (contrasts.empty()) contrasts = {10.0, 100.0, 1000.0};
   // THREADS limits every parallel loop (TBB's passes over the voxels as well as FFTW's threads),
   // as `rvegen --threads` does.
@@ -109,7 +118,7 @@ int main(int argc, char** argv) {
   time_ffts();
   std::printf(
       "physics\tres\tcontrast\tthreads\tseconds\titerations\ts_per_iteration\tfft_s\tratio\tpeak_"
-      "MiB\tfft3d_s\tsplit_s\titeration_s\titeration_ratio\n");
+      "MiB\tfft3d_s\tsplit_s\titeration_s\titeration_ratio\tpasses\n");
   // The iterations alone: the intervals between the solver's reports of consecutive
   // iterations (each one sweep and one pass over the frequencies), summed; the set-up and each
   // load case's right-hand side and first iteration left out (seconds / iterations counts them
@@ -160,9 +169,10 @@ int main(int argc, char** argv) {
     time_ffts();
     const double fft3d_s = median(fft_times), split_s = median(split_times);
     const double fft_s = std::min(fft3d_s, split_s);
-    std::printf("%s\t%d\t%g\t%d\t%.3f\t%d\t%.4f\t%.4f\t%.2f\t%.0f\t%.4f\t%.4f\t%.4f\t%.2f\n",
+    std::printf("%s\t%d\t%g\t%d\t%.3f\t%d\t%.4f\t%.4f\t%.2f\t%.0f\t%.4f\t%.4f\t%.4f\t%.2f\t%s\n",
                 physics.c_str(), res, contrast, threads, seconds, iterations, per, fft_s,
-                per / fft_s, peak_mib(), fft3d_s, split_s, per_alone, per_alone / fft_s);
+                per / fft_s, peak_mib(), fft3d_s, split_s, per_alone, per_alone / fft_s,
+                rvegen::spectral::wide_passes() ? "wide" : "narrow");
   }
   return 0;
 }

@@ -24,16 +24,25 @@ struct GradientKernel {
   static constexpr int kComponents = 3;
   static constexpr int kPotentials = 1;
   using Pair = spectral::Pair;
-  static void reduce(double* const* v, size_t i, const double* xi, Pair* w) {
-    w[0] = xi[0] * spectral::load_pair(v[0] + i) + xi[1] * spectral::load_pair(v[1] + i) +
-           xi[2] * spectral::load_pair(v[2] + i);
+  // xi . v on one frequency (V a Pair), or on two neighbouring ones (a Quad, xi's lanes each
+  // frequency's).
+  template <class V, class S>
+  RVEGEN_LANES static void reduce(double* const* v, size_t i, const S* xi, V* w) {
+    using spectral::load_lanes;
+    w[0] = xi[0] * load_lanes<V>(v[0] + i) + xi[1] * load_lanes<V>(v[1] + i) +
+           xi[2] * load_lanes<V>(v[2] + i);
   }
-  static void expand(const Pair* w, const double* xi, double scale, double* const* v, size_t i) {
-    const Pair s = scale * w[0];
-    for (int a = 0; a < 3; ++a) spectral::store_pair(v[a] + i, xi[a] * s);
+  template <class V, class S>
+  RVEGEN_LANES static void expand(const V* w, const S* xi, double scale, double* const* v,
+                                  size_t i) {
+    const V s = scale * w[0];
+    for (int a = 0; a < 3; ++a) spectral::store_lanes(v[a] + i, xi[a] * s);
   }
-  // |xi w|^2 for |xi| = 1 (w is 0 where xi is).
-  static Pair norm(const Pair* w, const double*) { return w[0] * w[0]; }
+  // |xi w|^2 for |xi| = 1 (w is 0 where xi is), into squares.
+  template <class V, class S>
+  RVEGEN_LANES static void norm(const V* w, const S*, V& squares) {
+    squares = w[0] * w[0];
+  }
   static void project(double* const* v, size_t i, const double* xi) {
     Pair w[1];
     reduce(v, i, xi, w);
@@ -135,14 +144,13 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
     if (k == k(0, 0) * Mat3::Identity()) scalar[t] = k(0, 0);
   }
   op.flux = [&](double* const* v, size_t lo, size_t hi, double* sums) {
-    using spectral::Pair;
     spectral::flux_in_runs<3, 1>(
         v, lo, hi, sums,
         [&](size_t i, double* n) {
           n[0] = scalar[medium.index[i]];
           return n[0] >= 0.0;
         },
-        [](const Pair* n, const Pair* g, Pair* q) {
+        [](const auto* n, const auto* g, auto* q) RVEGEN_LANES_LAMBDA {
           for (int c = 0; c < 3; ++c) q[c] = n[0] * g[c];
         },
         [&](size_t i, const double* g, double* q) {

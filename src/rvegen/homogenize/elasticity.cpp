@@ -26,38 +26,44 @@ struct StrainKernel {
   static constexpr int kPotentials = 3;
   using Pair = spectral::Pair;
   // u of P on one frequency of each component's spectrum (its real and imaginary parts at
-  // v[c][i] and v[c][i + 1], as one pair: the coefficients are real).
-  static void reduce(double* const* v, size_t i, const double* xi, Pair* u) {
+  // v[c][i] and v[c][i + 1], as one pair: the coefficients are real), or on two neighbouring
+  // ones (V a Quad, xi's lanes each frequency's).
+  template <class V, class S>
+  RVEGEN_LANES static void reduce(double* const* v, size_t i, const S* xi, V* u) {
+    using spectral::load_lanes;
     // The tensor from its Mandel components, T xi, and xi . T xi.
-    const Pair t00 = spectral::load_pair(v[0] + i), t11 = spectral::load_pair(v[1] + i),
-               t22 = spectral::load_pair(v[2] + i);
-    const Pair t12 = spectral::load_pair(v[3] + i) * kInvSqrt2,
-               t02 = spectral::load_pair(v[4] + i) * kInvSqrt2,
-               t01 = spectral::load_pair(v[5] + i) * kInvSqrt2;
-    const Pair d0 = t00 * xi[0] + t01 * xi[1] + t02 * xi[2];
-    const Pair d1 = t01 * xi[0] + t11 * xi[1] + t12 * xi[2];
-    const Pair d2 = t02 * xi[0] + t12 * xi[1] + t22 * xi[2];
-    const Pair kd = xi[0] * d0 + xi[1] * d1 + xi[2] * d2;
+    const V t00 = load_lanes<V>(v[0] + i), t11 = load_lanes<V>(v[1] + i),
+            t22 = load_lanes<V>(v[2] + i);
+    const V t12 = load_lanes<V>(v[3] + i) * kInvSqrt2, t02 = load_lanes<V>(v[4] + i) * kInvSqrt2,
+            t01 = load_lanes<V>(v[5] + i) * kInvSqrt2;
+    const V d0 = t00 * xi[0] + t01 * xi[1] + t02 * xi[2];
+    const V d1 = t01 * xi[0] + t11 * xi[1] + t12 * xi[2];
+    const V d2 = t02 * xi[0] + t12 * xi[1] + t22 * xi[2];
+    const V kd = xi[0] * d0 + xi[1] * d1 + xi[2] * d2;
     u[0] = 2.0 * d0 - xi[0] * kd;
     u[1] = 2.0 * d1 - xi[1] * kd;
     u[2] = 2.0 * d2 - xi[2] * kd;
   }
   // scale sym(xi (x) u) in Mandel components (shear: sqrt 2 (xi_i u_j + xi_j u_i) / 2).
-  static void expand(const Pair* w, const double* xi, double scale, double* const* v, size_t i) {
-    const Pair u0 = scale * w[0], u1 = scale * w[1], u2 = scale * w[2];
-    spectral::store_pair(v[0] + i, xi[0] * u0);
-    spectral::store_pair(v[1] + i, xi[1] * u1);
-    spectral::store_pair(v[2] + i, xi[2] * u2);
-    spectral::store_pair(v[3] + i, (xi[1] * u2 + xi[2] * u1) * kInvSqrt2);
-    spectral::store_pair(v[4] + i, (xi[0] * u2 + xi[2] * u0) * kInvSqrt2);
-    spectral::store_pair(v[5] + i, (xi[0] * u1 + xi[1] * u0) * kInvSqrt2);
+  template <class V, class S>
+  RVEGEN_LANES static void expand(const V* w, const S* xi, double scale, double* const* v,
+                                  size_t i) {
+    using spectral::store_lanes;
+    const V u0 = scale * w[0], u1 = scale * w[1], u2 = scale * w[2];
+    store_lanes(v[0] + i, xi[0] * u0);
+    store_lanes(v[1] + i, xi[1] * u1);
+    store_lanes(v[2] + i, xi[2] * u2);
+    store_lanes(v[3] + i, (xi[1] * u2 + xi[2] * u1) * kInvSqrt2);
+    store_lanes(v[4] + i, (xi[0] * u2 + xi[2] * u0) * kInvSqrt2);
+    store_lanes(v[5] + i, (xi[0] * u1 + xi[1] * u0) * kInvSqrt2);
   }
   // |sym(xi (x) u)|^2 = (|u|^2 + (xi . u)^2) / 2 for |xi| = 1, lane by lane (u is 0 where xi
-  // is: there reduce gives 0).
-  static Pair norm(const Pair* u, const double* xi) {
-    const Pair xu = xi[0] * u[0] + xi[1] * u[1] + xi[2] * u[2];
-    const Pair uu = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
-    return 0.5 * (uu + xu * xu);
+  // is: there reduce gives 0), into squares.
+  template <class V, class S>
+  RVEGEN_LANES static void norm(const V* u, const S* xi, V& squares) {
+    const V xu = xi[0] * u[0] + xi[1] * u[1] + xi[2] * u[2];
+    const V uu = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+    squares = 0.5 * (uu + xu * xu);
   }
   // P on one frequency.
   static void project(double* const* v, size_t i, const double* xi) {
@@ -183,7 +189,6 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
   // numbers: 7 products instead of 36.
   const std::vector<IsotropicPart> iso = isotropic_parts(medium.tensors);
   op.flux = [&](double* const* v, size_t lo, size_t hi, double* sums) {
-    using spectral::Pair;
     spectral::flux_in_runs<6, 3>(
         v, lo, hi, sums,
         [&](size_t i, double* n) {
@@ -193,8 +198,8 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
           n[2] = ip.two_mu;
           return ip.isotropic;
         },
-        [](const Pair* n, const Pair* e, Pair* t) {
-          const Pair l = n[1] * (e[0] + e[1] + e[2]);
+        [](const auto* n, const auto* e, auto* t) RVEGEN_LANES_LAMBDA {
+          const auto l = n[1] * (e[0] + e[1] + e[2]);
           for (int c = 0; c < 3; ++c) t[c] = n[0] * e[c] + l;
           for (int c = 3; c < 6; ++c) t[c] = n[2] * e[c];
         },

@@ -12,6 +12,7 @@
 #include <tbb/partitioner.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <mutex>
 #include <stdexcept>
@@ -128,6 +129,25 @@ std::array<int, 2> fft_slab(const std::array<int, 3>& dims, const Communicator& 
 size_t slab_voxels(const std::array<int, 3>& dims, const Communicator& comm) {
   const std::array<int, 2> z = fft_slab(dims, comm);
   return static_cast<size_t>(dims[0]) * dims[1] * (z[1] - z[0]);
+}
+
+namespace {
+
+std::atomic<bool> wide_allowed{true};
+
+}  // namespace
+
+bool wide_passes() {
+#if defined(__x86_64__) || defined(__i386__)
+  static const bool supported = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+  return supported && wide_allowed.load(std::memory_order_relaxed);
+#else
+  return false;
+#endif
+}
+
+bool allow_wide_passes(bool allowed) {
+  return wide_allowed.exchange(allowed);
 }
 
 size_t checked_voxels(const std::array<int, 3>& dims, const Vec3& box) {

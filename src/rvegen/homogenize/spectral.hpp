@@ -11,6 +11,7 @@
 #include <complex>
 #include <cstring>
 #include <functional>
+#include <type_traits>
 #include <vector>
 
 #include "rvegen/geometry/shapes.hpp"
@@ -49,6 +50,52 @@ inline Pair load_pair(const double* p) {
 inline void store_pair(double* p, Pair v) {
   std::memcpy(p, &v, sizeof v);
 }
+/// Two neighbouring frequencies' real and imaginary parts as one value (four lanes), for the
+/// passes built for AVX2 (chosen at run time, see wide_passes). The helpers below and the
+/// kernels are always inlined, so that the four-lane code is only ever made inside functions
+/// built for it.
+using Quad = double __attribute__((vector_size(32)));
+// For the functions (and lambdas) that take Pairs or Quads.
+#define RVEGEN_LANES inline __attribute__((always_inline))
+#define RVEGEN_LANES_LAMBDA __attribute__((always_inline))
+/// A Pair or a Quad at p (one frequency, or two side by side), and back.
+template <class V>
+RVEGEN_LANES V load_lanes(const double* p) {
+  V v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+template <class V>
+RVEGEN_LANES void store_lanes(double* p, V v) {
+  std::memcpy(p, &v, sizeof v);
+}
+/// One complex value of one frequency (Pair), or of two whose values lie `apart` doubles apart
+/// (Quad), and back.
+template <class V>
+RVEGEN_LANES V load_apart(const double* p, size_t apart) {
+  if constexpr (sizeof(V) == sizeof(Pair)) {
+    (void)apart;
+    return load_pair(p);
+  } else {
+    return __builtin_shufflevector(load_pair(p), load_pair(p + apart), 0, 1, 2, 3);
+  }
+}
+template <class V>
+RVEGEN_LANES void store_apart(double* p, size_t apart, V v) {
+  if constexpr (sizeof(V) == sizeof(Pair)) {
+    (void)apart;
+    store_pair(p, v);
+  } else {
+    store_pair(p, __builtin_shufflevector(v, v, 0, 1));
+    store_pair(p + apart, __builtin_shufflevector(v, v, 2, 3));
+  }
+}
+/// Whether the solver's passes over the frequencies take two at a time and its fluxes four
+/// voxels at a time, in four-lane vectors (AVX2 and FMA, when this processor has them and they
+/// are allowed); allow_wide_passes(false) keeps them to one frequency and two voxels (the same
+/// solve to rounding; for tests and comparisons) and returns what was allowed before.
+bool wide_passes();
+bool allow_wide_passes(bool allowed);
 
 /// The planes [lo, hi) along z that FFTW's MPI transforms give this rank of `comm` for a grid of
 /// dims voxels (the whole [0, dims[2]) when the communicator is unset). A rank may get none.
@@ -279,24 +326,38 @@ class Projection {
   }
   /// The solver's pass at the frequencies for `step` (read when the pass runs): Kernel::reduce
   /// gives the potentials of P v, Kernel::expand a field's components from its potentials, and
-  /// Kernel::norm the squares of those components (lane by lane).
+  /// Kernel::norm the squares of those components (lane by lane). Each takes one frequency in a
+  /// Pair, or two neighbouring ones in a Quad (wide_passes()).
   Grid::FrequencyPass galerkin_step(const GalerkinStep& step) const {
     return [this, &step](size_t lo, size_t width, size_t seq, double* const* v,
                          const double* inv_norm, double* sums) {
       const GalerkinStep st = step;
-      // The mode and whether x is kept, fixed for the loop.
+      // The mode, whether x is kept and the width, fixed for the loop.
+      auto go = [&](auto mode, auto with_x) {
+        if (wide_passes()) {
+          run_wide<decltype(mode)::value, decltype(with_x)::value>(st, lo, width, seq, v, inv_norm,
+                                                                   sums);
+        } else {
+          run<decltype(mode)::value, decltype(with_x)::value>(st, lo, width, seq, v, inv_norm,
+                                                              sums);
+        }
+      };
+      using Mode = GalerkinStep::Mode;
+      using Field = std::integral_constant<Mode, GalerkinStep::kField>;
+      using Start = std::integral_constant<Mode, GalerkinStep::kStart>;
+      using Iterate = std::integral_constant<Mode, GalerkinStep::kIterate>;
       if (st.mode == GalerkinStep::kField) {
-        run<GalerkinStep::kField, false>(st, lo, width, seq, v, inv_norm, sums);
+        go(Field{}, std::false_type{});
       } else if (st.mode == GalerkinStep::kStart) {
         if (st.with_x) {
-          run<GalerkinStep::kStart, true>(st, lo, width, seq, v, inv_norm, sums);
+          go(Start{}, std::true_type{});
         } else {
-          run<GalerkinStep::kStart, false>(st, lo, width, seq, v, inv_norm, sums);
+          go(Start{}, std::false_type{});
         }
       } else if (st.with_x) {
-        run<GalerkinStep::kIterate, true>(st, lo, width, seq, v, inv_norm, sums);
+        go(Iterate{}, std::true_type{});
       } else {
-        run<GalerkinStep::kIterate, false>(st, lo, width, seq, v, inv_norm, sums);
+        go(Iterate{}, std::false_type{});
       }
     };
   }
@@ -304,74 +365,136 @@ class Projection {
   std::vector<Spectrum>& spectra() { return spectra_; }
 
  private:
+  // Where a pass's values lie: the buffers' components and the solver's fields.
+  struct Fields {
+    double* comp[Kernel::kComponents];
+    double *r = nullptr, *p = nullptr, *s = nullptr, *x = nullptr;
+  };
+  template <GalerkinStep::Mode kMode, bool kWithX>
+  Fields fields_of(const GalerkinStep& st, size_t seq, double* const* v) const {
+    constexpr int kp = Kernel::kPotentials;
+    auto base = [&](Spectrum& f) { return reinterpret_cast<double*>(f.data()) + 2 * kp * seq; };
+    Fields f;
+    f.r = base(st.fields->r);
+    // The direction only for x: the mean flux follows it through scalars.
+    f.p = kWithX && kMode != GalerkinStep::kField ? base(st.fields->p) : nullptr;
+    f.s = kMode == GalerkinStep::kField ? nullptr : base(st.fields->s);
+    f.x = kWithX || kMode == GalerkinStep::kField ? base(st.fields->x) : nullptr;
+    // The components' pointers in registers: the stores could alias v's array as far as the
+    // compiler knows.
+    for (int c = 0; c < Kernel::kComponents; ++c) f.comp[c] = v[c];
+    return f;
+  }
+
+  // The pass at frequency j of the block (and j + 1 for a Quad), whose unit directions are xi
+  // (lane by lane); returns the squares of r's components there (0 for kField).
+  template <class V, GalerkinStep::Mode kMode, bool kWithX, class S>
+  RVEGEN_LANES static V step(const GalerkinStep& st, const Fields& f, size_t j, const S* xi) {
+    constexpr int kp = Kernel::kPotentials;
+    constexpr size_t apart = 2 * kp;  // a field's next frequency
+    const size_t i = 2 * j, at = apart * j;
+    V w[kp];
+    if (kMode == GalerkinStep::kField) {
+      for (int a = 0; a < kp; ++a) w[a] = load_apart<V>(f.x + at + 2 * a, apart);
+      Kernel::expand(w, xi, st.scale, f.comp, i);
+      return V{};
+    }
+    Kernel::reduce(f.comp, i, xi, w);
+    // Every value read before any is written (the arrays may alias as far as the compiler
+    // knows).
+    V ra[kp], pa[kp], sa[kp], xa[kp];
+    if (kMode == GalerkinStep::kStart) {
+      for (int a = 0; a < kp; ++a) {
+        ra[a] = -w[a];
+        pa[a] = sa[a] = xa[a] = V{};
+      }
+    } else {
+      const double alpha = st.alpha, beta = st.beta;
+      for (int a = 0; a < kp; ++a) {
+        ra[a] = load_apart<V>(f.r + at + 2 * a, apart);
+        if (kWithX) pa[a] = load_apart<V>(f.p + at + 2 * a, apart);
+        sa[a] = load_apart<V>(f.s + at + 2 * a, apart);
+        if (kWithX) xa[a] = load_apart<V>(f.x + at + 2 * a, apart);
+      }
+      for (int a = 0; a < kp; ++a) {
+        if (kWithX) pa[a] = ra[a] + beta * pa[a];
+        sa[a] = w[a] + beta * sa[a];
+        if (kWithX) xa[a] += alpha * pa[a];
+        ra[a] -= alpha * sa[a];
+      }
+    }
+    for (int a = 0; a < kp; ++a) {
+      store_apart(f.r + at + 2 * a, apart, ra[a]);
+      if (kWithX) store_apart(f.p + at + 2 * a, apart, pa[a]);
+      store_apart(f.s + at + 2 * a, apart, sa[a]);
+      if (kWithX) store_apart(f.x + at + 2 * a, apart, xa[a]);
+      w[a] = ra[a];
+    }
+    V squares;
+    Kernel::norm(w, xi, squares);
+    Kernel::expand(w, xi, st.scale, f.comp, i);
+    return squares;
+  }
+
+  // One frequency at a time, in two-lane vectors.
   template <GalerkinStep::Mode kMode, bool kWithX>
   void run(const GalerkinStep& st, size_t lo, size_t width, size_t seq, double* const* v,
            const double* inv_norm, double* sums) const {
-    constexpr int kp = Kernel::kPotentials;
-    auto base = [&](Spectrum& f) { return reinterpret_cast<double*>(f.data()) + 2 * kp * seq; };
-    double* r = base(st.fields->r);
-    // The direction only for x: the mean flux follows it through scalars.
-    double* p = kWithX && kMode != GalerkinStep::kField ? base(st.fields->p) : nullptr;
-    double* s = kMode == GalerkinStep::kField ? nullptr : base(st.fields->s);
-    double* x = kWithX || kMode == GalerkinStep::kField ? base(st.fields->x) : nullptr;
-    const double alpha = st.alpha, beta = st.beta, scale = st.scale;
+    const Fields f = fields_of<kMode, kWithX>(st, seq, v);
     // Each stored frequency stands for itself and its conjugate, except on the kx = 0 plane
     // and (even rows) the kx = N / 2 plane, whose conjugates are themselves or also stored.
     const size_t hx = grid_.row() / 2 + 1, nyquist = grid_.row() % 2 == 0 ? hx - 1 : 0;
     size_t kx = lo % hx;
-    // The components' pointers in registers: the stores could alias v's array as far as the
-    // compiler knows.
-    double* comp[Kernel::kComponents];
-    for (int c = 0; c < Kernel::kComponents; ++c) comp[c] = v[c];
     Pair twice = {0.0, 0.0}, once = {0.0, 0.0};
-    grid_.for_each_unit_direction(lo, lo + width, inv_norm, [&](size_t f, const double* xi) {
-      const size_t i = 2 * (f - lo), at = 2 * kp * (f - lo);
-      Pair w[kp];
-      if (kMode == GalerkinStep::kField) {
-        for (int a = 0; a < kp; ++a) w[a] = load_pair(x + at + 2 * a);
-        Kernel::expand(w, xi, scale, comp, i);
-        return;
-      }
-      Kernel::reduce(comp, i, xi, w);
-      // Every value read before any is written (the arrays may alias as far as the compiler
-      // knows).
-      Pair ra[kp], pa[kp], sa[kp], xa[kp];
-      if (kMode == GalerkinStep::kStart) {
-        for (int a = 0; a < kp; ++a) {
-          ra[a] = -w[a];
-          pa[a] = sa[a] = xa[a] = Pair{0.0, 0.0};
-        }
-      } else {
-        for (int a = 0; a < kp; ++a) {
-          ra[a] = load_pair(r + at + 2 * a);
-          if (kWithX) pa[a] = load_pair(p + at + 2 * a);
-          sa[a] = load_pair(s + at + 2 * a);
-          if (kWithX) xa[a] = load_pair(x + at + 2 * a);
-        }
-        for (int a = 0; a < kp; ++a) {
-          if (kWithX) pa[a] = ra[a] + beta * pa[a];
-          sa[a] = w[a] + beta * sa[a];
-          if (kWithX) xa[a] += alpha * pa[a];
-          ra[a] -= alpha * sa[a];
-        }
-      }
-      for (int a = 0; a < kp; ++a) {
-        store_pair(r + at + 2 * a, ra[a]);
-        if (kWithX) store_pair(p + at + 2 * a, pa[a]);
-        store_pair(s + at + 2 * a, sa[a]);
-        if (kWithX) store_pair(x + at + 2 * a, xa[a]);
-        w[a] = ra[a];
-      }
-      const Pair squares = Kernel::norm(w, xi);
+    grid_.for_each_unit_direction(lo, lo + width, inv_norm, [&](size_t at, const double* xi) {
+      const Pair squares = step<Pair, kMode, kWithX>(st, f, at - lo, xi);
       if (kx == 0 || kx == nyquist) {
         once += squares;
       } else {
         twice += squares;
       }
       if (++kx == hx) kx = 0;
-      Kernel::expand(w, xi, scale, comp, i);
     });
     sums[0] += 2.0 * (twice[0] + twice[1]) + (once[0] + once[1]);
+  }
+
+  // Two frequencies at a time, in four-lane vectors (built for AVX2 and FMA; called only
+  // where wide_passes()): the directions and weights of up to 64 frequencies first, then the
+  // frequencies in pairs, a last odd one alone.
+  template <GalerkinStep::Mode kMode, bool kWithX>
+  __attribute__((target("avx2,fma"))) void run_wide(const GalerkinStep& st, size_t lo, size_t width,
+                                                    size_t seq, double* const* v,
+                                                    const double* inv_norm, double* sums) const {
+    const Fields f = fields_of<kMode, kWithX>(st, seq, v);
+    const size_t hx = grid_.row() / 2 + 1, nyquist = grid_.row() % 2 == 0 ? hx - 1 : 0;
+    size_t kx = lo % hx;
+    constexpr size_t kRun = 64;
+    double xs[3][kRun], weight[kRun];
+    Quad sum2 = {0.0, 0.0, 0.0, 0.0};
+    Pair sum1 = {0.0, 0.0};
+    for (size_t first = 0; first < width; first += kRun) {
+      const size_t run_width = std::min(kRun, width - first);
+      size_t j = 0;
+      grid_.for_each_unit_direction(lo + first, lo + first + run_width, inv_norm + first,
+                                    [&](size_t, const double* xi) {
+                                      for (int a = 0; a < 3; ++a) xs[a][j] = xi[a];
+                                      weight[j] = kx == 0 || kx == nyquist ? 1.0 : 2.0;
+                                      if (++kx == hx) kx = 0;
+                                      ++j;
+                                    });
+      size_t k = 0;
+      for (; k + 1 < run_width; k += 2) {
+        Quad xi[3];
+        for (int a = 0; a < 3; ++a) xi[a] = Quad{xs[a][k], xs[a][k], xs[a][k + 1], xs[a][k + 1]};
+        const Quad w = {weight[k], weight[k], weight[k + 1], weight[k + 1]};
+        sum2 += w * step<Quad, kMode, kWithX>(st, f, first + k, xi);
+      }
+      if (k < run_width) {
+        const double xi[3] = {xs[0][k], xs[1][k], xs[2][k]};
+        sum1 += weight[k] * step<Pair, kMode, kWithX>(st, f, first + k, xi);
+      }
+    }
+    sums[0] += (sum2[0] + sum2[1]) + (sum2[2] + sum2[3]) + (sum1[0] + sum1[1]);
   }
 
   Grid grid_;
@@ -412,13 +535,67 @@ struct GalerkinOperator {
 /// (kNumbers; an isotropic phase's): C times the field at the voxels [lo, hi) of one row
 /// (component c of voxel i at v[c][i - lo], kC components), in place, adding v . C v to sums[0]
 /// and the sum of component c of C v to sums[1 + c]. Runs of up to 64 voxels: where
-/// numbers(i, n) gives true for every voxel of a run (and writes its numbers at n[0 ..
-/// kNumbers)), two voxels at a time by simple(n, e, t) (t = C e, lane by lane; n[k] the two
-/// voxels' k-th numbers); otherwise voxel by voxel by general(i, e, t). The sums go in two
-/// lanes, added at the end of each run.
+/// numbers(i, n) gives true for every voxel of a run of an even width (and writes its numbers
+/// at n[0 .. kNumbers)), several voxels at a time by simple(n, e, t) (t = C e, lane by lane;
+/// n[k] the voxels' k-th numbers; simple takes Pairs, two voxels, and, where wide_passes(),
+/// Quads, four, so it is a generic lambda, always inlined); otherwise voxel by voxel by
+/// general(i, e, t). The sums go in lanes, added at the end of each run.
 template <int kC, int kNumbers, class Numbers, class Simple, class General>
 void flux_in_runs(double* const* v, size_t lo, size_t hi, double* sums, const Numbers& numbers,
-                  const Simple& simple, const General& general) {
+                  const Simple& simple, const General& general);
+
+namespace detail {
+
+// `simple` on the voxels [0, width) of a run from o (width a multiple of 2), V's lanes at a
+// time (a last pair of a Quad run as a Pair), the sums added to dot and m.
+template <class V, int kC, int kNumbers, size_t kRun, class Simple>
+RVEGEN_LANES void simple_run(double* const* row, size_t o, size_t width,
+                             const double (&num)[kNumbers][kRun], const Simple& simple, double& dot,
+                             double* m) {
+  constexpr size_t kLanes = sizeof(V) / sizeof(double);
+  V vdot{}, vm[kC];
+  for (V& q : vm) q = V{};
+  size_t j = 0;
+  for (; j + kLanes <= width; j += kLanes) {
+    V e[kC], t[kC], n[kNumbers];
+    for (int c = 0; c < kC; ++c) e[c] = load_lanes<V>(row[c] + o + j);
+    for (int k = 0; k < kNumbers; ++k) n[k] = load_lanes<V>(num[k] + j);
+    simple(n, e, t);
+    for (int c = 0; c < kC; ++c) {
+      store_lanes(row[c] + o + j, t[c]);
+      vdot += e[c] * t[c];
+      vm[c] += t[c];
+    }
+  }
+  if constexpr (kLanes > 2) {
+    // The last two voxels (widths are even).
+    if (j < width) {
+      Pair e[kC], t[kC], n[kNumbers], pdot = {0.0, 0.0};
+      for (int c = 0; c < kC; ++c) e[c] = load_pair(row[c] + o + j);
+      for (int k = 0; k < kNumbers; ++k) n[k] = load_pair(num[k] + j);
+      simple(n, e, t);
+      for (int c = 0; c < kC; ++c) {
+        store_pair(row[c] + o + j, t[c]);
+        pdot += e[c] * t[c];
+        m[c] += t[c][0] + t[c][1];
+      }
+      dot += pdot[0] + pdot[1];
+    }
+  }
+  for (size_t l = 0; l < kLanes; l += 2) {
+    dot += vdot[l] + vdot[l + 1];
+    for (int c = 0; c < kC; ++c) m[c] += vm[c][l] + vm[c][l + 1];
+  }
+}
+
+}  // namespace detail
+
+namespace detail {
+
+// flux_in_runs's runs, V's lanes at a time where the numbers allow.
+template <class V, int kC, int kNumbers, class Numbers, class Simple, class General>
+RVEGEN_LANES void flux_runs(double* const* v, size_t lo, size_t hi, double* sums,
+                            const Numbers& numbers, const Simple& simple, const General& general) {
   constexpr size_t kRun = 64;
   double num[kNumbers][kRun];
   double dot = 0.0, m[kC] = {};
@@ -435,21 +612,7 @@ void flux_in_runs(double* const* v, size_t lo, size_t hi, double* sums, const Nu
       for (int k = 0; k < kNumbers; ++k) num[k][j] = n[k];
     }
     if (fast) {
-      Pair pdot = {0.0, 0.0}, pm[kC];
-      for (Pair& q : pm) q = Pair{0.0, 0.0};
-      for (size_t j = 0; j < width; j += 2) {
-        Pair e[kC], t[kC], n[kNumbers];
-        for (int c = 0; c < kC; ++c) e[c] = load_pair(row[c] + o + j);
-        for (int k = 0; k < kNumbers; ++k) n[k] = load_pair(num[k] + j);
-        simple(n, e, t);
-        for (int c = 0; c < kC; ++c) {
-          store_pair(row[c] + o + j, t[c]);
-          pdot += e[c] * t[c];
-          pm[c] += t[c];
-        }
-      }
-      dot += pdot[0] + pdot[1];
-      for (int c = 0; c < kC; ++c) m[c] += pm[c][0] + pm[c][1];
+      simple_run<V, kC, kNumbers>(row, o, width, num, simple, dot, m);
       continue;
     }
     for (size_t i = first, j = o; i < first + width; ++i, ++j) {
@@ -467,6 +630,27 @@ void flux_in_runs(double* const* v, size_t lo, size_t hi, double* sums, const Nu
   }
   sums[0] += dot;
   for (int c = 0; c < kC; ++c) sums[1 + c] += m[c];
+}
+
+// The same built for AVX2 and FMA, four voxels at a time.
+template <int kC, int kNumbers, class Numbers, class Simple, class General>
+__attribute__((target("avx2,fma"))) void flux_runs_wide(double* const* v, size_t lo, size_t hi,
+                                                        double* sums, const Numbers& numbers,
+                                                        const Simple& simple,
+                                                        const General& general) {
+  flux_runs<Quad, kC, kNumbers>(v, lo, hi, sums, numbers, simple, general);
+}
+
+}  // namespace detail
+
+template <int kC, int kNumbers, class Numbers, class Simple, class General>
+void flux_in_runs(double* const* v, size_t lo, size_t hi, double* sums, const Numbers& numbers,
+                  const Simple& simple, const General& general) {
+  if (wide_passes()) {
+    detail::flux_runs_wide<kC, kNumbers>(v, lo, hi, sums, numbers, simple, general);
+  } else {
+    detail::flux_runs<Pair, kC, kNumbers>(v, lo, hi, sums, numbers, simple, general);
+  }
 }
 
 /// Conjugate gradients for P C x = -P C E (E the uniform field `load`, `components` values; x

@@ -561,11 +561,18 @@ RVEGEN_LANES void simple_run(double* const* row, size_t o, size_t width,
     for (int c = 0; c < kC; ++c) e[c] = load_lanes<V>(row[c] + o + j);
     for (int k = 0; k < kNumbers; ++k) n[k] = load_lanes<V>(num[k] + j);
     simple(n, e, t);
+    // e . t summed as a tree: one long chain of additions into vdot would hold each step.
+    V et[kC];
     for (int c = 0; c < kC; ++c) {
       store_lanes(row[c] + o + j, t[c]);
-      vdot += e[c] * t[c];
+      et[c] = e[c] * t[c];
       vm[c] += t[c];
     }
+    for (int width_left = kC; width_left > 1; width_left = (width_left + 1) / 2) {
+      for (int c = 0; c + (width_left + 1) / 2 < width_left; ++c)
+        et[c] += et[c + (width_left + 1) / 2];
+    }
+    vdot += et[0];
   }
   if constexpr (kLanes > 2) {
     // The last two voxels (widths are even).

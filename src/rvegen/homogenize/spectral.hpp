@@ -387,9 +387,12 @@ class Projection {
   }
 
   // The pass at frequency j of the block (and j + 1 for a Quad), whose unit directions are xi
-  // (lane by lane); returns the squares of r's components there (0 for kField).
+  // (lane by lane); the squares of r's components there into squares (0 for kField). (Quads
+  // pass by reference: clang refuses a four-lane value returned from a function built without
+  // AVX to one built with it, inlined or not.)
   template <class V, GalerkinStep::Mode kMode, bool kWithX, class S>
-  RVEGEN_LANES static V step(const GalerkinStep& st, const Fields& f, size_t j, const S* xi) {
+  RVEGEN_LANES static void step(const GalerkinStep& st, const Fields& f, size_t j, const S* xi,
+                                V& squares) {
     constexpr int kp = Kernel::kPotentials;
     constexpr size_t apart = 2 * kp;  // a field's next frequency
     const size_t i = 2 * j, at = apart * j;
@@ -397,7 +400,8 @@ class Projection {
     if (kMode == GalerkinStep::kField) {
       for (int a = 0; a < kp; ++a) w[a] = load_apart<V>(f.x + at + 2 * a, apart);
       Kernel::expand(w, xi, st.scale, f.comp, i);
-      return V{};
+      squares = V{};
+      return;
     }
     Kernel::reduce(f.comp, i, xi, w);
     // Every value read before any is written (the arrays may alias as far as the compiler
@@ -430,10 +434,8 @@ class Projection {
       if (kWithX) store_apart(f.x + at + 2 * a, apart, xa[a]);
       w[a] = ra[a];
     }
-    V squares;
     Kernel::norm(w, xi, squares);
     Kernel::expand(w, xi, st.scale, f.comp, i);
-    return squares;
   }
 
   // One frequency at a time, in two-lane vectors.
@@ -447,7 +449,8 @@ class Projection {
     size_t kx = lo % hx;
     Pair twice = {0.0, 0.0}, once = {0.0, 0.0};
     grid_.for_each_unit_direction(lo, lo + width, inv_norm, [&](size_t at, const double* xi) {
-      const Pair squares = step<Pair, kMode, kWithX>(st, f, at - lo, xi);
+      Pair squares;
+      step<Pair, kMode, kWithX>(st, f, at - lo, xi, squares);
       if (kx == 0 || kx == nyquist) {
         once += squares;
       } else {
@@ -487,11 +490,15 @@ class Projection {
         Quad xi[3];
         for (int a = 0; a < 3; ++a) xi[a] = Quad{xs[a][k], xs[a][k], xs[a][k + 1], xs[a][k + 1]};
         const Quad w = {weight[k], weight[k], weight[k + 1], weight[k + 1]};
-        sum2 += w * step<Quad, kMode, kWithX>(st, f, first + k, xi);
+        Quad squares;
+        step<Quad, kMode, kWithX>(st, f, first + k, xi, squares);
+        sum2 += w * squares;
       }
       if (k < run_width) {
         const double xi[3] = {xs[0][k], xs[1][k], xs[2][k]};
-        sum1 += weight[k] * step<Pair, kMode, kWithX>(st, f, first + k, xi);
+        Pair squares;
+        step<Pair, kMode, kWithX>(st, f, first + k, xi, squares);
+        sum1 += weight[k] * squares;
       }
     }
     sums[0] += (sum2[0] + sum2[1]) + (sum2[2] + sum2[3]) + (sum1[0] + sum1[1]);

@@ -111,13 +111,16 @@ const char* kCheckUsage =
     "  pair overlaps, 1 when some do (listing at most N pairs, default 10000), 2 on invalid\n"
     "  input.\n";
 const char* kHomogenizeUsage =
-    "usage: rvegen homogenize DIR SCENE.json\n"
+    "usage: rvegen homogenize DIR SCENE.json [--threads N] [--quiet]\n"
     "  Computes the effective properties of an RVE written earlier (DIR/inclusions.json) with\n"
     "  the scene's \"materials\", \"homogenization\" and voxel resolution, and prints them as\n"
     "  JSON (the \"effective\" object of report.json). The scene's families must be the RVE's\n"
     "  (same names, same order). Under an MPI launcher (mpirun -np N rvegen homogenize ...)\n"
     "  the ranks share the voxel grid in z slabs (FFTW's MPI transforms): each voxelizes and\n"
     "  solves its own slab, the image is never gathered, and rank 0 prints the result.\n"
+    "  --threads N solves on at most N cores a process (default: all, shared among the\n"
+    "  processes a launcher put on the machine; the result does not depend on it); --quiet\n"
+    "  prints no progress.\n"
     "  Exit 0 on success, 2 on invalid input, 5 when a solve stopped above its tolerance (the\n"
     "  result is printed with \"converged\": false).\n";
 const char* kDefaultSceneUsage =
@@ -275,6 +278,19 @@ nlohmann::ordered_json tet_mesh_report(const rvegen::InclusionSet& set,
   return r;
 }
 
+const char* kThreadsNeed = "--threads needs a whole number in [1, 4096]";
+// The count after --threads at args[*i] into *threads, *i moved past it; false when none is
+// there or it is not a whole number in [1, 4096].
+bool read_threads(const std::vector<std::string>& args, size_t* i, int* threads) {
+  if (*i + 1 >= args.size()) return false;
+  char* end = nullptr;
+  const long t = std::strtol(args[*i + 1].c_str(), &end, 10);
+  if (args[*i + 1].empty() || *end != '\0' || t < 1 || t > 4096) return false;
+  *threads = static_cast<int>(t);
+  ++*i;
+  return true;
+}
+
 int cmd_generate(const std::vector<std::string>& args) {
   if (wants_help(args)) {
     std::cout << kGenerateUsage;
@@ -297,13 +313,7 @@ int cmd_generate(const std::vector<std::string>& args) {
     } else if (args[i] == "--quiet" || args[i] == "-q") {
       quiet = true;
     } else if (args[i] == "--threads") {
-      char* end = nullptr;
-      const long t = i + 1 < args.size() ? std::strtol(args[i + 1].c_str(), &end, 10) : 0;
-      if (i + 1 >= args.size() || *end != '\0' || t < 1 || t > 4096) {
-        return usage_error("--threads needs a whole number in [1, 4096]", kGenerateUsage);
-      }
-      threads = static_cast<int>(t);
-      ++i;
+      if (!read_threads(args, &i, &threads)) return usage_error(kThreadsNeed, kGenerateUsage);
     } else if (args[i] == "--max-memory") {
       if (i + 1 >= args.size()) return usage_error("--max-memory needs a size", kGenerateUsage);
       max_memory = parse_size(args[++i]);
@@ -696,10 +706,19 @@ int cmd_homogenize(const std::vector<std::string>& args) {
     return kExitOk;
   }
   std::vector<std::string> files;
-  for (const std::string& a : args) {
-    if (!a.empty() && a[0] == '-')
+  bool quiet = false;
+  int threads = 0;  // the process's share of the cores
+  for (size_t i = 0; i < args.size(); ++i) {
+    const std::string& a = args[i];
+    if (a == "--quiet" || a == "-q") {
+      quiet = true;
+    } else if (a == "--threads") {
+      if (!read_threads(args, &i, &threads)) return usage_error(kThreadsNeed, kHomogenizeUsage);
+    } else if (!a.empty() && a[0] == '-') {
       return usage_error("unknown option " + a + " of homogenize", kHomogenizeUsage);
-    files.push_back(a);
+    } else {
+      files.push_back(a);
+    }
   }
   if (files.size() != 2)
     return usage_error("homogenize needs an RVE directory and a scene file", kHomogenizeUsage);
@@ -729,18 +748,22 @@ int cmd_homogenize(const std::vector<std::string>& args) {
   }
   try {
     // This rank's planes of z (all of them in one process), on its share of the machine's
-    // cores (the processes a launcher put on it).
+    // cores (the processes a launcher put on it), and on at most --threads of them.
     const rvegen::Communicator comm = ranks.communicator();
     const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    int allowed = std::max(1, cores / ranks.local_size());
+    if (threads > 0) allowed = std::min(allowed, threads);
     tbb::global_control share(tbb::global_control::max_allowed_parallelism,
-                              static_cast<size_t>(std::max(1, cores / ranks.local_size())));
+                              static_cast<size_t>(allowed));
     const std::array<int, 3>& res = scene.resolution;
     const std::array<int, 2> z = rvegen::spectral::fft_slab(res, comm);
     rvegen::VoxelOptions vopt;
     vopt.partial_volume = false;
     vopt.extent = {0, res[0], 0, res[1], z[0], z[1]};
     const rvegen::VoxelImage image = rvegen::voxelize(set, res, vopt);
-    const auto progress = [&](const std::string& line) { say << line << "\n"; };
+    const auto progress = [&](const std::string& line) {
+      if (!quiet) say << line << "\n";
+    };
     rvegen::EffectiveProperties solved;
     const auto out = rvegen::cli::effective_properties(scene, set, image, progress, &solved, comm);
     if (ranks.root()) std::cout << out.dump(2) << "\n";

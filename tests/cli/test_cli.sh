@@ -474,6 +474,21 @@ for phys in ("conductivity", "stiffness"):
     ta, tb = a[phys]["tensor"], b[phys]["tensor"]
     assert all(abs(x - y) <= 1e-12 * abs(tb[0][0]) for ra, rb in zip(ta, tb) for x, y in zip(ra, rb)), phys
 PY
+# --threads 1 --quiet: the same tensors to the last bit (the solver's sums run in a fixed
+# order whatever the cores), and no progress on standard error.
+cp "$WORK/last.out" "$WORK/hom_all_cores.out"
+expect_rc 0 "$RVEGEN" homogenize "$WORK/hom" "$WORK/hom.json" --threads 1 --quiet
+[ -s "$WORK/last.err" ] && fail "homogenize --quiet printed: $(head -c 300 "$WORK/last.err")"
+$py - "$WORK/last.out" "$WORK/hom_all_cores.out" <<'PY' || fail "homogenize --threads 1 differs from all cores"
+import json, sys
+a, b = (json.load(open(f)) for f in sys.argv[1:])
+for phys in ("conductivity", "stiffness"):
+    assert a[phys]["tensor"] == b[phys]["tensor"], phys
+    assert a[phys]["iterations"] == b[phys]["iterations"], phys
+PY
+expect_rc 2 "$RVEGEN" homogenize "$WORK/hom" "$WORK/hom.json" --threads 0
+grep -q -- "--threads needs a whole number" "$WORK/last.err" \
+  || fail "homogenize --threads 0: $(cat "$WORK/last.err")"
 # A solve stopped above its tolerance is no effective property: everything is written, the
 # report says "converged": false, a message names the load cases, exit 5 (generate and
 # homogenize alike).

@@ -538,20 +538,39 @@ struct GalerkinOperator {
   std::function<void(double* const*, size_t, size_t, double*)> flux;
   std::function<Grid::FrequencyPass(const GalerkinStep&)> step;
 };
-/// A GalerkinOperator::flux for media whose voxels mostly have tensors of a few numbers each
-/// (kNumbers; an isotropic phase's): C times the field at the voxels [lo, hi) of one row
-/// (component c of voxel i at v[c][i - lo], kC components), in place, adding v . C v to sums[0]
-/// and the sum of component c of C v to sums[1 + c]. Runs of up to 64 voxels: where
-/// numbers(i, n) gives true for every voxel of a run of an even width (and writes its numbers
-/// at n[0 .. kNumbers)), several voxels at a time by simple(n, e, t) (t = C e, lane by lane;
-/// n[k] the voxels' k-th numbers; simple takes Pairs, two voxels, and, where wide_passes(),
-/// Quads, four, so it is a generic lambda, always inlined); otherwise voxel by voxel by
-/// general(i, e, t). The sums go in lanes, added at the end of each run.
-template <int kC, int kNumbers, class Numbers, class Simple, class General>
-void flux_in_runs(double* const* v, size_t lo, size_t hi, double* sums, const Numbers& numbers,
-                  const Simple& simple, const General& general);
-
 namespace detail {
+
+// `simple` on the V's lanes of voxels from j of a run whose row values start at o: t = C e
+// written in place, e . t added to vdot and t to vm, lane by lane. e . t is summed as a tree:
+// one long chain of additions into vdot would hold each group.
+template <class V, int kC, int kNumbers, size_t kRun, class Simple>
+RVEGEN_LANES void simple_group(double* const* row, size_t o, size_t j,
+                               const double (&num)[kNumbers][kRun], const Simple& simple, V& vdot,
+                               V* vm) {
+  V e[kC], t[kC], n[kNumbers], et[kC];
+  for (int c = 0; c < kC; ++c) e[c] = load_lanes<V>(row[c] + o + j);
+  for (int k = 0; k < kNumbers; ++k) n[k] = load_lanes<V>(num[k] + j);
+  simple(n, e, t);
+  for (int c = 0; c < kC; ++c) {
+    store_lanes(row[c] + o + j, t[c]);
+    et[c] = e[c] * t[c];
+    vm[c] += t[c];
+  }
+  for (int width_left = kC; width_left > 1; width_left = (width_left + 1) / 2) {
+    for (int c = 0; c + (width_left + 1) / 2 < width_left; ++c)
+      et[c] += et[c + (width_left + 1) / 2];
+  }
+  vdot += et[0];
+}
+
+// The lanes of vdot and vm added to dot and m.
+template <class V, int kC>
+RVEGEN_LANES void add_lanes(const V& vdot, const V* vm, double& dot, double* m) {
+  for (size_t l = 0; l < sizeof(V) / sizeof(double); l += 2) {
+    dot += vdot[l] + vdot[l + 1];
+    for (int c = 0; c < kC; ++c) m[c] += vm[c][l] + vm[c][l + 1];
+  }
+}
 
 // `simple` on the voxels [0, width) of a run from o (width a multiple of 2), V's lanes at a
 // time (a last pair of a Quad run as a Pair), the sums added to dot and m.
@@ -563,48 +582,15 @@ RVEGEN_LANES void simple_run(double* const* row, size_t o, size_t width,
   V vdot{}, vm[kC];
   for (V& q : vm) q = V{};
   size_t j = 0;
-  for (; j + kLanes <= width; j += kLanes) {
-    V e[kC], t[kC], n[kNumbers];
-    for (int c = 0; c < kC; ++c) e[c] = load_lanes<V>(row[c] + o + j);
-    for (int k = 0; k < kNumbers; ++k) n[k] = load_lanes<V>(num[k] + j);
-    simple(n, e, t);
-    // e . t summed as a tree: one long chain of additions into vdot would hold each step.
-    V et[kC];
-    for (int c = 0; c < kC; ++c) {
-      store_lanes(row[c] + o + j, t[c]);
-      et[c] = e[c] * t[c];
-      vm[c] += t[c];
-    }
-    for (int width_left = kC; width_left > 1; width_left = (width_left + 1) / 2) {
-      for (int c = 0; c + (width_left + 1) / 2 < width_left; ++c)
-        et[c] += et[c + (width_left + 1) / 2];
-    }
-    vdot += et[0];
-  }
-  if constexpr (kLanes > 2) {
-    // The last two voxels (widths are even).
-    if (j < width) {
-      Pair e[kC], t[kC], n[kNumbers], pdot = {0.0, 0.0};
-      for (int c = 0; c < kC; ++c) e[c] = load_pair(row[c] + o + j);
-      for (int k = 0; k < kNumbers; ++k) n[k] = load_pair(num[k] + j);
-      simple(n, e, t);
-      for (int c = 0; c < kC; ++c) {
-        store_pair(row[c] + o + j, t[c]);
-        pdot += e[c] * t[c];
-        m[c] += t[c][0] + t[c][1];
-      }
-      dot += pdot[0] + pdot[1];
-    }
-  }
-  for (size_t l = 0; l < kLanes; l += 2) {
-    dot += vdot[l] + vdot[l + 1];
-    for (int c = 0; c < kC; ++c) m[c] += vm[c][l] + vm[c][l + 1];
+  for (; j + kLanes <= width; j += kLanes) simple_group<V, kC>(row, o, j, num, simple, vdot, vm);
+  add_lanes<V, kC>(vdot, vm, dot, m);
+  if (j < width) {  // the last two voxels of a Quad run (widths are even)
+    Pair pdot{}, pm[kC];
+    for (Pair& q : pm) q = Pair{};
+    simple_group<Pair, kC>(row, o, j, num, simple, pdot, pm);
+    add_lanes<Pair, kC>(pdot, pm, dot, m);
   }
 }
-
-}  // namespace detail
-
-namespace detail {
 
 // flux_in_runs's runs, V's lanes at a time where the numbers allow.
 template <class V, int kC, int kNumbers, class Numbers, class Simple, class General>
@@ -657,6 +643,15 @@ __attribute__((target("avx2,fma"))) void flux_runs_wide(double* const* v, size_t
 
 }  // namespace detail
 
+/// A GalerkinOperator::flux for media whose voxels mostly have tensors of a few numbers each
+/// (kNumbers; an isotropic phase's): C times the field at the voxels [lo, hi) of one row
+/// (component c of voxel i at v[c][i - lo], kC components), in place, adding v . C v to sums[0]
+/// and the sum of component c of C v to sums[1 + c]. Runs of up to 64 voxels: where
+/// numbers(i, n) gives true for every voxel of a run of an even width (and writes its numbers
+/// at n[0 .. kNumbers)), several voxels at a time by simple(n, e, t) (t = C e, lane by lane;
+/// n[k] the voxels' k-th numbers; simple takes Pairs, two voxels, and, where wide_passes(),
+/// Quads, four, so it is a generic lambda, always inlined); otherwise voxel by voxel by
+/// general(i, e, t). The sums go in lanes, added at the end of each run.
 template <int kC, int kNumbers, class Numbers, class Simple, class General>
 void flux_in_runs(double* const* v, size_t lo, size_t hi, double* sums, const Numbers& numbers,
                   const Simple& simple, const General& general) {

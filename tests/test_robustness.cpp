@@ -416,7 +416,11 @@ TEST(Budgets, AMeshThatDoesNotFitIsOfferedCoarserSettingsLeastLossFirst) {
   EXPECT_EQ(offers.front().gap_elements, m.tet_mesh.gap_elements);
   EXPECT_EQ(describe_tet_mesh_change(m.tet_mesh, offers.front()),
             "\"mesh_tet\": {\"chord_error\": 0.01}");
-  // Nothing coarser than the coarsest offered.
+  // The coarsest: half an element across the gaps, 10-node, at chord error 0.1; nothing
+  // coarser than it is offered.
+  EXPECT_EQ(offers.back().chord_error, 0.1);
+  EXPECT_EQ(offers.back().gap_elements, 0.5);
+  EXPECT_EQ(offers.back().order, 2);
   EXPECT_TRUE(coarser_tet_meshes(offers.back()).empty());
   // Named as the filter's properties, too.
   TetMeshSpec one = m.tet_mesh;

@@ -355,9 +355,12 @@ constexpr double kEstimateLeaf = 1.0;
 // spread: 6.4 for the default scene (10-node), 7.6 for 2,484 fibres of L/D 10 at chord error
 // 0.1, 9.1 for spheres a twelfth of their radius apart (10-node), 12.2 for touching spheres
 // (min_gap 0, radius 0.1 at 0.5 in a box of 0.6, 10-node); the check guards memory, so one
-// across takes the upper middle of that range.
+// across takes the upper middle of that range. Half an element across (an element spans twice
+// the gap): 6.9 for 2,484 fibres and 7.1 for 311 (chord error 0.1, 10-node), where one across
+// made 8.0 and 8.3 (2026-12-03); 7.2 at 0.5, and between 0.5 and 1 the line to 9.
 double tets_per_inverse_cube(const TetMeshSpec& spec) {
-  const double g = std::max(spec.gap_elements, 1.0);
+  const double g = spec.gap_elements;
+  if (g < 1.0) return 9.0 - 3.6 * (1.0 - std::max(g, 0.5));
   return 3.5 + 4.0 / g + 1.5 * std::max(0.0, 2.0 / g - 1.0);
 }
 double inverse_cube_integral(const SizeField& size, const Vec3& lo, const Vec3& len, double least,

@@ -263,11 +263,12 @@ double available_memory_bytes() {
 
 std::vector<TetMeshSpec> coarser_tet_meshes(const TetMeshSpec& spec) {
   std::vector<TetMeshSpec> out;
-  auto offer = [&](double chord, bool one_across) {
+  // across: elements across the gaps, with 10-node elements (0: the spec's).
+  auto offer = [&](double chord, double across) {
     TetMeshSpec t = spec;
     t.chord_error = std::max(spec.chord_error, chord);
-    if (one_across) {
-      t.gap_elements = std::min(spec.gap_elements, 1.0);
+    if (across > 0.0) {
+      t.gap_elements = std::min(spec.gap_elements, across);
       t.order = 2;
     }
     if (t == spec) return;
@@ -276,11 +277,12 @@ std::vector<TetMeshSpec> coarser_tet_meshes(const TetMeshSpec& spec) {
     }
     out.push_back(t);
   };
-  offer(0.01, false);
-  offer(0.03, false);
-  offer(0.03, true);
-  offer(0.1, false);
-  offer(0.1, true);
+  offer(0.01, 0.0);
+  offer(0.03, 0.0);
+  offer(0.03, 1.0);
+  offer(0.1, 0.0);
+  offer(0.1, 1.0);
+  offer(0.1, 0.5);
   return out;
 }
 

@@ -79,6 +79,12 @@ def least_gap(out):
     return least
 
 
+def phase_errors(report):
+    """Each phase's volume error in the mesh, as a table cell."""
+    return ", ".join("%s %+.2f %%" % (p["name"], 100 * p["relative_error"])
+                     for p in report["mesh_tet"]["phases"])
+
+
 def clearance(report):
     """The cell's move and its least face and edge clearances, as a table cell."""
     m = report["mesh_tet"]
@@ -232,8 +238,7 @@ def default_part():
             say("| %g | %d | %.1f | %.0f | failed | | | | | |" % (chord, rc, wall, peak))
             continue
         tets, least, below, worst, merged = mesh_row(report)
-        errors = ", ".join("%s %+.2f %%" % (p["name"], 100 * p["relative_error"])
-                           for p in report["mesh_tet"]["phases"])
+        errors = phase_errors(report)
         say("| %g | %d | %.1f | %.0f | %d | %.0f | %.2f | %d | %s | %s |"
             % (chord, rc, wall, peak, tets, tets / wall, least, below, errors, clearance(report)))
         shutil.rmtree(os.path.join(work, "default_%g" % chord), ignore_errors=True)
@@ -277,8 +282,7 @@ def large_part():
                     % (title, across, rc, wall, peak))
                 continue
             tets, least, below, worst, merged = mesh_row(report)
-            errors = ", ".join("%s %+.2f %%" % (p["name"], 100 * p["relative_error"])
-                               for p in report["mesh_tet"]["phases"])
+            errors = phase_errors(report)
             say("| %s | %g | %d | %.1f | %.0f | %d | %.0f | %.2f | %d | %s |"
                 % (title, across, rc, wall, peak, tets, tets / wall, least, below, errors))
             shutil.rmtree(os.path.join(work, tag), ignore_errors=True)

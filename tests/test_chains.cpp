@@ -1,10 +1,12 @@
 // Wavy and bent fibres packed as chains of sheared pieces: the chain holds the true fibre, the
 // packer and the audit use it, and the true surfaces do not overlap.
 #include <gtest/gtest.h>
+#include <tbb/task_arena.h>
 
 #include <Eigen/Geometry>
 #include <cmath>
 #include <cstdio>
+#include <string>
 #include <vector>
 
 #include "reference_overlap.hpp"
@@ -328,6 +330,47 @@ TEST(ChainRestarts, IntertwinedChainsGoBackToTheBestConfigurationAndPackFurther)
   for (const auto& inc : r.set.inclusions) v += inc.shape.volume();
   EXPECT_GT(v / r.set.box.volume(), 0.205);
   EXPECT_TRUE(find_overlaps(r.set).empty());
+}
+
+// A jam near the target (19 coated wavy fibres asked for 0.29, jammed at 0.280; a short
+// md.patience so that the pressure falls within a few hundred steps) is compressed again from
+// the best configuration shaken: by default for chains, never for spheres unless md.shake asks.
+// The shaken runs are valid, and the same on one thread and two (the shake draws its own
+// stream in body order); md.shake 0 restarts from the jam unmoved, another trajectory.
+TEST(ChainRestarts, AJamNearTheTargetIsShakenTheSameOnAnyThreads) {
+  auto run = [](const Scene& s, int threads, int* shaken) {
+    *shaken = 0;
+    PackingResult r;
+    tbb::task_arena arena(threads);
+    arena.execute([&] {
+      r = pack_md(s, [shaken](const std::string& line) {
+        if (line.find("shaken and compressed again") != std::string::npos) ++*shaken;
+      });
+    });
+    EXPECT_EQ(r.status, PackingStatus::kTargetNotReached);
+    EXPECT_TRUE(find_overlaps(r.set).empty());
+    return write_inclusions_json(r.set);
+  };
+  Scene s = parse_scene(R"({"box":{"size":[0.3,0.3,0.3]},"seed":1,
+      "md":{"max_steps":700,"patience":5},"families":[
+      {"shape":"cylinder","radius":0.02,"aspect_ratio":8,"volume_fraction":0.29,
+       "waviness":{"amplitude":0.02,"wavelength":0.16},"coating":{"thickness":0.005}}]})");
+  int shaken1 = 0, shaken2 = 0, unshaken = 0;
+  const std::string one = run(s, 1, &shaken1);
+  EXPECT_GE(shaken1, 1);
+  EXPECT_EQ(run(s, 2, &shaken2), one) << "1 and 2 threads";
+  EXPECT_EQ(shaken2, shaken1);
+  s.md.shake = 0.0;
+  EXPECT_NE(run(s, 2, &unshaken), one);
+  EXPECT_EQ(unshaken, 0);
+
+  Scene spheres = parse_scene(R"({"box":{"size":[1,1,1]},"seed":1,"md":{"max_steps":1500},
+      "families":[{"shape":"sphere","volume_fraction":0.66,"count":400}]})");
+  std::string plain = run(spheres, 2, &unshaken);
+  EXPECT_EQ(unshaken, 0);
+  spheres.md.shake = 0.3;
+  EXPECT_NE(run(spheres, 2, &shaken1), plain);
+  EXPECT_GE(shaken1, 1);
 }
 
 // A deformed grain beside a coated wavy fibre: the audit, like the packer, keeps the grain

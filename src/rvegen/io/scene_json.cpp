@@ -324,7 +324,7 @@ Scene parse_scene(const std::string& text) {
   }
   if (root.contains("md")) {
     const Json& m = root["md"];
-    only_keys(m, {"max_steps", "max_seconds", "pressure", "patience", "rotation"}, "md");
+    only_keys(m, {"max_steps", "max_seconds", "pressure", "patience", "rotation", "shake"}, "md");
     if (m.contains("rotation")) {
       const std::string r = string(m["rotation"], "md.rotation");
       if (r == "keep_tensor") {
@@ -352,6 +352,7 @@ Scene parse_scene(const std::string& text) {
       s.md.max_steps = static_cast<long long>(n);
     }
     if (m.contains("max_seconds")) s.md.max_seconds = positive(m["max_seconds"], "md.max_seconds");
+    if (m.contains("shake")) s.md.shake = number(m["shake"], "md.shake");
   }
   if (root.contains("rsa")) {
     const Json& r = root["rsa"];
@@ -526,6 +527,8 @@ OJson packing_json(const PackingSpec& s) {
                 {"max_seconds", s.md.max_seconds},
                 {"pressure", s.md.pressure},
                 {"patience", s.md.patience}};
+  // (Written when set, so that the scenes of earlier versions read the same.)
+  if (s.md.shake) root["md"]["shake"] = *s.md.shake;
   if (s.md.rotation != MdSettings::Rotation::kKeepTensor) {
     root["md"]["rotation"] = s.md.rotation == MdSettings::Rotation::kFixed ? "fixed" : "free";
   }

@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -65,6 +66,13 @@ struct MdSettings {
   /// valid scale halves it: more patience means slower compression and denser jamming.
   double pressure = 0.05;
   int patience = 100;
+  /// A jam near the target is compressed again from the best configuration with every body
+  /// moved by up to `shake` times its radius (its bounding capsule's) in a random direction and
+  /// turned about a random axis so that its ends move up to as far (0: compressed again as it
+  /// jammed, unmoved). Unset: kChainShake for scenes with wavy or bent fibres, 0 otherwise (a
+  /// shaken dense sphere packing took twice as long to reach its target). See md.cpp.
+  std::optional<double> shake;
+  static constexpr double kChainShake = 0.3;
   /// How contact torques may turn inclusions with an axis (JSON md.rotation):
   ///  kKeepTensor ("keep_tensor", default): they turn (never out of a plane or line the law
   ///    confines them to), and after every step one linear map of all the family's axes restores

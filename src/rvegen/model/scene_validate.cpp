@@ -273,6 +273,8 @@ void validate_scene(const Scene& s) {
   if (!(s.md.pressure > 0.0 && s.md.pressure <= 1.0)) fail("md.pressure", "must be in (0, 1]");
   if (s.md.patience < 1 || s.md.patience > 10000000)
     fail("md.patience", "must be an integer in [1, 1e7]");
+  if (s.md.shake && !(*s.md.shake >= 0.0 && *s.md.shake <= 1.0))
+    fail("md.shake", "must be in [0, 1]");
   if (!(s.surface_chord_error >= 0.001 && s.surface_chord_error <= 10.0))
     fail("surfaces.chord_error", "must be in [0.001, 10] voxels");
   if (s.subsamples < 1 || s.subsamples > 16)

@@ -12,6 +12,7 @@ per box side, with the wall time.
 usage: /usr/bin/python3 samples/bench_wavy_mix.py [BUILD_DIR] [--waves 1,2,3,4]
        [--boxes 0.6,1.0,1.2] [--smoothness 1,3] [--seeds 1,2,3,4,5] [--budget 120]
        [--name wavy_mix]   (the table and chart's file names: samples/charts/NAME_table.md, NAME.png)
+       [--shake X]   (md.shake of the scenes; by default the packer's own)
 """
 import os
 import sys
@@ -32,6 +33,7 @@ smoothness = option("--smoothness", [1.0, 3.0])
 seeds = option("--seeds", [1, 2, 3, 4, 5], int)
 budget = option("--budget", [120.0])[0]
 name_out = option("--name", ["wavy_mix"], str)[0]
+shake = option("--shake", [None])[0]
 build = sys.argv[1] if len(sys.argv) > 1 else "build"
 exe = os.path.abspath(os.path.join(build, "bin", "rvegen"))
 work = tempfile.mkdtemp(prefix="rvegen-wavy-mix-")
@@ -41,7 +43,10 @@ os.makedirs(charts, exist_ok=True)
 
 def scene(n_waves, smooth, side, seed):
     length = 8 * 2 * 0.02
-    return {"box": {"size": [side] * 3}, "seed": seed, "md": {"max_seconds": budget},
+    md = {"max_seconds": budget}
+    if shake is not None:
+        md["shake"] = shake
+    return {"box": {"size": [side] * 3}, "seed": seed, "md": md,
             "families": [
                 {"name": "wavy fibres", "shape": "cylinder", "radius": 0.02, "aspect_ratio": 8,
                  "volume_fraction": 0.20,
@@ -72,8 +77,8 @@ reached = [r for r in rows if r[6] == "ok"]
 summary = "%d of %d runs reached 0.35 within %g s" % (len(reached), len(rows), budget)
 print(summary)
 with open(os.path.join(charts, name_out + "_table.md"), "w") as f:
-    f.write("Machine: %s. `samples/bench_wavy_mix.py` (target 0.35, budget %g s, all cores).\n\n"
-            % (machine(), budget))
+    f.write("Machine: %s. `samples/bench_wavy_mix.py` (target 0.35, budget %g s, all cores%s).\n\n"
+            % (machine(), budget, "" if shake is None else ", md.shake %g" % shake))
     f.write(header + "\n")
     for r in rows:
         f.write("| %d | %g | %g | %d | %s | %.4f | %s | %.1f | %.0f |\n" % r)

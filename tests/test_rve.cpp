@@ -155,6 +155,29 @@ TEST(Scene, DefaultSceneRoundTrips) {
   EXPECT_EQ(scene_to_json(back), scene_to_json(s));
 }
 
+// md.shake: unset (the packer's default for the scene) is not written, so earlier scenes read
+// the same; set, it round-trips, and out of [0, 1] it is refused by name.
+TEST(Scene, ShakeRoundTripsOnlyWhenSet) {
+  const std::string head =
+      R"({"box":{"size":[1,1,1]},"families":[{"shape":"sphere","radius":0.1,"count":3}])";
+  const Scene plain = parse_scene(head + "}");
+  EXPECT_FALSE(plain.md.shake.has_value());
+  EXPECT_EQ(scene_to_json(plain).find("shake"), std::string::npos);
+  const Scene set = parse_scene(head + R"(,"md":{"shake":0.5}})");
+  ASSERT_TRUE(set.md.shake.has_value());
+  EXPECT_EQ(*set.md.shake, 0.5);
+  EXPECT_EQ(parse_scene(scene_to_json(set)).md.shake, set.md.shake);
+  EXPECT_EQ(*parse_scene(head + R"(,"md":{"shake":0}})").md.shake, 0.0);
+  for (const char* bad : {R"(,"md":{"shake":1.5}})", R"(,"md":{"shake":-0.1}})"}) {
+    try {
+      parse_scene(head + bad);
+      ADD_FAILURE() << bad;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("md.shake"), std::string::npos) << e.what();
+    }
+  }
+}
+
 TEST(Scene, TetMeshSizesRoundTripAndBadOnesAreNamed) {
   const std::string head =
       R"({"box":{"size":[1,1,1]},"families":[{"shape":"sphere","radius":0.1,"count":3}],)";

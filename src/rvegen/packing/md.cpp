@@ -70,8 +70,8 @@ constexpr double kRecompressFrom = 0.95;
 // axis by up to the angle that moves its ends as far. The damped contacts alone settle back into
 // the jam they left; the shake lets the packing leave it. 4-wave mixture (coated wavy fibres 0.20
 // and deformed grains 0.15, target 0.35, 0.6 box, 120 s, seeds 1-5): 0.3428, 0.3448, 0.35 in
-// 95 s, 0.3463, 0.3467, against 0.3432, 0.35 in 40 s, 0.3342, 0.3382, 0.3428 unshaken (mean
-// 0.3460 against 0.3417); seed 3 on one thread, 240 s: 0.3342 unshaken, 0.3381 with the earlier
+// 95 s, 0.3463, 0.3467, against 0.3432, 0.3437, 0.3342, 0.3382, 0.3397 unshaken the same day
+// (means 0.3461 and 0.3398); seed 3 on one thread, 240 s: 0.3342 unshaken, 0.3381 with the earlier
 // restarts alone, 0.3455 with both (shake 0.15: 0.3417, 0.6: 0.3416). Not for convex bodies by
 // default: 10,000 spheres asked for 0.645 got there in 25-33 s shaken, 12-15 s unshaken (their
 // jams creep up at low pressure). docs/benchmarks.md.

@@ -219,7 +219,10 @@ void MdPacker::shake() {
     Body& b = bodies[i];
     const double reach = shake_ * b.cap_radius_at(s);
     const Vec3 move = rng.unit_vector() * (reach * std::cbrt(rng.uniform()));
-    const Vec3 axis = rng.unit_vector();
+    // (Drawn for every body, so that the stream does not depend on how each may turn.) A body
+    // that may turn only about one axis (planar laws) turns about it.
+    const Vec3 drawn_axis = rng.unit_vector();
+    const Vec3 axis = b.turn == md::Turn::kAboutAxis ? b.turn_axis : drawn_axis;
     const double turn = reach / std::max(b.bound * s, reach) * rng.uniform();
     b.shape.center += move;
     if (b.turn != md::Turn::kNone && turn > 0.0) {

@@ -13,6 +13,7 @@ usage: /usr/bin/python3 samples/bench_wavy_mix.py [BUILD_DIR] [--waves 1,2,3,4]
        [--boxes 0.6,1.0,1.2] [--smoothness 1,3] [--seeds 1,2,3,4,5] [--budget 120]
        [--name wavy_mix]   (the table and chart's file names: samples/charts/NAME_table.md, NAME.png)
        [--shake X]   (md.shake of the scenes; by default the packer's own)
+       [--steps N]   (md.max_steps of the scenes: a fixed amount of work, to time the steps)
 """
 import os
 import sys
@@ -34,6 +35,7 @@ seeds = option("--seeds", [1, 2, 3, 4, 5], int)
 budget = option("--budget", [120.0])[0]
 name_out = option("--name", ["wavy_mix"], str)[0]
 shake = option("--shake", [None])[0]
+steps = option("--steps", [None], int)[0]
 build = sys.argv[1] if len(sys.argv) > 1 else "build"
 exe = os.path.abspath(os.path.join(build, "bin", "rvegen"))
 work = tempfile.mkdtemp(prefix="rvegen-wavy-mix-")
@@ -46,6 +48,8 @@ def scene(n_waves, smooth, side, seed):
     md = {"max_seconds": budget}
     if shake is not None:
         md["shake"] = shake
+    if steps is not None:
+        md["max_steps"] = steps
     return {"box": {"size": [side] * 3}, "seed": seed, "md": md,
             "families": [
                 {"name": "wavy fibres", "shape": "cylinder", "radius": 0.02, "aspect_ratio": 8,
@@ -78,7 +82,8 @@ summary = "%d of %d runs reached 0.35 within %g s" % (len(reached), len(rows), b
 print(summary)
 with open(os.path.join(charts, name_out + "_table.md"), "w") as f:
     f.write("Machine: %s. `samples/bench_wavy_mix.py` (target 0.35, budget %g s, all cores%s).\n\n"
-            % (machine(), budget, "" if shake is None else ", md.shake %g" % shake))
+            % (machine(), budget, ("" if shake is None else ", md.shake %g" % shake)
+               + ("" if steps is None else ", md.max_steps %d" % steps)))
     f.write(header + "\n")
     for r in rows:
         f.write("| %d | %g | %g | %d | %s | %.4f | %s | %.1f | %.0f |\n" % r)

@@ -137,28 +137,25 @@ bool chain_overlaps(const std::vector<Body>& bodies, const std::vector<Vec3>& ax
   auto near_capsule = [&](const Piece& p, const Capsule& cap) {
     return ball_meets(p.center(), p.bounding_radius(), cap) && capsules_meet(capsule_of(p), cap);
   };
-  auto run_near = [&](const RunBall& run, const Vec3& shift, const Capsule& cap) {
-    return ball_meets(run.c + shift, run.r, cap);
-  };
-  const Vec3 none = Vec3::Zero();
-  const std::vector<Piece>& pa = pieces->at(e.a, s, grow);
-  const std::vector<RunBall>& runs_a = pieces->runs(e.a);
-  for (size_t g = 0; g < runs_a.size(); ++g) {
-    if (!run_near(runs_a[g], none, cap_b)) continue;
-    for (size_t k = g * kRun; k < std::min(pa.size(), (g + 1) * kRun); ++k) {
-      if (near_capsule(pa[k], cap_b)) near->a.push_back(&pa[k]);
+  // visit(k) for every piece k of body i in a run whose ball (moved by shift) meets cap.
+  auto in_near_runs = [&](int i, size_t count, const Vec3& shift, const Capsule& cap,
+                          const auto& visit) {
+    const std::vector<RunBall>& runs = pieces->runs(i);
+    for (size_t g = 0; g < runs.size(); ++g) {
+      if (!ball_meets(runs[g].c + shift, runs[g].r, cap)) continue;
+      for (size_t k = g * kRun; k < std::min(count, (g + 1) * kRun); ++k) visit(k);
     }
-  }
+  };
+  const std::vector<Piece>& pa = pieces->at(e.a, s, grow);
+  in_near_runs(e.a, pa.size(), Vec3::Zero(), cap_b, [&](size_t k) {
+    if (near_capsule(pa[k], cap_b)) near->a.push_back(&pa[k]);
+  });
   if (near->a.empty()) return false;
   const std::vector<Piece>& pb = pieces->at(e.b, s, grow);
-  const std::vector<RunBall>& runs_b = pieces->runs(e.b);
-  for (size_t g = 0; g < runs_b.size(); ++g) {
-    if (!run_near(runs_b[g], e.shift, cap_a)) continue;
-    for (size_t k = g * kRun; k < std::min(pb.size(), (g + 1) * kRun); ++k) {
-      const Piece q = pb[k].translated(e.shift);
-      if (near_capsule(q, cap_a)) near->b.push_back(q);
-    }
-  }
+  in_near_runs(e.b, pb.size(), e.shift, cap_a, [&](size_t k) {
+    const Piece q = pb[k].translated(e.shift);
+    if (near_capsule(q, cap_a)) near->b.push_back(q);
+  });
   // A deformed grain's piece is its bounding ball (its support function at the force scale,
   // grown like the pieces, gives the plane test).
   auto grain_of = [&](const Body& g, const Vec3& gc) {

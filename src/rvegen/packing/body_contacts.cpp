@@ -79,6 +79,16 @@ bool piece_contacts(const std::vector<const Piece*>& a, const std::vector<Piece>
                       : piece_plane_gap(grain_b->centre, *pa, grain_b->support, &n);
         if (gap >= 0.0) continue;
       }
+      if (pa->sheared && pb.sheared && !grain_a && !grain_b) {
+        // The plane normal to the line of the pieces' centres first: where it separates them,
+        // the exact test would find them apart too.
+        const Vec3 d = pb.center() - pa->center();
+        const double len = d.norm();
+        if (len > 0.0) {
+          const Vec3 n = d / len;
+          if (pa->part.support_value(n) + pb.part.support_value(-n) < 0.0) continue;
+        }
+      }
       Contact c = intersect_pieces(*pa, pb);
       if (!c.overlap) continue;
       if ((grain_a || grain_b) && gap > -c.depth) {

@@ -265,19 +265,38 @@ TEST(Chains, ShearedPieceContactsAgreeWithAnIndependentReference) {
 }
 
 // The contacts of a chain pair's pieces (piece_contacts, which first tries the plane normal to
-// the line of the pieces' centres) against the independent reference, for sheared pieces placed
-// at (1 + delta) times their contact distance as above: a contact exactly when they overlap.
+// the line of the pieces' centres) against the independent reference, for a sheared piece and
+// a sheared piece, sphere, cylinder or ellipsoid placed at (1 + delta) times their contact
+// distance as above: a contact exactly when they overlap.
 TEST(Chains, ChainPairContactsAgreeWithAnIndependentReference) {
   Random rng(12);
   int overlaps = 0;
-  for (int t = 0; t < 3000; ++t) {
+  for (int t = 0; t < 4000; ++t) {
     const Piece a = Piece::of(random_piece(Vec3::Zero(), rng));
-    const Piece b0 = Piece::of(random_piece(Vec3::Zero(), rng));
+    const int kind = t % 4;
+    Piece b0;
+    if (kind == 0) {
+      b0 = Piece::of(random_piece(Vec3::Zero(), rng));
+    } else if (kind == 1) {
+      b0 = Piece::of(Shape::sphere(Vec3::Zero(), rng.uniform(0.005, 0.05)));
+    } else if (kind == 2) {
+      b0 = Piece::of(Shape::cylinder(Vec3::Zero(), rng.uniform(0.005, 0.04),
+                                     rng.unit_vector() * rng.uniform(0.005, 0.1)));
+    } else {
+      const Vec3 axis = rng.unit_vector();
+      b0 = Piece::of(Shape::ellipsoid(
+          Vec3::Zero(),
+          Vec3(rng.uniform(0.005, 0.05), rng.uniform(0.005, 0.05), rng.uniform(0.005, 0.05)),
+          Eigen::AngleAxisd(rng.uniform(0.0, M_PI), axis).toRotationMatrix()));
+    }
+    auto ref = [&](const Piece& y) {
+      return y.sheared ? reference::overlap(a.part, y.part) : reference::overlap(a.part, y.shape);
+    };
     const Vec3 w = rng.unit_vector();
     double lo = 0.0, hi = a.bounding_radius() + b0.bounding_radius();
     for (int it = 0; it < 60; ++it) {
       const double mid = 0.5 * (lo + hi);
-      (reference::overlap(a.part, b0.translated(mid * w).part) ? lo : hi) = mid;
+      (ref(b0.translated(mid * w)) ? lo : hi) = mid;
     }
     const double delta =
         (rng.uniform() < 0.5 ? -1.0 : 1.0) * std::pow(10.0, rng.uniform(-4.0, std::log10(0.5)));
@@ -285,11 +304,11 @@ TEST(Chains, ChainPairContactsAgreeWithAnIndependentReference) {
     const std::vector<Piece> near_b = {b0.translated(lo * (1.0 + delta) * w)};
     std::vector<Contact> found;
     const bool any = piece_contacts(near_a, near_b, nullptr, nullptr, false, &found);
-    ASSERT_EQ(any, delta < 0.0) << "pair " << t << " delta " << delta;
+    ASSERT_EQ(any, delta < 0.0) << "kind " << kind << " pair " << t << " delta " << delta;
     ASSERT_EQ(found.size(), any ? 1u : 0u);
     overlaps += any;
   }
-  EXPECT_GT(overlaps, 1200);
+  EXPECT_GT(overlaps, 1600);
 }
 
 // Two wavy fibres side by side: apart by less than their envelopes allow but more than their

@@ -27,6 +27,11 @@ Capsule capsule_of(const Piece& p) {
 
 namespace {
 
+// h(d) = max over the piece of d . x.
+double support_value(const Piece& p, const Vec3& d) {
+  return p.sheared ? p.part.support_value(d) : p.shape.support_value(d);
+}
+
 double piece_size(const Piece& p) {
   return p.sheared ? p.part.radius + p.part.round : p.shape.min_size();
 }
@@ -79,14 +84,14 @@ bool piece_contacts(const std::vector<const Piece*>& a, const std::vector<Piece>
                       : piece_plane_gap(grain_b->centre, *pa, grain_b->support, &n);
         if (gap >= 0.0) continue;
       }
-      if (pa->sheared && pb.sheared && !grain_a && !grain_b) {
+      if ((pa->sheared || pb.sheared) && !grain_a && !grain_b) {
         // The plane normal to the line of the pieces' centres first: where it separates them,
         // the exact test would find them apart too.
         const Vec3 d = pb.center() - pa->center();
         const double len = d.norm();
         if (len > 0.0) {
-          const Vec3 n = d / len;
-          if (pa->part.support_value(n) + pb.part.support_value(-n) < 0.0) continue;
+          const Vec3 u = d / len;
+          if (support_value(*pa, u) + support_value(pb, -u) < 0.0) continue;
         }
       }
       Contact c = intersect_pieces(*pa, pb);

@@ -176,6 +176,23 @@ ShearedPiece random_piece(const Vec3& c, Random& rng) {
   return p;
 }
 
+// A body about the origin to meet a sheared piece: kind 0 another sheared piece, 1 a sphere, 2 a
+// cylinder, 3 an ellipsoid.
+Piece random_body(int kind, Random& rng) {
+  if (kind == 0) return Piece::of(random_piece(Vec3::Zero(), rng));
+  if (kind == 1) return Piece::of(Shape::sphere(Vec3::Zero(), rng.uniform(0.005, 0.05)));
+  if (kind == 2) {
+    // Drawn in a fixed order (a call's arguments are evaluated in any order).
+    const double r = rng.uniform(0.005, 0.04);
+    return Piece::of(Shape::cylinder(Vec3::Zero(), r, rng.unit_vector() * rng.uniform(0.005, 0.1)));
+  }
+  const Vec3 axis = rng.unit_vector();
+  return Piece::of(Shape::ellipsoid(
+      Vec3::Zero(),
+      Vec3(rng.uniform(0.005, 0.05), rng.uniform(0.005, 0.05), rng.uniform(0.005, 0.05)),
+      Eigen::AngleAxisd(rng.uniform(0.0, M_PI), axis).toRotationMatrix()));
+}
+
 // A piece's inside test and its support function describe one body: its support points are
 // inside (on the boundary), and no point inside lies beyond its support in any direction.
 TEST(Chains, APieceHoldsItsSupportPointsAndNothingBeyondThem) {
@@ -213,21 +230,7 @@ TEST(Chains, ShearedPieceContactsAgreeWithAnIndependentReference) {
   for (int kind = 0; kind < 4; ++kind) {
     for (int t = 0; t < 1500; ++t) {
       const Piece a = Piece::of(random_piece(Vec3::Zero(), rng));
-      Piece b0;
-      if (kind == 0) {
-        b0 = Piece::of(random_piece(Vec3::Zero(), rng));
-      } else if (kind == 1) {
-        b0 = Piece::of(Shape::sphere(Vec3::Zero(), rng.uniform(0.005, 0.05)));
-      } else if (kind == 2) {
-        b0 = Piece::of(Shape::cylinder(Vec3::Zero(), rng.uniform(0.005, 0.04),
-                                       rng.unit_vector() * rng.uniform(0.005, 0.1)));
-      } else {
-        const Vec3 axis = rng.unit_vector();
-        b0 = Piece::of(Shape::ellipsoid(
-            Vec3::Zero(),
-            Vec3(rng.uniform(0.005, 0.05), rng.uniform(0.005, 0.05), rng.uniform(0.005, 0.05)),
-            Eigen::AngleAxisd(rng.uniform(0.0, M_PI), axis).toRotationMatrix()));
-      }
+      const Piece b0 = random_body(kind, rng);
       const Vec3 w = rng.unit_vector();
       auto ref = [](const Piece& x, const Piece& y) {
         if (x.sheared && y.sheared) return reference::overlap(x.part, y.part);
@@ -274,21 +277,7 @@ TEST(Chains, ChainPairContactsAgreeWithAnIndependentReference) {
   for (int t = 0; t < 4000; ++t) {
     const Piece a = Piece::of(random_piece(Vec3::Zero(), rng));
     const int kind = t % 4;
-    Piece b0;
-    if (kind == 0) {
-      b0 = Piece::of(random_piece(Vec3::Zero(), rng));
-    } else if (kind == 1) {
-      b0 = Piece::of(Shape::sphere(Vec3::Zero(), rng.uniform(0.005, 0.05)));
-    } else if (kind == 2) {
-      b0 = Piece::of(Shape::cylinder(Vec3::Zero(), rng.uniform(0.005, 0.04),
-                                     rng.unit_vector() * rng.uniform(0.005, 0.1)));
-    } else {
-      const Vec3 axis = rng.unit_vector();
-      b0 = Piece::of(Shape::ellipsoid(
-          Vec3::Zero(),
-          Vec3(rng.uniform(0.005, 0.05), rng.uniform(0.005, 0.05), rng.uniform(0.005, 0.05)),
-          Eigen::AngleAxisd(rng.uniform(0.0, M_PI), axis).toRotationMatrix()));
-    }
+    const Piece b0 = random_body(kind, rng);
     auto ref = [&](const Piece& y) {
       return y.sheared ? reference::overlap(a.part, y.part) : reference::overlap(a.part, y.shape);
     };

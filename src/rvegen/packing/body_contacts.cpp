@@ -27,11 +27,6 @@ Capsule capsule_of(const Piece& p) {
 
 namespace {
 
-// h(d) = max over the piece of d . x.
-double support_value(const Piece& p, const Vec3& d) {
-  return p.sheared ? p.part.support_value(d) : p.shape.support_value(d);
-}
-
 double piece_size(const Piece& p) {
   return p.sheared ? p.part.radius + p.part.round : p.shape.min_size();
 }
@@ -91,7 +86,7 @@ bool piece_contacts(const std::vector<const Piece*>& a, const std::vector<Piece>
         const double len = d.norm();
         if (len > 0.0) {
           const Vec3 u = d / len;
-          if (support_value(*pa, u) + support_value(pb, -u) < 0.0) continue;
+          if (pa->support_value(u) + pb.support_value(-u) < 0.0) continue;
         }
       }
       Contact c = intersect_pieces(*pa, pb);

@@ -81,6 +81,10 @@ struct Piece {
     return q;
   }
   bool contains(const Vec3& x) const { return sheared ? part.contains(x) : shape.contains(x); }
+  /// h(d) = max over the piece of d . x.
+  double support_value(const Vec3& d) const {
+    return sheared ? part.support_value(d) : shape.support_value(d);
+  }
 };
 /// A piece's capsule: a sheared piece's chord with its disk's radius and ball.
 Capsule capsule_of(const Piece& p);

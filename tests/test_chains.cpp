@@ -193,6 +193,14 @@ Piece random_body(int kind, Random& rng) {
       Eigen::AngleAxisd(rng.uniform(0.0, M_PI), axis).toRotationMatrix()));
 }
 
+// Whether two pieces overlap, by the independent reference (written from the raw parameters).
+bool reference_overlap(const Piece& x, const Piece& y) {
+  if (x.sheared && y.sheared) return reference::overlap(x.part, y.part);
+  if (x.sheared) return reference::overlap(x.part, y.shape);
+  if (y.sheared) return reference::overlap(x.shape, y.part);
+  return reference::overlap(x.shape, y.shape);
+}
+
 // A piece's inside test and its support function describe one body: its support points are
 // inside (on the boundary), and no point inside lies beyond its support in any direction.
 TEST(Chains, APieceHoldsItsSupportPointsAndNothingBeyondThem) {
@@ -232,16 +240,10 @@ TEST(Chains, ShearedPieceContactsAgreeWithAnIndependentReference) {
       const Piece a = Piece::of(random_piece(Vec3::Zero(), rng));
       const Piece b0 = random_body(kind, rng);
       const Vec3 w = rng.unit_vector();
-      auto ref = [](const Piece& x, const Piece& y) {
-        if (x.sheared && y.sheared) return reference::overlap(x.part, y.part);
-        if (x.sheared) return reference::overlap(x.part, y.shape);
-        if (y.sheared) return reference::overlap(x.shape, y.part);
-        return reference::overlap(x.shape, y.shape);
-      };
       double lo = 0.0, hi = a.bounding_radius() + b0.bounding_radius();
       for (int it = 0; it < 60; ++it) {
         const double mid = 0.5 * (lo + hi);
-        (ref(a, b0.translated(mid * w)) ? lo : hi) = mid;
+        (reference_overlap(a, b0.translated(mid * w)) ? lo : hi) = mid;
       }
       const double delta =
           (rng.uniform() < 0.5 ? -1.0 : 1.0) * std::pow(10.0, rng.uniform(-4.0, std::log10(0.05)));
@@ -257,9 +259,11 @@ TEST(Chains, ShearedPieceContactsAgreeWithAnIndependentReference) {
       // separates them.
       const double size = a.bounding_radius() + b.bounding_radius();
       if (swap) {
-        EXPECT_FALSE(ref(b, a.translated((c.depth + 1e-9 * size) * c.normal))) << kind << " " << t;
+        EXPECT_FALSE(reference_overlap(b, a.translated((c.depth + 1e-9 * size) * c.normal)))
+            << kind << " " << t;
       } else {
-        EXPECT_FALSE(ref(a, b.translated((c.depth + 1e-9 * size) * c.normal))) << kind << " " << t;
+        EXPECT_FALSE(reference_overlap(a, b.translated((c.depth + 1e-9 * size) * c.normal)))
+            << kind << " " << t;
       }
     }
   }
@@ -278,14 +282,11 @@ TEST(Chains, ChainPairContactsAgreeWithAnIndependentReference) {
     const Piece a = Piece::of(random_piece(Vec3::Zero(), rng));
     const int kind = t % 4;
     const Piece b0 = random_body(kind, rng);
-    auto ref = [&](const Piece& y) {
-      return y.sheared ? reference::overlap(a.part, y.part) : reference::overlap(a.part, y.shape);
-    };
     const Vec3 w = rng.unit_vector();
     double lo = 0.0, hi = a.bounding_radius() + b0.bounding_radius();
     for (int it = 0; it < 60; ++it) {
       const double mid = 0.5 * (lo + hi);
-      (ref(b0.translated(mid * w)) ? lo : hi) = mid;
+      (reference_overlap(a, b0.translated(mid * w)) ? lo : hi) = mid;
     }
     const double delta =
         (rng.uniform() < 0.5 ? -1.0 : 1.0) * std::pow(10.0, rng.uniform(-4.0, std::log10(0.5)));

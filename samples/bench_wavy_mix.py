@@ -67,6 +67,7 @@ def scene(n_waves, smooth, side, seed):
 rows = []
 header = ("| waves per fibre | grain smoothness | box | seed | inclusions | reached | status | wall s "
           "| peak MiB |\n|---|---|---|---|---|---|---|---|---|")
+ROW = "| %d | %g | %g | %d | %s | %.4f | %s | %.1f | %.0f |"  # a run, as printed and written
 print(header)
 
 
@@ -87,7 +88,7 @@ if tables:
     waves = sorted({r[0] for r in rows})
     boxes = sorted({r[2] for r in rows})
     for r in rows:
-        print("| %d | %g | %g | %d | %s | %.4f | %s | %.1f | %.0f |" % r)
+        print(ROW % r)
 for w in waves if not tables else []:
     for side in boxes:
         for smooth in smoothness:
@@ -98,7 +99,7 @@ for w in waves if not tables else []:
                 row = (w, smooth, side, seed, rep["count"], rep["volume_fraction"],
                        rep["status"], wall, peak)
                 rows.append(row)
-                line = "| %d | %g | %g | %d | %s | %.4f | %s | %.1f | %.0f |" % row
+                line = ROW % row
                 print(line, flush=True)
 
 reached = [r for r in rows if r[6] == "ok"]
@@ -126,7 +127,7 @@ with open(os.path.join(charts, name_out + "_table.md"), "w") as f:
                            + ("" if steps is None else ", md.max_steps %d" % steps)))
     f.write(header + "\n")
     for r in rows:
-        f.write("| %d | %g | %g | %d | %s | %.4f | %s | %.1f | %.0f |\n" % r)
+        f.write(ROW % r + "\n")
     f.write("\n%s.\n\n" % summary)
     f.write(cells)
 

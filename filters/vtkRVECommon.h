@@ -110,6 +110,7 @@ inline void RVEPolyDataFromGlyphs(const rvegen::GlyphPoints& g, vtkPolyData* out
   int_array("image", g.image);
   int_array("modified", g.modified);
   double_array("radius", 1, g.radius);
+  double_array("coating", 1, g.coating);
   double_array("half_axis", 3, g.half_axis);
   double_array("semi_axes", 3, g.semi_axes);
   double_array("orientation", 4, g.orientation);

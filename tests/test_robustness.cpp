@@ -381,6 +381,9 @@ TEST(Budgets, MemoryEstimateGrowsWithWhatTheSceneAsks) {
   EXPECT_GE(big.voxel_bytes, 9.0 * 1024 * 1024 * 1024);
   for (auto& f : s.families) f.modifiers.coating = 0.005;
   s.levelset_voxel_size = 1.0 / 8000;
+  // Straight coated shapes get level sets only when they are asked for.
+  EXPECT_EQ(estimate_resources(s).levelset_bytes, 0.0);
+  s.outputs.levelsets_asked = true;
   EXPECT_GT(estimate_resources(s).levelset_bytes, 1e10);
   EXPECT_GT(available_memory_bytes(), 0.0);
   // The tetrahedral mesh: asked for, it counts; a finer chord error needs more.
@@ -447,6 +450,7 @@ TEST(LevelSetNames, FamiliesWhoseNamesCollideGetDistinctGrids) {
   }
   LevelSetOptions opt;
   opt.voxel_size = 1.0 / 64;
+  opt.exact_shapes = true;
   const LevelSets ls = build_level_sets(set, opt);
   ASSERT_EQ(ls.grids.size(), 3u);
   for (size_t i = 0; i < 3; ++i) {

@@ -80,7 +80,7 @@ check(points.GetNumberOfPoints() == cli_pts.GetNumberOfPoints() > n_inclusions,
       % (points.GetNumberOfPoints(), cli_pts.GetNumberOfPoints(), n_inclusions))
 check(points.GetNumberOfVerts() == points.GetNumberOfPoints(), "one vertex per point")
 check(points.GetNumberOfPolys() == 0, "the inclusions port holds no mesh by default")
-for name in ("inclusion_id", "family", "shape", "phase", "image", "modified", "radius", "half_axis",
+for name in ("inclusion_id", "family", "shape", "phase", "image", "modified", "radius", "coating", "half_axis",
              "semi_axes", "orientation", "direction", "scale"):
     a = points.GetPointData().GetArray(name)
     b = cli_pts.GetPointData().GetArray(name)

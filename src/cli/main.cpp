@@ -481,7 +481,7 @@ int cmd_generate(const std::vector<std::string>& args) {
     }
     // Surfaces: of every inclusion when the mesh is asked for; otherwise of the wavy, deformed,
     // coated and debonded ones only (their shape is not a glyph), when there are any.
-    rvegen::InclusionSet meshed = rvegen::meshed_inclusions(result.set, want.mesh);
+    rvegen::InclusionSet meshed = rvegen::meshed_inclusions(result.set, want.mesh, true);
     if (!meshed.inclusions.empty()) {
       timed("surfaces", [&] {
         const rvegen::SurfaceMesh mesh =
@@ -505,6 +505,7 @@ int cmd_generate(const std::vector<std::string>& args) {
         rvegen::LevelSetOptions lopt;
         lopt.voxel_size = scene.levelset_voxel_size;
         lopt.half_width = scene.levelset_half_width;
+        lopt.exact_shapes = want.levelsets_asked;
         levelsets = rvegen::build_level_sets(result.set, lopt);
         if (!levelsets.empty())
           out.write("levelsets.vdb", rvegen::vdb_bytes(levelsets, result.set));

@@ -251,9 +251,40 @@ kinds = sorted(p["kind"] for p in r["phases"])
 assert kinds == ["core"] * 4 + ["interphase", "matrix", "void"], kinds
 for p in r["phases"]:
     assert abs(p["volume_fraction"] - p["voxel_volume_fraction"]) < 0.004, p
+# The coated spheres' shells are exact in closed form: no grid unless level sets are asked for.
 names = sorted(g["name"] for g in r["levelsets"]["grids"])
-assert names == ["bumpy_core", "coated_interphase", "wavy_core"], names
+assert names == ["bumpy_core", "wavy_core"], names
 assert r["voxels"]["conflicts"] == 0
+PY
+expect_rc 0 "$RVEGEN" generate -q "$WORK/modified.json" -o "$WORK/modified_ls" --outputs inclusions,levelsets
+$py -c "import json,sys; r=json.load(open('$WORK/modified_ls/report.json')); n=sorted(g['name'] for g in r['levelsets']['grids']); sys.exit(0 if n==['bumpy_core','coated_interphase','wavy_core'] else 1)" \
+  || fail "levelsets asked for: the coated shells get their grid"
+
+# Coated fibres: outputs sized to what they carry (no level set, no surface mesh of a straight
+# coated fibre; within 2x of the uncoated twin's bytes), continuous fibres written as such.
+for c in 0 0.002; do
+  coat=""
+  [ "$c" = 0 ] || coat=", \"coating\": {\"thickness\": $c}"
+  echo "{\"box\": {\"size\": [1,1,0.2]}, \"seed\": 1, \"families\": [{\"name\": \"fibres\", \"shape\": \"cylinder\", \"radius\": 0.03, \"length\": \"through\", \"volume_fraction\": 0.55$coat}]}" >"$WORK/through_$c.json"
+  expect_rc 0 "$RVEGEN" generate -q "$WORK/through_$c.json" -o "$WORK/through_$c"
+  expect_rc 0 "$RVEGEN" check "$WORK/through_$c/inclusions.json"
+done
+[ ! -e "$WORK/through_0.002/levelsets.vdb" ] && [ ! -e "$WORK/through_0.002/surfaces.vtp" ] \
+  || fail "coated straight fibres: a level set or surface mesh was written by default"
+plain=$(du -sb "$WORK/through_0" | cut -f1); coated=$(du -sb "$WORK/through_0.002" | cut -f1)
+[ "$coated" -le $((2 * plain)) ] || fail "coated output $coated bytes, more than twice the plain $plain"
+$py - "$WORK/through_0.002" <<'PY' || fail "continuous coated fibres: report and inclusion list"
+import json, sys
+d = sys.argv[1]
+r = json.load(open(d + "/report.json"))
+assert r["status"] == "ok" and r["volume_fraction"] >= 0.55 - 1e-9, r["volume_fraction"]
+inc = json.load(open(d + "/inclusions.json"))["inclusions"]
+assert all(i["through"] and i["half_axis"] == [0.0, 0.0, 0.1] for i in inc)
+shell = [p for p in r["phases"] if p["kind"] == "interphase"][0]
+# A tube without caps: (r + t)^2 / r^2 - 1 of the cores.
+want = r["volume_fraction"] * ((0.032 / 0.03) ** 2 - 1)
+assert abs(shell["volume_fraction"] - want) < 1e-9, (shell, want)
+assert abs(shell["voxel_volume_fraction"] - want) < 0.01, shell
 PY
 bad waviness_sphere '{"box": {"size": [1,1,1]}, "families": [{"shape": "sphere", "radius": 0.05, "volume_fraction": 0.1, "waviness": {"amplitude": 0.01, "wavelength": 0.1}}]}' \
   "families\[0\].waviness: waviness applies to cylinders only"
@@ -315,7 +346,7 @@ grep -q "levelsets.vdb (not a regular file)" "$WORK/last.err" || fail "directory
 # DIR as a symbolic link: the directory it points to gets the new set, the link stays a link;
 # a link to a directory holding the user's files is refused like the directory itself.
 # (A small scene with a level set: what is tested is where the files go.)
-echo '{"box":{"size":[0.3,0.3,0.3]},"seed":3,"families":[{"shape":"sphere","radius":0.05,"volume_fraction":0.1,"coating":{"thickness":0.01}}],"voxels":{"resolution":16},"levelsets":{"voxel_size":0.015}}' >"$WORK/small_ls.json"
+echo '{"box":{"size":[0.3,0.3,0.3]},"seed":3,"families":[{"shape":"sphere","radius":0.05,"volume_fraction":0.1,"coating":{"thickness":0.01}}],"voxels":{"resolution":16},"levelsets":{"voxel_size":0.015},"outputs":["inclusions","voxels","levelsets"]}' >"$WORK/small_ls.json"
 expect_rc 0 "$RVEGEN" generate -q "$WORK/closed.json" -o "$WORK/link_target"
 ln -s "$WORK/link_target" "$WORK/link_dir"
 expect_rc 0 "$RVEGEN" generate -q "$WORK/small_ls.json" -o "$WORK/link_dir"

@@ -110,7 +110,7 @@ InclusionSet read_inclusions_json(const std::string& text) {
     if (!e.is_object()) fail(p, "expected an object");
     only_keys(e,
               {"id", "family", "shape", "center", "radius", "half_axis", "semi_axes", "rotation",
-               "modifiers"},
+               "through", "modifiers"},
               p);
     Inclusion inc;
     const double id = number(require(e, "id", p), p + ".id");
@@ -158,6 +158,23 @@ InclusionSet read_inclusions_json(const std::string& text) {
     }
     if (e.contains("modifiers"))
       inc.mod = read_modifiers(e["modifiers"], inc.shape, p + ".modifiers");
+    if (e.contains("through")) {
+      // A continuous fibre: along a box axis, exactly as long as the periodic box along it.
+      if (kind != ShapeKind::Cylinder) fail(p + ".through", "cylinders only");
+      inc.mod.through = boolean(e["through"], p + ".through");
+      if (inc.mod.through) {
+        const Vec3& l = inc.shape.half_axis;
+        int k = 0;
+        l.cwiseAbs().maxCoeff(&k);
+        if (!set.box.periodic) fail(p + ".through", "a continuous fibre needs a periodic box");
+        if (l[(k + 1) % 3] != 0.0 || l[(k + 2) % 3] != 0.0 ||
+            std::abs(2.0 * std::abs(l[k]) - set.box.size[k]) > kWrittenRounding * set.box.size[k]) {
+          fail(p + ".half_axis",
+               "a continuous fibre (\"through\": true) runs along a box axis and is as long as "
+               "the box along it");
+        }
+      }
+    }
     // Sizes and places the audit can serve: the number of periodic images it visits grows as
     // (bounding diameter / box)^3, and coordinates must keep their precision.
     const Box& b = set.box;
@@ -214,6 +231,7 @@ std::string write_inclusions_json(const InclusionSet& set) {
       case ShapeKind::Cylinder:
         e["radius"] = inc.shape.radius;
         e["half_axis"] = v3(inc.shape.half_axis);
+        if (inc.mod.through) e["through"] = true;
         break;
       case ShapeKind::Ellipsoid: {
         e["semi_axes"] = v3(inc.shape.semi_axes);

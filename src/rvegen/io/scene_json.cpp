@@ -125,7 +125,42 @@ FamilyModifiers parse_modifiers(const Json& j, const std::string& p) {
   return m;
 }
 
-Family parse_family(const Json& j, const std::string& p, double box_volume) {
+// An axis within this of a box axis, and a length within this (relative) of the box's: a
+// continuous fibre (the aspect ratio of a length of one box written in decimals, say).
+constexpr double kThroughRounding = 1e-9;
+
+// Continuous fibres ("length": "through"): along a box axis (the aligned law's, z when no
+// orientation is given), exactly as long as the periodic box along it.
+void parse_through(const Json& j, const std::string& p, const Box& box, Family* f) {
+  using namespace json_util;
+  const Json& len = j["length"];
+  if (!len.is_string() || len.get<std::string>() != "through")
+    fail(p + ".length",
+         "expected \"through\" (continuous fibres; finite fibres take aspect_ratio)");
+  if (j.contains("aspect_ratio"))
+    fail(p + ".aspect_ratio", "not allowed with \"length\": \"through\" (the box sets the length)");
+  if (!box.periodic)
+    fail(p + ".length", "continuous fibres need a periodic box (\"box\": {\"periodic\": true})");
+  OrientationLaw law;
+  law.kind = OrientationLaw::Kind::kAligned;
+  law.axis = Vec3::UnitZ();
+  if (j.contains("orientation")) law = parse_orientation(j["orientation"], p + ".orientation");
+  int k = 0;
+  law.axis.cwiseAbs().maxCoeff(&k);
+  if (law.kind != OrientationLaw::Kind::kAligned ||
+      std::abs(law.axis[k]) < 1.0 - kThroughRounding) {
+    fail(p + ".orientation",
+         "continuous fibres run along a box axis: give {\"law\": \"aligned\", \"axis\": [0,0,1]} "
+         "(or [1,0,0], [0,1,0])");
+  }
+  law.axis = Vec3::Unit(k) * (law.axis[k] > 0.0 ? 1.0 : -1.0);
+  f->orientation = law;
+  f->through_length = box.size[k];
+  f->aspect_ratio = 1.0;  // unused: the length is the box's
+}
+
+Family parse_family(const Json& j, const std::string& p, const Box& box) {
+  const double box_volume = box.volume();
   using namespace json_util;
   Family f;
   if (!j.is_object()) fail(p, "expected an object");
@@ -144,7 +179,7 @@ Family parse_family(const Json& j, const std::string& p, double box_volume) {
       break;
     case ShapeKind::Cylinder:
       only_keys(j,
-                {"name", "shape", "radius", "aspect_ratio", "volume_fraction", "count",
+                {"name", "shape", "radius", "aspect_ratio", "length", "volume_fraction", "count",
                  "orientation", "coating", "waviness", "curvature", "deformation", "debonding"},
                 p);
       break;
@@ -182,12 +217,17 @@ Family parse_family(const Json& j, const std::string& p, double box_volume) {
       }
       break;
     case ShapeKind::Cylinder:
-      f.aspect_ratio = parse_size(require(j, "aspect_ratio", p), p + ".aspect_ratio");
+      if (j.contains("length")) {
+        parse_through(j, p, box, &f);
+      } else {
+        f.aspect_ratio = parse_size(require(j, "aspect_ratio", p), p + ".aspect_ratio");
+      }
       if (derived) {
         if (j.contains("radius"))
           fail(p + ".radius",
                "not allowed with both volume_fraction and count (the radius follows from them)");
-        f.radius = std::cbrt(per / (2.0 * M_PI * f.aspect_ratio.mean()));
+        f.radius = f.through() ? std::sqrt(per / (M_PI * f.through_length))
+                               : std::cbrt(per / (2.0 * M_PI * f.aspect_ratio.mean()));
       } else {
         f.radius = parse_size(require(j, "radius", p), p + ".radius");
       }
@@ -217,8 +257,23 @@ Family parse_family(const Json& j, const std::string& p, double box_volume) {
     }
   }
   f.name = j.contains("name") ? string(j["name"], p + ".name") : std::string(shape_name(f.shape));
-  if (j.contains("orientation"))
+  if (j.contains("orientation") && !f.through())
     f.orientation = parse_orientation(j["orientation"], p + ".orientation");
+  if (f.shape == ShapeKind::Cylinder && !f.through() && box.periodic &&
+      f.orientation.kind == OrientationLaw::Kind::kAligned && f.radius.fixed() &&
+      f.aspect_ratio.fixed()) {
+    // Aligned fibres exactly as long as the periodic box along a box axis meet their own images
+    // end to end: they are continuous fibres, written as such.
+    int k = 0;
+    f.orientation.axis.cwiseAbs().maxCoeff(&k);
+    const double length = 2.0 * f.radius.p1 * f.aspect_ratio.p1;
+    if (std::abs(f.orientation.axis[k]) >= 1.0 - kThroughRounding &&
+        std::abs(length - box.size[k]) <= kThroughRounding * box.size[k]) {
+      f.orientation.axis = Vec3::Unit(k) * (f.orientation.axis[k] > 0.0 ? 1.0 : -1.0);
+      f.through_length = box.size[k];
+      f.aspect_ratio = 1.0;
+    }
+  }
   if (derived) f.volume_fraction = -1.0;  // the count now says it all
   return f;
 }
@@ -262,7 +317,7 @@ void read_materials_json(const std::string& text, Scene* scene) {
 
 Outputs outputs_from_names(const std::vector<std::string>& names, bool mesh,
                            const std::string& where) {
-  Outputs out{false, false, false, false, false, mesh, false, false, false};
+  Outputs out{false, false, false, false, false, false, mesh, false, false, false};
   for (size_t k = 0; k < names.size(); ++k) {
     const std::string& name = names[k];
     if (name == "inclusions") {
@@ -275,6 +330,7 @@ Outputs outputs_from_names(const std::vector<std::string>& names, bool mesh,
       out.amitex = true;
     } else if (name == "levelsets") {
       out.levelsets = true;
+      out.levelsets_asked = true;
     } else if (name == "mesh") {
       out.mesh = true;
     } else if (name == "mesh_voxel") {
@@ -369,8 +425,7 @@ Scene parse_scene(const std::string& text) {
   const Json& fams = require(root, "families", "");
   if (!fams.is_array()) fail("families", "expected an array");
   for (size_t i = 0; i < fams.size(); ++i) {
-    s.families.push_back(
-        parse_family(fams[i], "families[" + std::to_string(i) + "]", s.box.volume()));
+    s.families.push_back(parse_family(fams[i], "families[" + std::to_string(i) + "]", s.box));
   }
   if (root.contains("voxels")) {
     const Json& v = root["voxels"];
@@ -544,7 +599,13 @@ OJson packing_json(const PackingSpec& s) {
     } else {
       j["radius"] = size_json(f.radius);
     }
-    if (f.shape == ShapeKind::Cylinder) j["aspect_ratio"] = size_json(f.aspect_ratio);
+    if (f.shape == ShapeKind::Cylinder) {
+      if (f.through()) {
+        j["length"] = "through";
+      } else {
+        j["aspect_ratio"] = size_json(f.aspect_ratio);
+      }
+    }
     if (f.count >= 0) {
       j["count"] = f.count;
     } else {

@@ -400,7 +400,8 @@ void write_points_vtp(const InclusionSet& set, const std::string& inclusions_jso
   const uint64_t o_id = app.add(g.inclusion_id.data(), n), o_fam = app.add(g.family.data(), n),
                  o_shape = app.add(g.shape.data(), n), o_phase = app.add(g.phase.data(), n),
                  o_image = app.add(g.image.data(), n), o_mod = app.add(g.modified.data(), n),
-                 o_r = app.add(g.radius.data(), n), o_ha = app.add(g.half_axis.data(), 3 * n),
+                 o_r = app.add(g.radius.data(), n), o_ct = app.add(g.coating.data(), n),
+                 o_ha = app.add(g.half_axis.data(), 3 * n),
                  o_sa = app.add(g.semi_axes.data(), 3 * n),
                  o_q = app.add(g.orientation.data(), 4 * n),
                  o_dir = app.add(g.direction.data(), 3 * n), o_sc = app.add(g.scale.data(), 3 * n);
@@ -414,10 +415,10 @@ void write_points_vtp(const InclusionSet& set, const std::string& inclusions_jso
     << array_tag("Int32", "inclusion_id", 1, o_id) << array_tag("Int32", "family", 1, o_fam)
     << array_tag("Int32", "shape", 1, o_shape) << array_tag("Int32", "phase", 1, o_phase)
     << array_tag("Int32", "image", 1, o_image) << array_tag("Int32", "modified", 1, o_mod)
-    << array_tag("Float64", "radius", 1, o_r) << array_tag("Float64", "half_axis", 3, o_ha)
-    << array_tag("Float64", "semi_axes", 3, o_sa) << array_tag("Float64", "orientation", 4, o_q)
-    << array_tag("Float64", "direction", 3, o_dir) << array_tag("Float64", "scale", 3, o_sc)
-    << "    </PointData>\n";
+    << array_tag("Float64", "radius", 1, o_r) << array_tag("Float64", "coating", 1, o_ct)
+    << array_tag("Float64", "half_axis", 3, o_ha) << array_tag("Float64", "semi_axes", 3, o_sa)
+    << array_tag("Float64", "orientation", 4, o_q) << array_tag("Float64", "direction", 3, o_dir)
+    << array_tag("Float64", "scale", 3, o_sc) << "    </PointData>\n";
   s << "    </Piece>\n  </PolyData>\n";
   put(out, s.str());
   put_appended(out, app.arrays());

@@ -41,7 +41,8 @@ Shape grown(const Inclusion& inc, double t) {
       return Shape::sphere(s.center, r + t);
     }
     case ShapeKind::Cylinder:
-      return grown_cylinder(s, lateral_reach(inc) + t, t);
+      // A continuous fibre has no ends to grow past: its images continue it.
+      return grown_cylinder(s, lateral_reach(inc) + t, m.through ? 0.0 : t);
     case ShapeKind::Ellipsoid: {
       Shape e = s;
       if (m.deformed()) e = e.scaled(m.deform_scale * (1.0 + m.deform_amplitude * m.deform_peak));
@@ -60,6 +61,13 @@ double gap_to_level(double lo, double hi, double level) {
 }
 
 }  // namespace
+
+int through_axis(const Inclusion& inc) {
+  if (!inc.mod.through || inc.shape.kind != ShapeKind::Cylinder) return -1;
+  int k = 0;
+  inc.shape.half_axis.cwiseAbs().maxCoeff(&k);
+  return k;
+}
 
 double deformation_field(const Modifiers& m, const Vec3& n) {
   double g = 0.0;
@@ -304,7 +312,8 @@ double BodyQuery::cylinder_sdf(const Vec3& x) const {
   const double s = d.dot(u_);
   Vec3 t = d - s * u_;
   if (m_.curved()) t -= line_.offset(s);
-  const double d_ax = std::abs(s) - h_, d_rad = t.norm() - s_.radius;
+  // A continuous fibre has no ends (its images continue it): the lateral distance alone.
+  const double d_ax = m_.through ? -HUGE_VAL : std::abs(s) - h_, d_rad = t.norm() - s_.radius;
   if (d_ax > 0.0 || d_rad > 0.0) {
     return std::hypot(std::max(d_ax, 0.0), std::max(d_rad, 0.0));
   }
@@ -489,6 +498,11 @@ RegionVolumes region_volumes(const Inclusion& inc) {
         break;
       case ShapeKind::Cylinder: {
         const double L = 2.0 * s.half_axis.norm(), r = s.radius;
+        if (m.through) {
+          // A tube without caps: its images continue it across the box.
+          v.shell = M_PI * ((r + t) * (r + t) - r * r) * L;
+          break;
+        }
         S = 2.0 * M_PI * r * r + 2.0 * M_PI * r * L;
         M = M_PI * L + M_PI * M_PI * r;
         break;
@@ -502,7 +516,7 @@ RegionVolumes region_volumes(const Inclusion& inc) {
         break;
       }
     }
-    v.shell = S * t + M * t * t + 4.0 / 3.0 * M_PI * t * t * t;
+    if (!m.through) v.shell = S * t + M * t * t + 4.0 / 3.0 * M_PI * t * t * t;
   }
   if (m.debonded()) {
     const double r = s.radius, g = m.debond_gap;

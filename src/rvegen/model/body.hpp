@@ -32,6 +32,17 @@ Shape outer_bound(const Inclusion& inc);
 /// semi-axis.
 Shape padded(const Shape& s, double t);
 
+/// The box axis (0, 1, 2) a continuous fibre (Modifiers::through) runs along; -1 for every
+/// other inclusion.
+int through_axis(const Inclusion& inc);
+/// True when b shifted by `shift` continues the continuous fibre a along its axis (a itself,
+/// or another continuous fibre along the same axis met again across the box): not a pair to
+/// test, since the image without that shift spans the same length beside a.
+inline bool continues_along(const Inclusion& a, const Inclusion& b, const Vec3& shift) {
+  const int k = through_axis(a);
+  return k >= 0 && k == through_axis(b) && shift[k] != 0.0;
+}
+
 /// Wavy and bent fibres are sheared straight cylinders: the cross-section at axial coordinate s
 /// (|s| <= h, the half length) is displaced sideways by centre_offset(s), the sum of
 ///  - the wave A sin(k s + phase) v, and

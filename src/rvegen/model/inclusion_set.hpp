@@ -46,6 +46,11 @@ struct Modifiers {
   double coating = 0.0;
   /// Shells of neighbours may merge (cores are then packed coating apart, not 2 x coating).
   bool shells_may_touch = false;
+  /// Cylinders: a continuous fibre ("length": "through"), exactly as long as the periodic box
+  /// along its axis, which is a box axis: it meets its own images end to end, so it has no
+  /// ends, and its shell is a tube without caps. Not a modifier of the shape (any() ignores it):
+  /// a plain continuous fibre is its straight cylinder and the cylinder's periodic images.
+  bool through = false;
   /// Cylinders: the cross-section at axial coordinate s is displaced by
   /// wave_amplitude sin(2 pi s / wave_length + wave_phase) along the direction at angle
   /// wave_angle about the axis from any_orthogonal(axis).
@@ -83,6 +88,9 @@ struct Modifiers {
   /// debond_fraction of the sphere: 1 - 2 f).
   double debond_cos_cap() const { return 1.0 - 2.0 * debond_fraction; }
   bool any() const { return coated() || curved() || deformed() || debonded(); }
+  /// The core is its straight convex shape and a shell, if any, the exact offset of it: the
+  /// shape and the coating's thickness say everything (no level set or surface mesh needed).
+  bool exact_shape() const { return !curved() && !deformed() && !debonded(); }
 };
 
 struct Inclusion {

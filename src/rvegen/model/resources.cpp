@@ -192,8 +192,9 @@ ResourceEstimate estimate_resources(const Scene& scene) {
     }
     const FamilyModifiers& m = f.modifiers;
     // Meshed: every inclusion with "mesh", otherwise the modified ones (not glyphs).
-    const bool meshed = scene.outputs.mesh || m.wave_amplitude > 0.0 || m.bend_radius > 0.0 ||
-                        m.deform_amplitude > 0.0 || m.coating > 0.0 || m.debond_fraction > 0.0;
+    const bool exact = m.wave_amplitude == 0.0 && m.bend_radius == 0.0 &&
+                       m.deform_amplitude == 0.0 && m.debond_fraction == 0.0;
+    const bool meshed = scene.outputs.mesh || !exact;
     if (meshed) e.surface_bytes += n * triangles(f, scene.box.size.minCoeff()) * kBytesPerTriangle;
     // Glyph points (inclusions.vtp): arrays and file, periodic images included.
     if (scene.outputs.inclusions) e.surface_bytes += n * kBytesPerGlyphPoint;
@@ -202,7 +203,7 @@ ResourceEstimate estimate_resources(const Scene& scene) {
         (m.wave_amplitude > 0.0 || m.bend_radius > 0.0 || m.deform_amplitude > 0.0 ? 1.5 : 1.0);
     double surfaces = 0.0;
     if (m.wave_amplitude > 0.0 || m.bend_radius > 0.0 || m.deform_amplitude > 0.0) surfaces += 1.0;
-    if (m.coating > 0.0) surfaces += 2.0;
+    if (m.coating > 0.0 && (!exact || scene.outputs.levelsets_asked)) surfaces += 2.0;
     if (scene.outputs.levelsets)
       e.band_voxels += n * surfaces * area * 2.0 * scene.levelset_half_width / (vs * vs);
     if (scene.outputs.mesh_tet) {

@@ -16,6 +16,7 @@ double Family::mean_volume() const {
     case ShapeKind::Sphere:
       return 4.0 / 3.0 * M_PI * radius.moment(3);
     case ShapeKind::Cylinder:
+      if (through()) return M_PI * radius.moment(2) * through_length;
       return 2.0 * M_PI * radius.moment(3) * aspect_ratio.mean();
     case ShapeKind::Ellipsoid:
       return 4.0 / 3.0 * M_PI * semi_axes[0].mean() * semi_axes[1].mean() * semi_axes[2].mean();
@@ -94,6 +95,7 @@ double Family::envelope_ratio() const {
   inc.shape = mean.draw(Vec3::Zero(), rng);
   inc.mod = m.draw(rng);
   inc.mod.deform_amplitude = 0.0;
+  inc.mod.through = through();
   if (packs_as_chain(inc)) inc.mod.wave_amplitude = inc.mod.bend_radius = 0.0;
   return envelope(inc).volume() / inc.shape.volume();
 }
@@ -146,6 +148,9 @@ Shape Family::draw(const Vec3& center, Random& rng, const AcgLaw* acg) const {
     case ShapeKind::Sphere:
       return Shape::sphere(center, radius.sample(rng));
     case ShapeKind::Cylinder: {
+      if (through())
+        return Shape::cylinder(center, radius.sample(rng),
+                               orientation.axis * (0.5 * through_length));
       const double r = radius.sample(rng), a = aspect_ratio.sample(rng);
       return Shape::cylinder(center, r, direction() * (a * r));
     }
@@ -200,6 +205,7 @@ std::vector<Inclusion> draw_population(const PackingSpec& scene, Random& rng) {
       inc.shape = s;
       if (fam.modifiers.any()) inc.mod = fam.modifiers.draw(mod_rng);
       inc.mod.packing_pad = pad;
+      inc.mod.through = fam.through();
       out.push_back(inc);
     };
     if (fam.count >= 0) {

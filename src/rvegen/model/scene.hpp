@@ -38,6 +38,11 @@ struct Family {
   ShapeKind shape = ShapeKind::Sphere;
   SizeLaw radius;        // sphere, cylinder
   SizeLaw aspect_ratio;  // cylinder: a = |l| / r
+  /// Cylinders: continuous fibres (JSON "length": "through"), each as long as the periodic box
+  /// along the box axis the aligned law gives (this length, set from the box); 0: fibres of
+  /// the lengths `aspect_ratio` gives.
+  double through_length = 0.0;
+  bool through() const { return through_length > 0.0; }
   std::array<SizeLaw, 3> semi_axes;
   double volume_fraction = -1.0;  // < 0 when only `count` is given
   int count = -1;                 // < 0 when only `volume_fraction` is given
@@ -46,7 +51,9 @@ struct Family {
   /// Expected volume of one inclusion.
   double mean_volume() const;
   /// Largest half length of a cylinder of the family.
-  double longest_half() const { return radius.upper() * aspect_ratio.upper(); }
+  double longest_half() const {
+    return through() ? 0.5 * through_length : radius.upper() * aspect_ratio.upper();
+  }
   /// Largest bounding radius any inclusion of the family can have.
   double max_bounding_radius() const;
   /// Largest smallest-width of any inclusion (the least box size every inclusion passes through).
@@ -116,8 +123,11 @@ struct Outputs {
   bool voxels = true;      // "voxels": voxels.vti (zlib-compressed)
   bool h5 = false;         // "h5": rve.h5 and rve.xdmf
   bool amitex = false;     // "amitex": material.vtk
-  bool levelsets = true;   // "levelsets": levelsets.vdb (wavy, deformed and coated inclusions)
-  bool mesh = false;       // "mesh": surfaces.vtp of every inclusion (else of the modified ones)
+  bool levelsets = true;   // "levelsets": levelsets.vdb (wavy, bent and deformed inclusions)
+  /// "levelsets" named in the outputs: the shells of straight coated inclusions get grids too
+  /// (exact in closed form: by default they get none)
+  bool levelsets_asked = false;
+  bool mesh = false;  // "mesh": surfaces.vtp of every inclusion (else of the modified ones)
   /// "mesh_voxel": mesh_voxel.inp (8-node hexahedra, one per voxel, periodic node sets) and
   /// the CalculiX/Abaqus decks run_voxel_*.inp with periodic equations
   bool mesh_voxel = false;
@@ -129,8 +139,8 @@ struct Outputs {
   bool statistics = true;
   bool operator==(const Outputs& o) const {
     return inclusions == o.inclusions && voxels == o.voxels && h5 == o.h5 && amitex == o.amitex &&
-           levelsets == o.levelsets && mesh == o.mesh && mesh_voxel == o.mesh_voxel &&
-           mesh_tet == o.mesh_tet && statistics == o.statistics;
+           levelsets == o.levelsets && levelsets_asked == o.levelsets_asked && mesh == o.mesh &&
+           mesh_voxel == o.mesh_voxel && mesh_tet == o.mesh_tet && statistics == o.statistics;
   }
   /// A voxel image is computed when one of its files is asked for.
   bool image() const { return voxels || h5 || amitex || mesh_voxel; }

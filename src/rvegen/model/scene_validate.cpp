@@ -394,6 +394,22 @@ void validate_scene(const Scene& s) {
         fail(p + ".curvature.radius", buf);
       }
     }
+    if (f.through()) {
+      // Continuous fibres: straight, along a box axis, as long as the periodic box along it.
+      if (f.shape != ShapeKind::Cylinder)
+        fail(p + ".length", "\"through\" applies to cylinders only");
+      if (!s.box.periodic) fail(p + ".length", "continuous fibres need a periodic box");
+      const Vec3& a = f.orientation.axis;
+      int k = 0;
+      a.cwiseAbs().maxCoeff(&k);
+      if (f.orientation.kind != OrientationLaw::Kind::kAligned || std::abs(a[k]) != 1.0 ||
+          a[(k + 1) % 3] != 0.0 || a[(k + 2) % 3] != 0.0)
+        fail(p + ".orientation", "continuous fibres are aligned along a box axis");
+      if (f.through_length != s.box.size[k])
+        fail(p + ".length", "continuous fibres are as long as the box along their axis");
+      if (m.wave_amplitude > 0.0 || m.bend_radius > 0.0)
+        fail(p + ".length", "continuous fibres are straight (no waviness or curvature)");
+    }
     if (!(m.deform_amplitude >= 0.0 && m.deform_amplitude <= 0.5))
       fail(p + ".deformation.amplitude", "must be in (0, 0.5]");
     if (m.deform_amplitude > 0.0) {
@@ -415,7 +431,18 @@ void validate_scene(const Scene& s) {
       fail(p, "coating and debonding together are not supported");
     if (m.deform_amplitude > 0.0 && m.debond_gap > 0.0)
       fail(p, "deformation and debonding together are not supported");
-    if (f.max_min_width() + 2.0 * s.min_gap >= box_min) {
+    if (f.through()) {
+      // A continuous fibre is as long as the box: its section must fit across it.
+      int k = 0;
+      f.orientation.axis.cwiseAbs().maxCoeff(&k);
+      const double across = std::min(s.box.size[(k + 1) % 3], s.box.size[(k + 2) % 3]);
+      const double width = 2.0 * (f.radius.upper() + m.coating);
+      if (width + 2.0 * s.min_gap >= across) {
+        fail(p, "continuous fibre does not fit across the box (diameter with coating " +
+                    std::to_string(width) + " >= box size across the fibres " +
+                    std::to_string(across) + ")");
+      }
+    } else if (f.max_min_width() + 2.0 * s.min_gap >= box_min) {
       fail(p, "inclusion does not fit in the box (smallest width " +
                   std::to_string(f.max_min_width()) + " >= smallest box size " +
                   std::to_string(box_min) + ")");

@@ -106,6 +106,7 @@ std::vector<OverlapRecord> find_overlaps(const InclusionSet& set, size_t limit,
       k = {-k[0], -k[1], -k[2]};
     }
     const Vec3 s(k[0] * set.box.size[0], k[1] * set.box.size[1], k[2] * set.box.size[2]);
+    if (continues_along(inc[i], inc[j], s)) return true;
     ++tested;
     const Shape& a = env[i];
     const Shape& b = env[j];

@@ -27,8 +27,8 @@ constexpr double kChainPatience = 6.0;
 Shape Body::at_scale(double s) const {
   if (!radial) return shape.scaled(s + pad);
   Shape out = shape;
-  out.radius = shape.radius * s + half_gap;
-  if (half_gap > 0.0) out.half_axis = shape.half_axis * (1.0 + half_gap / cap_half);
+  out.radius = shape.radius * s + add_radius;
+  if (add_half > 0.0) out.half_axis = shape.half_axis * (1.0 + add_half / cap_half);
   return out;
 }
 
@@ -73,10 +73,10 @@ void Body::turn_by(const Mat3& R) {
 
 void Body::support_line(const Vec3& n, double* alpha, double* beta) const {
   if (radial) {
-    // Cylinder: half length |n.u| + radius sqrt(1 - (n.u)^2), radius s r + half_gap.
+    // Cylinder: half length |n.u| + radius sqrt(1 - (n.u)^2), radius s r + add_radius.
     const double c = std::min(1.0, std::abs(n.dot(shape.half_axis)) / cap_half);
     const double sn = std::sqrt(std::max(0.0, 1.0 - c * c));
-    *alpha = (cap_half + half_gap) * c + half_gap * sn;
+    *alpha = (cap_half + add_half) * c + add_radius * sn;
     *beta = shape.radius * sn;
     return;
   }
@@ -183,14 +183,26 @@ Bodies make_bodies(const PackingSpec& spec, const std::vector<Inclusion>& pop, R
       if (b.turn != Turn::kNone && spec.md.rotation == MdSettings::Rotation::kKeepTensor) {
         out.held[b.family].push_back(static_cast<int>(i));
       }
-      if (b.turn == Turn::kNone && b.shape.kind == ShapeKind::Cylinder && !pop[i].mod.any() &&
-          law.null_space().count >= 2 && b.shape.half_axis.norm() >= 2.0 * b.shape.radius &&
-          (!box.periodic ||
-           2.0 * (b.shape.half_axis.norm() + 0.5 * spec.min_gap) < box.size.minCoeff())) {
+      const Modifiers& m = pop[i].mod;
+      const Shape& core = pop[i].shape;
+      // What the envelope adds to the core (body.hpp: envelope), and half the gap.
+      const double add =
+          (m.shells_may_touch ? 0.0 : m.coating) + m.packing_pad + 0.5 * spec.min_gap;
+      const double add_half = m.through ? 0.0 : add;
+      if (b.turn == Turn::kNone && core.kind == ShapeKind::Cylinder && !m.curved() &&
+          law.null_space().count >= 2 &&
+          (m.through ||
+           (core.half_axis.norm() >= 2.0 * core.radius &&
+            (!box.periodic || 2.0 * (core.half_axis.norm() + add_half) < box.size.minCoeff())))) {
         // (a fibre at least as long as the periodic box could meet its own image end to end
-        // at every radius: it grows in length too)
+        // at every radius: it grows in length too, unless it is continuous)
         b.radial = true;
-        b.half_gap = 0.5 * spec.min_gap;
+        b.shape = Shape::cylinder(b.shape.center, core.radius, core.half_axis);
+        b.cap_half = core.half_axis.norm();
+        b.cap_radius = core.radius;
+        b.add_radius = add;
+        b.add_half = add_half;
+        b.through_axis = through_axis(pop[i]);
         b.pad = 0.0;
       }
     }

@@ -24,12 +24,17 @@ struct Body {
   double bound = 0.0;     // bounding radius at scale 1
   double cap_half = 0.0;  // bounding capsule at scale 1: half length along `axis`, radius
   double cap_radius = 0.0;
-  // Aligned fibres (plain cylinders at least twice as long as wide that never turn) grow in
-  // radius only, at full length: growing in length, they would butt end to end in columns that
-  // wrap around a periodic box and jam at any density. Their force shape is radius
-  // s r + half_gap and half length h + half_gap, and `pad` is 0.
+  // Aligned fibres (straight cylinders, plain or coated, at least twice as long as wide, that
+  // never turn) grow in radius only, at full length: growing in length, they would butt end to
+  // end in columns that wrap around a periodic box and jam at any density. `shape` is then the
+  // core, and the force shape has radius s r + add_radius and half length h + add_half: the
+  // shell (unless shells may touch), the packing pad and half the gap are added at every scale,
+  // so the coating keeps its thickness while the core grows. `pad` is 0.
   bool radial = false;
-  double half_gap = 0.0;
+  double add_radius = 0.0, add_half = 0.0;
+  // Continuous fibres (Modifiers::through): radial bodies as long as the periodic box along
+  // this axis (add_half 0). An image along it is the same fibre continued, not a neighbour.
+  int through_axis = -1;
   Turn turn = Turn::kNone;
   Vec3 turn_axis = Vec3::UnitZ();
   // Deformed spheres (deformed_support.hpp): `shape` is their bounding ball; pairs are kept
@@ -60,9 +65,15 @@ struct Body {
   /// The shape the body is tested with at growth s (at its current centre and orientation).
   Shape at_scale(double s) const;
   /// Its bounding capsule at growth s: half length and radius.
-  double cap_half_at(double s) const { return radial ? cap_half + half_gap : cap_half * (s + pad); }
+  double cap_half_at(double s) const { return radial ? cap_half + add_half : cap_half * (s + pad); }
   double cap_radius_at(double s) const {
-    return radial ? cap_radius * s + half_gap : cap_radius * (s + pad);
+    return radial ? cap_radius * s + add_radius : cap_radius * (s + pad);
+  }
+  /// True when the image of `other` shifted by `shift` is this continuous fibre's own
+  /// continuation, or another continuous fibre along the same axis met again along it: such a
+  /// pair is no contact (the image without that shift is the one that counts).
+  bool continued_by(const Body& other, const Vec3& shift) const {
+    return through_axis >= 0 && through_axis == other.through_axis && shift[through_axis] != 0.0;
   }
   /// Support value of the body at growth s along unit n, about its centre: alpha + s beta.
   void support_line(const Vec3& n, double* alpha, double* beta) const;

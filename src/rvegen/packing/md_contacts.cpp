@@ -310,10 +310,14 @@ void visit_pair(const std::vector<Body>& bodies, const std::vector<Vec3>& axis, 
     // Parallel fibres in closed form: they overlap exactly when their axial ranges do and
     // their axes are nearer than the sum of the radii; the push is sideways only, so aligned
     // fibres never butt end to end in columns.
+    // Continuous fibres along one axis span it whole: they share their span in the image
+    // without a shift along it, and the images along it are the fibres themselves, continued.
     const Vec3& u = axis[e.a];
     const Vec3 d = bb.shape.center + e.shift - ba.shape.center;
+    if (ba.continued_by(bb, e.shift)) return;
+    const bool shared_span = ba.through_axis >= 0 && ba.through_axis == bb.through_axis;
     const double along = std::abs(d.dot(u));
-    if (along >= ba.cap_half_at(s_out) + bb.cap_half_at(s_out)) return;
+    if (!shared_span && along >= ba.cap_half_at(s_out) + bb.cap_half_at(s_out)) return;
     const Vec3 side = d - d.dot(u) * u;
     const double dist = side.norm(), ra = ba.shape.radius, rb = bb.shape.radius;
     const double reach = ba.cap_radius_at(s_out) + bb.cap_radius_at(s_out);
@@ -321,7 +325,7 @@ void visit_pair(const std::vector<Body>& bodies, const std::vector<Vec3>& axis, 
     const double depth = reach - dist;
     const Vec3 nrm = dist > 0.0 ? Vec3(side / dist) : any_orthogonal(u);
     out.max_overlap = std::max(out.max_overlap, depth / (s_out * std::min(ra, rb)));
-    out.s_in = std::min(out.s_in, (dist - ba.half_gap - bb.half_gap) / (ra + rb));
+    out.s_in = std::min(out.s_in, (dist - ba.add_radius - bb.add_radius) / (ra + rb));
     const Vec3 J = (kRelaxation * depth / (1.0 / ba.volume + 1.0 / bb.volume)) * nrm;
     out.adds.push_back({e.a, false, Vec3(-(J / ba.volume)), Vec3::Zero()});
     out.adds.push_back({e.b, false, Vec3(J / bb.volume), Vec3::Zero()});

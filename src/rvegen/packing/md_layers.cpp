@@ -457,7 +457,7 @@ void slot_aligned_fibres(const PackingSpec& spec, Random& rng, Bodies* bodies) {
     for (int k = 0; k < 3; ++k) {
       if (std::abs(u[k]) > 1.0 - kOnAxisRounding) {
         by_axis[k].push_back(static_cast<int>(i));
-        longest[k] = std::max(longest[k], 2.0 * (b.cap_half + b.half_gap));
+        longest[k] = std::max(longest[k], 2.0 * (b.cap_half + b.add_half));
       }
     }
   }
@@ -470,7 +470,7 @@ void slot_aligned_fibres(const PackingSpec& spec, Random& rng, Bodies* bodies) {
     double section = 0.0;
     for (int i : by_axis[k]) {
       const Body& b = bodies->all[i];
-      section += M_PI * (b.shape.radius + b.half_gap) * (b.shape.radius + b.half_gap);
+      section += M_PI * (b.shape.radius + b.add_radius) * (b.shape.radius + b.add_radius);
     }
     if (section * box.size[k] <= kLinesFull * box.volume()) continue;
     const double pitch = box.size[k] / slots;
@@ -481,7 +481,7 @@ void slot_aligned_fibres(const PackingSpec& spec, Random& rng, Bodies* bodies) {
     }
     for (size_t q = 0; q < fibres.size(); ++q) {
       Body& b = bodies->all[fibres[q]];
-      const double room = std::max(0.0, pitch - 2.0 * (b.cap_half + b.half_gap));
+      const double room = std::max(0.0, pitch - 2.0 * (b.cap_half + b.add_half));
       b.shape.center[k] = box.origin[k] + (static_cast<double>(q % slots) + 0.5) * pitch +
                           room * (rng.uniform() - 0.5);
     }

@@ -58,6 +58,7 @@ GlyphPoints glyph_points(const InclusionSet& set) {
           g.image.push_back(self ? 0 : 1);
           g.modified.push_back(inc.mod.any() ? 1 : 0);
           g.radius.push_back(sh.kind == ShapeKind::Ellipsoid ? 0.0 : sh.radius);
+          g.coating.push_back(inc.mod.coating);
           g.half_axis.insert(g.half_axis.end(), {ha[0], ha[1], ha[2]});
           g.semi_axes.insert(g.semi_axes.end(), {sa[0], sa[1], sa[2]});
           g.orientation.insert(g.orientation.end(), {q.w(), q.x(), q.y(), q.z()});
@@ -70,12 +71,13 @@ GlyphPoints glyph_points(const InclusionSet& set) {
   return g;
 }
 
-InclusionSet meshed_inclusions(const InclusionSet& set, bool all) {
+InclusionSet meshed_inclusions(const InclusionSet& set, bool all, bool coated_as_glyphs) {
   InclusionSet meshed;
   meshed.box = set.box;
   meshed.family_names = set.family_names;
   for (const Inclusion& inc : set.inclusions) {
-    if (all || inc.mod.any()) meshed.inclusions.push_back(inc);
+    if (all || (coated_as_glyphs ? !inc.mod.exact_shape() : inc.mod.any()))
+      meshed.inclusions.push_back(inc);
   }
   return meshed;
 }

@@ -24,6 +24,8 @@ struct GlyphPoints {
   std::vector<int32_t> image;       // 1 for a periodic image
   std::vector<int32_t> modified;    // 1 for wavy, deformed, coated or debonded (not a glyph)
   std::vector<double> radius;       // 0 for ellipsoids
+  std::vector<double> coating;      // interphase thickness (0: none): the shell of a straight
+                                    // inclusion is every point within it of the core
   std::vector<double> half_axis;    // cylinders; 0 otherwise
   std::vector<double> semi_axes;    // ellipsoids; 0 otherwise
   std::vector<double> orientation;  // quaternion w, x, y, z
@@ -35,7 +37,9 @@ struct GlyphPoints {
 GlyphPoints glyph_points(const InclusionSet& set);
 
 /// The inclusions whose surfaces are meshed: all of them with `all`, otherwise the modified ones
-/// (wavy, deformed, coated, debonded: their shape is not a glyph).
-InclusionSet meshed_inclusions(const InclusionSet& set, bool all);
+/// (wavy, deformed, coated, debonded: their shape is not a glyph), or with `coated_as_glyphs`
+/// only those whose shape is not exact (Modifiers::exact_shape: a straight coated inclusion is
+/// its glyph and the glyph's coating).
+InclusionSet meshed_inclusions(const InclusionSet& set, bool all, bool coated_as_glyphs = false);
 
 }  // namespace rvegen

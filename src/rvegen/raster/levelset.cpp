@@ -77,7 +77,9 @@ LevelSets build_level_sets(const InclusionSet& set, const LevelSetOptions& opt) 
       std::vector<const Inclusion*> members;
       for (const auto& inc : set.inclusions) {
         if (inc.family != f) continue;
-        const bool wanted = kind == 0 ? (inc.mod.curved() || inc.mod.deformed()) : inc.mod.coated();
+        const bool wanted = kind == 0
+                                ? (inc.mod.curved() || inc.mod.deformed())
+                                : inc.mod.coated() && (opt.exact_shapes || !inc.mod.exact_shape());
         if (wanted) members.push_back(&inc);
       }
       if (members.empty()) continue;

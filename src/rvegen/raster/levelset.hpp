@@ -13,7 +13,8 @@
 
 namespace rvegen {
 
-/// Builds the grids the set needs (none when no inclusion is wavy, deformed or coated).
+/// Builds the grids the set needs (none when no inclusion is wavy, bent or deformed; the shells
+/// of straight coated inclusions only with options.exact_shapes).
 /// Values are the signed distances of BodyQuery::core_distance / shell_distance in the narrow
 /// band (exact signs; exact distances for spheres and straight cylinders), the inside filled
 /// by OpenVDB's signed flood fill.

@@ -15,6 +15,9 @@ struct LevelSetOptions {
   double voxel_size = 0.0;
   /// Half width of the narrow band, in voxels.
   double half_width = 3.0;
+  /// Grids for the shells of straight coated inclusions too (Modifiers::exact_shape: their
+  /// shell is exact in closed form, so by default they get none).
+  bool exact_shapes = false;
 };
 
 /// One grid: the union of one family's wavy or deformed cores ("<family>_core") or of its

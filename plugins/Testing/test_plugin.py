@@ -295,6 +295,30 @@ with open(coated_path, "w") as f:
 gen.SceneFile = coated_path
 lset = servermanager.Fetch(gen, idx=2)
 check(lset.GetNumberOfCells() > 1000, "coated scene: %d level-set triangles" % lset.GetNumberOfCells())
+# Continuous coated fibres from a scene file: the inclusions port carries each fibre's coating,
+# its inclusion list the continuous fibres, and the image the fibres' exact shares.
+ud_path = os.path.join(tempfile.mkdtemp(), "ud.json")
+with open(ud_path, "w") as f:
+    json.dump({"box": {"size": [1, 1, 0.1]}, "seed": 1,
+               "families": [{"name": "fibres", "shape": "cylinder", "radius": 0.03,
+                             "length": "through", "volume_fraction": 0.55,
+                             "coating": {"thickness": 0.002}}],
+               "voxels": {"resolution": [200, 200, 1]}}, f)
+gen.SceneFile = ud_path
+ud_points = servermanager.Fetch(gen, idx=0)
+coat = ud_points.GetPointData().GetArray("coating")
+check(coat is not None and coat.GetRange() == (0.002, 0.002), "continuous fibres: coating array %s"
+      % (coat.GetRange() if coat is not None else None,))
+ud_list = json.loads(ud_points.GetFieldData().GetAbstractArray("rvegen_inclusions").GetValue(0))
+check(all(i.get("through") for i in ud_list["inclusions"]) and len(ud_list["inclusions"]) > 150,
+      "continuous fibres: the inclusion list does not mark them through")
+ud_image = servermanager.Fetch(gen, idx=1)
+ud_phase = ud_image.GetCellData().GetArray("phase")
+shares = [0, 0, 0]
+for k in range(ud_phase.GetNumberOfTuples()):
+    shares[int(ud_phase.GetValue(k))] += 1
+check(abs(shares[1] / 40000.0 - 0.55) < 0.01 and abs(shares[2] / 40000.0 - 0.55 * ((0.032 / 0.03) ** 2 - 1)) < 0.01,
+      "continuous fibres: image shares %s" % shares)
 gen.SceneFile = ""
 gen.UpdatePipeline()
 

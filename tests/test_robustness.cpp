@@ -493,12 +493,14 @@ TEST_F(OutputSetTest, ASetReplacesThePreviousOneWholeStaleFilesIncluded) {
     OutputSet out(dir_);
     out.write("inclusions.json", "first");
     out.write("levelsets.vdb", "grids");
+    out.write("report.json", "{}");  // as every set rvegen writes
     out.commit();
   }
   EXPECT_EQ(read("inclusions.json"), "first");
   {
     OutputSet out(dir_);
     out.write("inclusions.json", "second");
+    out.write("report.json", "{}");
     out.commit();
   }
   EXPECT_EQ(read("inclusions.json"), "second");
@@ -510,6 +512,7 @@ TEST_F(OutputSetTest, WithoutCommitNothingChanges) {
   {
     OutputSet out(dir_);
     out.write("inclusions.json", "first");
+    out.write("report.json", "{\"run\": 1}");
     out.commit();
   }
   {
@@ -519,7 +522,7 @@ TEST_F(OutputSetTest, WithoutCommitNothingChanges) {
     // No commit: an error happened.
   }
   EXPECT_EQ(read("inclusions.json"), "first");
-  EXPECT_FALSE(fs::exists(fs::path(dir_) / "report.json"));
+  EXPECT_EQ(read("report.json"), "{\"run\": 1}");
   EXPECT_TRUE(leftovers().empty());
 }
 
@@ -534,6 +537,47 @@ TEST_F(OutputSetTest, RefusesADirectoryWithOtherFilesBeforeAnyWork) {
   }
   EXPECT_TRUE(fs::exists(fs::path(dir_) / "notes.txt"));
   EXPECT_THROW(OutputSet(dir_ + "/notes.txt/sub"), OutputError);  // under a file
+}
+
+TEST_F(OutputSetTest, AHandMadeInclusionListIsTheUsers) {
+  // Files under rvegen's names without the report.json every set holds: no earlier run wrote
+  // them, so they are not replaced.
+  fs::create_directories(dir_);
+  std::ofstream(fs::path(dir_) / "inclusions.json") << "my own";
+  try {
+    OutputSet out(dir_);
+    ADD_FAILURE() << "a directory holding only a hand-made inclusions.json was taken";
+  } catch (const OutputError& e) {
+    EXPECT_NE(std::string(e.what()).find("holds inclusions.json but no report.json"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(read("inclusions.json"), "my own");
+}
+
+TEST_F(OutputSetTest, AFileAddedWhileTheRunWorksStays) {
+  {
+    OutputSet out(dir_);
+    out.write("inclusions.json", "first");
+    out.write("levelsets.vdb", "grids");
+    out.write("report.json", "{}");
+    out.commit();
+  }
+  {
+    OutputSet out(dir_);  // checked: an earlier set
+    out.write("inclusions.json", "second");
+    out.write("report.json", "{}");
+    // The user puts a file and a folder into DIR while the run works.
+    std::ofstream(fs::path(dir_) / "notes.txt") << "mine";
+    fs::create_directories(fs::path(dir_) / "plots");
+    out.commit();
+    EXPECT_TRUE(out.leftover().empty());
+  }
+  EXPECT_EQ(read("inclusions.json"), "second");
+  EXPECT_EQ(read("notes.txt"), "mine");
+  EXPECT_TRUE(fs::is_directory(fs::path(dir_) / "plots"));
+  EXPECT_FALSE(fs::exists(fs::path(dir_) / "levelsets.vdb"));  // the old set's stale file: gone
+  EXPECT_TRUE(leftovers().empty());
 }
 
 TEST_F(OutputSetTest, OrphanedStagingOfAKilledRunIsRemoved) {
@@ -584,6 +628,38 @@ TEST_F(OutputSetTest, ADirectoryUnderAnOutputNameIsTheUsers) {
         << e.what();
   }
   EXPECT_TRUE(fs::exists(fs::path(dir_) / "levelsets.vdb" / "mine.txt"));
+}
+
+}  // namespace
+}  // namespace rvegen
+
+namespace rvegen {
+namespace {
+// --- Seeds --------------------------------------------------------------------------------
+
+TEST(Seeds, TheWholeUnsignedRangeIsReadExactly) {
+  auto seed_of = [](const std::string& text) {
+    return parse_scene(
+               R"({"box": {"size": [1,1,1]}, "seed": )" + text +
+               R"(, "families": [{"shape": "sphere", "radius": 0.05, "volume_fraction": 0.1}]})")
+        .seed;
+  };
+  // 2^53 + 1 was read through a double as 2^53; 2^64 - 1 was refused.
+  EXPECT_EQ(seed_of("9007199254740993"), 9007199254740993ULL);
+  EXPECT_NE(seed_of("9007199254740993"), seed_of("9007199254740992"));
+  EXPECT_EQ(seed_of("18446744073709551615"), 18446744073709551615ULL);
+  EXPECT_EQ(seed_of("0"), 0ULL);
+  EXPECT_EQ(seed_of("12.0"), 12ULL);
+  for (const char* bad : {"18446744073709551616", "-1", "1.5", "1e300", "\"7\""}) {
+    const std::string e = scene_error(
+        std::string(R"({"box": {"size": [1,1,1]}, "seed": )") + bad +
+        R"(, "families": [{"shape": "sphere", "radius": 0.05, "volume_fraction": 0.1}]})");
+    EXPECT_EQ(e.rfind("seed", 0), 0u) << bad << ": " << e;
+  }
+  // Written back exactly.
+  Scene s = default_scene();
+  s.seed = 18446744073709551615ULL;
+  EXPECT_EQ(parse_scene(scene_to_json(s)).seed, s.seed);
 }
 
 }  // namespace

@@ -743,6 +743,9 @@ int cmd_homogenize(const std::vector<std::string>& args) {
       throw rvegen::InputError("families: the scene's (" + want + ") are not the RVE's (" + have +
                                ")");
     }
+    // What is handed in is audited like what is packed: the scene's families and box, no
+    // overlap, nothing outside a closed box.
+    rvegen::check_rve_for_scene(set, scene, path);
   } catch (const std::exception& e) {
     say << "rvegen: invalid input: " << e.what() << "\n";
     return kExitInvalid;

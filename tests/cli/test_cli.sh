@@ -556,6 +556,54 @@ PY
 expect_rc 2 "$RVEGEN" homogenize "$WORK/default" "$WORK/hom.json"
 grep -q "families: the scene's (spheres) are not the RVE's" "$WORK/last.err" \
   || fail "homogenize with other families: $(cat "$WORK/last.err")"
+# A named pipe as the scene or as DIR/inclusions.json: refused at once ("not a regular file"),
+# not waited on (the file was opened before it was checked).
+mkfifo "$WORK/fifo_scene.json"
+expect_rc 2 timeout 20 "$RVEGEN" generate -q "$WORK/fifo_scene.json" -o "$WORK/fifo_out"
+grep -q "not a regular file" "$WORK/last.err" || fail "fifo scene: $(cat "$WORK/last.err")"
+mkdir -p "$WORK/fifo_rve" && mkfifo "$WORK/fifo_rve/inclusions.json"
+expect_rc 2 timeout 20 "$RVEGEN" homogenize "$WORK/fifo_rve" "$WORK/hom.json"
+grep -q "not a regular file" "$WORK/last.err" || fail "fifo inclusion list: $(cat "$WORK/last.err")"
+
+# An RVE handed in is audited against the scene before any work: edited to overlap (deeply, or
+# by 3 % of a radius), a family past the scene's, a coating the scene does not have, a box that
+# is not the scene's: exit 2 naming the inclusion, never a tensor.
+$py - "$WORK/hom" "$WORK/hom_bad" <<'PY' || fail "could not write the edited RVEs"
+import json, math, os, shutil, sys
+src, dst = sys.argv[1], sys.argv[2]
+base = json.load(open(src + "/inclusions.json"))
+def write(name, edit):
+    d = json.loads(json.dumps(base))
+    edit(d)
+    os.makedirs(dst + "_" + name, exist_ok=True)
+    json.dump(d, open(dst + "_" + name + "/inclusions.json", "w"))
+def overlap(frac):
+    def edit(d):
+        a, b = d["inclusions"][0], d["inclusions"][1]
+        r = a["radius"] + b["radius"]
+        # b moved to 1 - frac of the contact distance from a, along x.
+        b["center"] = [a["center"][0] + (1 - frac) * r, a["center"][1], a["center"][2]]
+    return edit
+write("deep", overlap(0.5))
+write("shallow", overlap(0.03 * base["inclusions"][0]["radius"] / (2 * base["inclusions"][0]["radius"])))
+write("family", lambda d: d["inclusions"][3].__setitem__("family", 7))
+write("coated", lambda d: d["inclusions"][2].__setitem__("modifiers", {"coating": 0.01, "shells_may_touch": False}))
+write("box", lambda d: d["box"].__setitem__("size", [1.1, 1, 1]))
+PY
+for k in deep shallow family coated box; do
+  expect_rc 2 "$RVEGEN" homogenize "$WORK/hom_bad_$k" "$WORK/hom.json"
+  [ -s "$WORK/last.out" ] && fail "homogenize of an RVE edited ($k) printed a result"
+done
+expect_rc 2 "$RVEGEN" homogenize "$WORK/hom_bad_deep" "$WORK/hom.json"
+grep -q "inclusions.json: inclusions 0 and 1 overlap by" "$WORK/last.err" || fail "overlap not named: $(cat "$WORK/last.err")"
+expect_rc 2 "$RVEGEN" homogenize "$WORK/hom_bad_shallow" "$WORK/hom.json"
+grep -q "overlap by" "$WORK/last.err" || fail "a 3 % overlap not named: $(cat "$WORK/last.err")"
+expect_rc 2 "$RVEGEN" homogenize "$WORK/hom_bad_family" "$WORK/hom.json"
+grep -q "inclusion 3: family 7, but the scene has 1 family" "$WORK/last.err" || fail "family past the scene's: $(cat "$WORK/last.err")"
+expect_rc 2 "$RVEGEN" homogenize "$WORK/hom_bad_coated" "$WORK/hom.json"
+grep -q "inclusion 2: coating 0.01, but family \"spheres\" has 0" "$WORK/last.err" || fail "coating the scene lacks: $(cat "$WORK/last.err")"
+expect_rc 2 "$RVEGEN" homogenize "$WORK/hom_bad_box" "$WORK/hom.json"
+grep -q "box .* is not the scene's" "$WORK/last.err" || fail "another box: $(cat "$WORK/last.err")"
 bad hom_missing "{$BOX,$HOM_FAM,\"materials\":{\"matrix\":{\"conductivity\":1}},\"homogenization\":{\"physics\":[\"conductivity\"]}}" "materials.spheres.conductivity: needed"
 bad hom_unknown_phase "{$BOX,$HOM_FAM,\"materials\":{\"matrx\":{\"conductivity\":1}}}" "materials.matrx: no phase of this name"
 bad hom_poisson "{$BOX,$HOM_FAM,\"materials\":{\"matrix\":{\"young\":1,\"poisson\":0.6}}}" "materials.matrix.poisson"

@@ -359,11 +359,19 @@ Scene parse_scene(const std::string& text) {
   Scene s;
   s.box = box(require(root, "box", ""), "box");
   if (root.contains("seed")) {
-    const double seed = number(root["seed"], "seed");
-    if (seed < 0 || seed != std::floor(seed) || seed > 9007199254740992.0) {
-      fail("seed", "must be a non-negative integer");
+    // Any unsigned 64-bit integer, read exactly (not through a double, which holds integers
+    // exactly only up to 2^53); a number written with a fraction or an exponent only where it
+    // is an integer a double holds exactly.
+    const Json& v = root["seed"];
+    if (v.is_number_unsigned()) {
+      s.seed = v.get<uint64_t>();
+    } else {
+      const double seed = number(v, "seed");
+      if (!(seed >= 0 && seed == std::floor(seed) && seed <= 9007199254740992.0)) {
+        fail("seed", "must be an integer in [0, 18446744073709551615] (got " + v.dump() + ")");
+      }
+      s.seed = static_cast<uint64_t>(seed);
     }
-    s.seed = static_cast<uint64_t>(seed);
   }
   if (root.contains("method")) {
     const std::string m = string(root["method"], "method");

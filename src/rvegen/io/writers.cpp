@@ -476,6 +476,26 @@ bool own_file(const std::string& name) {
   return false;
 }
 
+// Moves what a user put into the previous set's directory `from` while the run worked (anything
+// rvegen does not write: another name, or not a regular file) into the new set's directory
+// `to`, where the user put it. False when an entry stays (its name is taken in `to`, or the
+// move failed): the previous set's directory must then stay too.
+bool move_users_entries(const fs::path& from, const fs::path& to) {
+  bool all = true;
+  std::error_code ec;
+  for (fs::directory_iterator it(from, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    std::error_code kind;
+    if (own_file(name) && fs::is_regular_file(it->symlink_status(kind)) && !kind) continue;
+    std::error_code there;
+    if (fs::exists(fs::symlink_status(to / name, there)) ||
+        ::rename(it->path().c_str(), (to / name).c_str()) != 0) {
+      all = false;
+    }
+  }
+  return all && !ec;
+}
+
 }  // namespace
 
 const std::vector<std::string>& OutputSet::file_names() {
@@ -551,6 +571,22 @@ OutputSet::OutputSet(const std::string& dir) : dir_(dir) {
       }
     }
     if (ec) throw OutputError("output directory " + dir + ": " + ec.message());
+    // Every set rvegen writes holds report.json: files under its other names without one are
+    // the user's (a hand-made inclusions.json, say), not an earlier set to replace.
+    std::vector<std::string> named;
+    for (const std::string& name : file_names()) {
+      std::error_code there;
+      if (fs::exists(fs::symlink_status(target / name, there))) named.push_back(name);
+    }
+    if (foreign.empty() && !named.empty() &&
+        std::find(named.begin(), named.end(), "report.json") == named.end()) {
+      std::string list;
+      for (size_t i = 0; i < named.size() && i < 5; ++i) list += (i ? ", " : "") + named[i];
+      throw OutputError("output directory " + dir + " holds " + list +
+                        " but no report.json, so no earlier run wrote it (every set has one); "
+                        "rvegen replaces the output directory as a whole, so give a new or empty "
+                        "directory, or one an earlier run wrote");
+    }
     if (!foreign.empty()) {
       std::string list;
       for (size_t i = 0; i < foreign.size() && i < 5; ++i) list += (i ? ", " : "") + foreign[i];
@@ -635,8 +671,13 @@ void OutputSet::commit() {
     return;
   }
   if (::renameat2(AT_FDCWD, stage_.c_str(), AT_FDCWD, target_.c_str(), RENAME_EXCHANGE) == 0) {
-    // The staging name now holds the previous set.
+    // The staging name now holds the previous set, and whatever the user put into the
+    // directory while the run worked: that goes back where the user put it.
     committed_ = true;
+    if (!move_users_entries(stage_, target_)) {
+      leftover_ = stage_;
+      return;
+    }
     fs::remove_all(stage_, ec);
     if (ec) leftover_ = stage_;
     return;
@@ -656,12 +697,18 @@ void OutputSet::commit() {
     throw OutputError("cannot move " + stage_ + " to " + target_ + ": " + std::strerror(err));
   }
   committed_ = true;
+  if (!move_users_entries(aside, target_)) {
+    leftover_ = aside;
+    return;
+  }
   fs::remove_all(aside, ec);
   if (ec) leftover_ = aside;
 }
 
 std::string read_file(const std::string& path, size_t max_bytes) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  // O_NONBLOCK: opening a named pipe would otherwise wait for a writer, before the check below
+  // could refuse it (reads of a regular file are not affected).
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
   if (fd < 0) throw InputError(path + ": cannot read (" + std::strerror(errno) + ")");
   struct stat st {};
   if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {

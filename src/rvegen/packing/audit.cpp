@@ -158,6 +158,52 @@ AuditReport audit(const InclusionSet& set, size_t limit) {
   return r;
 }
 
+void check_rve_for_scene(const InclusionSet& set, const PackingSpec& scene,
+                         const std::string& where) {
+  const Box &a = set.box, &b = scene.box;
+  if (a.periodic != b.periodic || a.origin != b.origin || a.size != b.size) {
+    char buf[300];
+    std::snprintf(buf, sizeof buf,
+                  "%s: the RVE's box (origin %g %g %g, size %g %g %g, %s) is not the scene's "
+                  "(origin %g %g %g, size %g %g %g, %s)",
+                  where.c_str(), a.origin[0], a.origin[1], a.origin[2], a.size[0], a.size[1],
+                  a.size[2], a.periodic ? "periodic" : "not periodic", b.origin[0], b.origin[1],
+                  b.origin[2], b.size[0], b.size[1], b.size[2],
+                  b.periodic ? "periodic" : "not periodic");
+    throw InputError(buf);
+  }
+  const int nf = static_cast<int>(scene.families.size());
+  for (const Inclusion& inc : set.inclusions) {
+    const std::string p = where + ": inclusion " + std::to_string(inc.id);
+    if (inc.family < 0 || inc.family >= nf) {
+      throw InputError(p + ": family " + std::to_string(inc.family) + ", but the scene has " +
+                       std::to_string(nf) + (nf == 1 ? " family" : " families"));
+    }
+    const Family& f = scene.families[inc.family];
+    if (inc.shape.kind != f.shape) {
+      throw InputError(p + ": a " + shape_name(inc.shape.kind) + ", but family \"" + f.name +
+                       "\" holds " + shape_name(f.shape) + "s");
+    }
+    const double t = f.modifiers.coating, tol = 1e-9 * std::max(t, inc.mod.coating);
+    if (std::abs(inc.mod.coating - t) > tol ||
+        (t > 0.0 && inc.mod.shells_may_touch != f.modifiers.shells_may_touch)) {
+      char buf[200];
+      std::snprintf(buf, sizeof buf, ": coating %g%s, but family \"%s\" has %g%s", inc.mod.coating,
+                    inc.mod.shells_may_touch ? " (shells may touch)" : "", f.name.c_str(), t,
+                    f.modifiers.shells_may_touch ? " (shells may touch)" : "");
+      throw InputError(p + buf);
+    }
+    if (inc.mod.through != f.through()) {
+      throw InputError(p +
+                       (f.through() ? ": not a continuous fibre, but family \""
+                                    : ": a continuous fibre, but family \"") +
+                       f.name + (f.through() ? "\" is continuous" : "\" is not"));
+    }
+  }
+  const AuditReport r = audit(set, 3);
+  if (!r.clean()) throw InputError(where + ": " + describe_failure(r, set));
+}
+
 std::string describe_failure(const AuditReport& report, const InclusionSet& set) {
   const auto& inc = set.inclusions;
   std::string out;

@@ -9,6 +9,7 @@
 #include "rvegen/geometry/pair.hpp"
 #include "rvegen/model/inclusion_set.hpp"
 #include "rvegen/model/neighbours.hpp"
+#include "rvegen/model/scene.hpp"
 
 namespace rvegen {
 
@@ -52,6 +53,15 @@ AuditReport audit(const InclusionSet& set, size_t limit = 10000);
 
 /// One line naming the first overlaps or inclusions outside the box of a failed audit.
 std::string describe_failure(const AuditReport& report, const InclusionSet& set);
+
+/// Checks an RVE handed in (an inclusion list read from a file) before any work is done with
+/// the scene `scene`: the box is the scene's; every inclusion's family is one of the scene's,
+/// with the family's shape, its coating (thickness and whether shells may touch) and, for
+/// continuous fibres, marked so; and the exact audit finds no overlapping pair and, in a
+/// non-periodic box, no inclusion leaving it. Throws InputError naming `where` and the first
+/// inclusion (its id) that is wrong, and what is wrong with it.
+void check_rve_for_scene(const InclusionSet& set, const PackingSpec& scene,
+                         const std::string& where);
 
 /// A packed RVE failed the exact audit: a defect of the packer, never of the input. Nothing
 /// may be written or shown as a result.

@@ -142,14 +142,20 @@ bool wants_help(const std::vector<std::string>& args) {
   return false;
 }
 
-int usage_error(const std::string& msg, const char* command_usage = nullptr) {
-  std::cerr << "rvegen: " << msg << "\n";
-  if (command_usage) {
-    std::cerr << command_usage;
-  } else {
-    std::cerr << usage();
-  }
+// An argument error: one line, then where the usage is (not the whole help around it).
+// `command`: "generate", "check", ...; empty for the top level.
+int usage_error(const std::string& msg, const std::string& command = "") {
+  std::cerr << "rvegen: " << msg << "\n"
+            << "(rvegen " << (command.empty() ? "" : command + " ") << "--help shows the usage)\n";
   return kExitInvalid;
+}
+
+// An unknown option of `command`, with the nearest known one when it is close.
+int unknown_option(const std::string& option, const std::string& command,
+                   std::initializer_list<const char*> known) {
+  return usage_error(
+      "unknown option " + option + " of " + command + rvegen::cli::did_you_mean(option, known),
+      command);
 }
 
 // "812 KB", "71.1 MB", "1.54 GB" (decimal units, three significant figures or so).
@@ -302,30 +308,32 @@ int cmd_generate(const std::vector<std::string>& args) {
   int threads = 0;  // all cores
   for (size_t i = 0; i < args.size(); ++i) {
     if (args[i] == "-o" || args[i] == "--output") {
-      if (i + 1 >= args.size()) return usage_error("-o needs a directory", kGenerateUsage);
+      if (i + 1 >= args.size()) return usage_error("-o needs a directory", "generate");
       out_dir = args[++i];
     } else if (args[i] == "--outputs") {
       if (i + 1 >= args.size()) {
-        return usage_error("--outputs needs a list such as inclusions,voxels,h5", kGenerateUsage);
+        return usage_error("--outputs needs a list such as inclusions,voxels,h5", "generate");
       }
       outputs_list = args[++i];
       outputs_given = true;
     } else if (args[i] == "--quiet" || args[i] == "-q") {
       quiet = true;
     } else if (args[i] == "--threads") {
-      if (!read_threads(args, &i, &threads)) return usage_error(kThreadsNeed, kGenerateUsage);
+      if (!read_threads(args, &i, &threads)) return usage_error(kThreadsNeed, "generate");
     } else if (args[i] == "--max-memory") {
-      if (i + 1 >= args.size()) return usage_error("--max-memory needs a size", kGenerateUsage);
+      if (i + 1 >= args.size()) return usage_error("--max-memory needs a size", "generate");
       max_memory = parse_size(args[++i]);
       if (max_memory <= 0.0) {
-        return usage_error("--max-memory: not a size: " + args[i], kGenerateUsage);
+        return usage_error("--max-memory: not a size: " + args[i], "generate");
       }
     } else if (!args[i].empty() && args[i][0] == '-') {
-      return usage_error("unknown option " + args[i] + " of generate", kGenerateUsage);
+      return unknown_option(
+          args[i], "generate",
+          {"-o", "--output", "--outputs", "--quiet", "--threads", "--max-memory", "--help"});
     } else if (scene_path.empty()) {
       scene_path = args[i];
     } else {
-      return usage_error("more than one scene file given", kGenerateUsage);
+      return usage_error("more than one scene file given", "generate");
     }
   }
   const auto t0 = std::chrono::steady_clock::now();
@@ -714,15 +722,15 @@ int cmd_homogenize(const std::vector<std::string>& args) {
     if (a == "--quiet" || a == "-q") {
       quiet = true;
     } else if (a == "--threads") {
-      if (!read_threads(args, &i, &threads)) return usage_error(kThreadsNeed, kHomogenizeUsage);
+      if (!read_threads(args, &i, &threads)) return usage_error(kThreadsNeed, "homogenize");
     } else if (!a.empty() && a[0] == '-') {
-      return usage_error("unknown option " + a + " of homogenize", kHomogenizeUsage);
+      return unknown_option(a, "homogenize", {"--quiet", "--threads", "--help"});
     } else {
       files.push_back(a);
     }
   }
   if (files.size() != 2)
-    return usage_error("homogenize needs an RVE directory and a scene file", kHomogenizeUsage);
+    return usage_error("homogenize needs an RVE directory and a scene file", "homogenize");
   const rvegen::cli::Ranks ranks;  // z slabs of the grid under an MPI launcher
   std::ostream& say = rvegen::cli::say_once(ranks);
   rvegen::Scene scene;
@@ -796,20 +804,20 @@ int cmd_check(const std::vector<std::string>& args) {
     if (a == "--json") {
       as_json = true;
     } else if (a == "--max-pairs") {
-      if (i + 1 >= args.size()) return usage_error("--max-pairs needs a number", kCheckUsage);
+      if (i + 1 >= args.size()) return usage_error("--max-pairs needs a number", "check");
       const double n = parse_size(args[++i]);
       if (!(n >= 1.0 && n <= 1e9) || n != std::floor(n))
-        return usage_error("--max-pairs: not a count in [1, 1e9]: " + args[i], kCheckUsage);
+        return usage_error("--max-pairs: not a count in [1, 1e9]: " + args[i], "check");
       max_pairs = static_cast<size_t>(n);
     } else if (!a.empty() && a[0] == '-') {
-      return usage_error("unknown option " + a + " of check", kCheckUsage);
+      return unknown_option(a, "check", {"--json", "--max-pairs", "--help"});
     } else if (path.empty()) {
       path = a;
     } else {
-      return usage_error("more than one file given", kCheckUsage);
+      return usage_error("more than one file given", "check");
     }
   }
-  if (path.empty()) return usage_error("check needs an inclusion file", kCheckUsage);
+  if (path.empty()) return usage_error("check needs an inclusion file", "check");
   rvegen::InclusionSet set;
   try {
     set = rvegen::read_inclusions_json(rvegen::read_file(path, kMaxInclusionFileBytes));
@@ -876,12 +884,13 @@ int main(int argc, char** argv) {
       return kExitOk;
     }
     if (!args.empty()) {
-      return usage_error("default-scene takes no argument (got " + args[0] + ")",
-                         kDefaultSceneUsage);
+      return usage_error("default-scene takes no argument (got " + args[0] + ")", "default-scene");
     }
     std::cout << rvegen::scene_to_json(rvegen::default_scene());
     return kExitOk;
   }
-  return usage_error("unknown command \"" + cmd +
-                     "\" (generate, check, homogenize, study, default-scene)");
+  return usage_error("unknown command \"" + cmd + "\"" +
+                     rvegen::cli::did_you_mean(
+                         cmd, {"generate", "check", "homogenize", "study", "default-scene"}) +
+                     " (generate, check, homogenize, study, default-scene)");
 }

@@ -539,7 +539,7 @@ int cmd_study(const std::vector<std::string>& args) {
   const Ranks ranks;  // several processes when started by an MPI launcher
   std::ostream& err = say_once(ranks);
   auto usage_error = [&err](const std::string& msg) {
-    err << "rvegen: " << msg << "\n" << kStudyUsage;
+    err << "rvegen: " << msg << "\n(rvegen study --help shows the usage)\n";
     return kExitInvalid;
   };
   std::string scene_path, out_dir = "study", sizes_text = "1,1.5,2";
@@ -584,7 +584,9 @@ int cmd_study(const std::vector<std::string>& args) {
       } else if (a == "--quiet" || a == "-q") {
         quiet = true;
       } else if (!a.empty() && a[0] == '-') {
-        return usage_error("unknown option " + a + " of study");
+        return usage_error("unknown option " + a + " of study" +
+                           did_you_mean(a, {"-o", "--output", "--sizes", "--realizations",
+                                            "--target-error", "--jobs", "--quiet", "--help"}));
       } else if (scene_path.empty()) {
         scene_path = a;
       } else {

@@ -155,6 +155,20 @@ expect_rc 0 "$RVEGEN" --version
 grep -Eq '^rvegen [0-9]+\.[0-9]+\.[0-9]+$' "$WORK/last.out" || fail "--version: $(cat "$WORK/last.out")"
 expect_rc 2 "$RVEGEN" generate --no-such-option
 grep -q "unknown option --no-such-option" "$WORK/last.err" || fail "unknown option not named"
+# Argument errors: one line and a "did you mean", with the help a flag away (not printed).
+for args in "generte" "generate --thread 2" "homogenize --quite a b" "check --max-pair 3 x" "study --job 2 s.json"; do
+  expect_rc 2 "$RVEGEN" $args
+  [ "$(wc -l <"$WORK/last.err")" -le 2 ] || fail "$args: $(wc -l <"$WORK/last.err") lines of error"
+  grep -q "did you mean" "$WORK/last.err" || fail "$args: no suggestion: $(cat "$WORK/last.err")"
+  grep -q -- "--help shows the usage" "$WORK/last.err" || fail "$args: no pointer to --help"
+done
+grep -q 'did you mean "--jobs"' "$WORK/last.err" || fail "study --job: $(cat "$WORK/last.err")"
+expect_rc 2 "$RVEGEN" generate -q --outputs inclusions,voxel -o "$WORK/out_voxel_typo"
+grep -q -- '--outputs: unknown output "voxel" (did you mean "voxels"?)' "$WORK/last.err" \
+  || fail "--outputs typo: $(cat "$WORK/last.err")"
+echo '{"box":{"size":[1,1,1]},"families":[{"shape":"sphere","radius":0.05,"volume_fraction":0.2}]}' >"$WORK/a_scene.json"
+expect_rc 2 "$RVEGEN" check "$WORK/a_scene.json"
+grep -q "this is a scene" "$WORK/last.err" || fail "check on a scene: $(cat "$WORK/last.err")"
 echo '{"box":{"size":[1,1,1]},"families":[{"shape":"sphere","radius":0.05,"volume_fracion":0.2}]}' >"$WORK/typo.json"
 expect_rc 2 "$RVEGEN" generate -q "$WORK/typo.json" -o "$WORK/out_typo"
 grep -q 'families\[0\].volume_fracion: unknown key (did you mean "volume_fraction"?)' "$WORK/last.err" \
@@ -609,7 +623,20 @@ bad hom_unknown_phase "{$BOX,$HOM_FAM,\"materials\":{\"matrx\":{\"conductivity\"
 bad hom_poisson "{$BOX,$HOM_FAM,\"materials\":{\"matrix\":{\"young\":1,\"poisson\":0.6}}}" "materials.matrix.poisson"
 bad hom_key "{$BOX,$HOM_FAM,\"materials\":{\"matrix\":{\"conductivty\":1}}}" 'did you mean "conductivity"'
 bad hom_physics "{$BOX,$HOM_FAM,\"homogenization\":{\"physics\":[\"thermal\"]}}" "unknown physics"
-bad hom_rule "{$BOX,$HOM_FAM,\"homogenization\":{\"voxel_rule\":\"mean\"}}" 'homogenization.voxel_rule: unknown rule "mean"'
+# Every material value on its own, whatever the physics; names that would make materials
+# ambiguous; a homogenization that asks for nothing.
+bad mat_young_neg "{$BOX,$HOM_FAM,\"materials\":{\"matrix\":{\"young\":-1,\"poisson\":0.3}}}" "materials.matrix.young: must be >= 0 and at most 1e100, got -1"
+bad mat_poisson_m2 "{$BOX,$HOM_FAM,\"materials\":{\"matrix\":{\"young\":1,\"poisson\":-2}}}" "materials.matrix.poisson: must lie in (-1, 0.5), got -2"
+bad mat_k_neg_elastic "{$BOX,$HOM_FAM,\"materials\":{\"matrix\":{\"conductivity\":-1,\"young\":3,\"poisson\":0.3},\"spheres\":{\"young\":70,\"poisson\":0.2}},\"homogenization\":{\"physics\":[\"elasticity\"]}}" "materials.matrix.conductivity: must be >= 0"
+bad mat_huge "{$BOX,$HOM_FAM,\"materials\":{\"matrix\":{\"young\":3,\"poisson\":0.3},\"spheres\":{\"young\":1e308,\"poisson\":0.2}},\"homogenization\":{\"physics\":[\"elasticity\"]}}" "materials.spheres.young: must be >= 0 and at most 1e100, got 1e+308"
+bad mat_half "{$BOX,$HOM_FAM,\"materials\":{\"matrix\":{\"young\":3}}}" "materials.matrix.poisson: missing"
+bad mat_coating_uncoated "{$BOX,$HOM_FAM,\"materials\":{\"spheres.coating\":{\"conductivity\":3}}}" 'materials.spheres.coating: family "spheres" has no coating'
+bad hom_no_physics "{$BOX,$HOM_FAM,\"homogenization\":{\"physics\":[]}}" "homogenization.physics: expected a non-empty array"
+bad hom_physics_missing "{$BOX,$HOM_FAM,\"homogenization\":{\"tolerance\":1e-5}}" "homogenization"
+bad fam_matrix "{$BOX,\"families\":[{\"name\":\"matrix\",\"shape\":\"sphere\",\"radius\":0.1,\"volume_fraction\":0.1}],\"materials\":{\"matrix\":{\"conductivity\":1}}}" 'families\[0\].name: "matrix" names the matrix'
+bad fam_dotcoating "{$BOX,\"families\":[{\"name\":\"x.coating\",\"shape\":\"sphere\",\"radius\":0.1,\"volume_fraction\":0.1}],\"materials\":{\"matrix\":{\"conductivity\":1}}}" 'families\[0\].name: "x.coating" would read as'
+bad fam_twice "{$BOX,\"families\":[{\"name\":\"a\",\"shape\":\"sphere\",\"radius\":0.1,\"volume_fraction\":0.1},{\"name\":\"a\",\"shape\":\"sphere\",\"radius\":0.05,\"volume_fraction\":0.1}],\"materials\":{\"a\":{\"conductivity\":1}}}" 'families\[1\].name: "a" is also families\[0\]'
+bad hom_rule "{$BOX,$HOM_FAM,\"homogenization\":{\"physics\":[\"conductivity\"],\"voxel_rule\":\"mean\"}}" 'homogenization.voxel_rule: unknown rule "mean"'
 # Voxel rules: the report names the rule and counts the cut voxels; every rule's result lies
 # within the bounds, and the rules differ (plain voxels ignore the cut shares).
 for rule in plain laminate; do

@@ -96,6 +96,11 @@ InclusionSet read_inclusions_json(const std::string& text) {
   using namespace json_util;
   const Json root = parse(text, "inclusion file");
   if (!root.is_object()) fail("(root)", "expected an object");
+  if (root.contains("families") && !root.contains("inclusions")) {
+    fail("(root)",
+         "this is a scene (it has \"families\"), not an inclusion list: rvegen generate reads "
+         "scenes, and writes the inclusions.json that rvegen check reads");
+  }
   only_keys(root, {"format", "box", "family_names", "inclusions"}, "");
   const std::string fmt = string(require(root, "format", ""), "format");
   if (fmt != "rvegen.inclusions/1")

@@ -340,9 +340,20 @@ Outputs outputs_from_names(const std::vector<std::string>& names, bool mesh,
     } else if (name == "statistics") {
       out.statistics = true;
     } else {
+      // A flag's list is named as the flag; a scene's "outputs" by its index.
+      const std::string at =
+          where.rfind("--", 0) == 0 ? where : where + "[" + std::to_string(k) + "]";
+      std::string nearest;
+      size_t best = name.size() / 3 + 1;
+      for (const char* known : {"inclusions", "voxels", "h5", "amitex", "levelsets", "mesh",
+                                "mesh_voxel", "mesh_tet", "statistics"}) {
+        const size_t d = json_util::edit_distance(name, known);
+        if (d < best) best = d, nearest = known;
+      }
       throw InputError(
-          where + "[" + std::to_string(k) + "]: unknown output \"" + name +
-          "\" (inclusions, voxels, h5, amitex, levelsets, mesh, mesh_voxel, mesh_tet, statistics)");
+          at + ": unknown output \"" + name + "\"" +
+          (nearest.empty() ? "" : " (did you mean \"" + nearest + "\"?)") +
+          " (inclusions, voxels, h5, amitex, levelsets, mesh, mesh_voxel, mesh_tet, statistics)");
     }
   }
   return out;
@@ -512,10 +523,12 @@ Scene parse_scene(const std::string& text) {
         h, {"physics", "scheme", "solver", "tolerance", "max_iterations", "voxel_rule", "fields"},
         "homogenization");
     HomogenizationSpec& spec = s.homogenization;
-    if (h.contains("physics")) {
-      const Json& ph = h["physics"];
-      if (!ph.is_array())
-        fail("homogenization.physics", "expected an array (conductivity, elasticity)");
+    {
+      // A homogenization object asks for a solve: without a physics nothing would be solved.
+      const Json& ph = require(h, "physics", "homogenization");
+      if (!ph.is_array() || ph.empty())
+        fail("homogenization.physics",
+             "expected a non-empty array: give conductivity, elasticity or both");
       for (size_t k = 0; k < ph.size(); ++k) {
         const std::string q = "homogenization.physics[" + std::to_string(k) + "]";
         const std::string name = string(ph[k], q);

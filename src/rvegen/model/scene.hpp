@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <string>
 #include <utility>
@@ -146,16 +147,19 @@ struct Outputs {
   bool image() const { return voxels || h5 || amitex || mesh_voxel; }
 };
 
-/// Properties of one phase (a negative value: not given). Isotropic conductivity and isotropic
+/// Properties of one phase (kNotGiven: not given; no JSON number reads as it, so a value a user
+/// gives, -1 included, is always checked as given). Isotropic conductivity and isotropic
 /// elasticity (Young's modulus, Poisson's ratio); for a family's cores, transversely isotropic
 /// alternatives about each inclusion's own axis (the fibre axis, an ellipsoid's longest one).
 struct Material {
-  double conductivity = -1.0;
-  double young = -1.0;
-  double poisson = -2.0;  // below -1: not given
-  double axial_conductivity = -1.0, transverse_conductivity = -1.0;
-  double axial_young = -1.0, transverse_young = -1.0, axial_shear = -1.0;
-  double axial_poisson = -2.0, transverse_poisson = -2.0;  // below -1: not given
+  static constexpr double kNotGiven = -std::numeric_limits<double>::infinity();
+  static bool given(double v) { return v != kNotGiven; }
+  double conductivity = kNotGiven;
+  double young = kNotGiven;
+  double poisson = kNotGiven;
+  double axial_conductivity = kNotGiven, transverse_conductivity = kNotGiven;
+  double axial_young = kNotGiven, transverse_young = kNotGiven, axial_shear = kNotGiven;
+  double axial_poisson = kNotGiven, transverse_poisson = kNotGiven;
   bool transverse_conduction() const { return axial_conductivity >= 0.0; }
   bool transverse_elasticity() const { return axial_young >= 0.0; }
   bool conducts() const { return conductivity >= 0.0 || transverse_conduction(); }

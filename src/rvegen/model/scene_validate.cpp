@@ -90,13 +90,24 @@ double mean_smallest_size(const Family& f) {
   return 0.0;
 }
 
+// The largest conductivity or modulus taken: any unit system's values are far below it, and the
+// solvers' products of a few of them stay finite.
+constexpr double kLargestProperty = 1e100;
+
+std::string number_text(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
 // Transversely isotropic properties: a family's cores only, all constants of a physics together,
 // instead of the isotropic ones, and a positive-definite stiffness.
 void validate_transverse(const Scene& s, const std::string& name, const Material& m,
                          const std::string& p) {
-  const bool tc = m.axial_conductivity != -1.0 || m.transverse_conductivity != -1.0;
-  const bool te = m.axial_young != -1.0 || m.transverse_young != -1.0 || m.axial_shear != -1.0 ||
-                  m.axial_poisson != -2.0 || m.transverse_poisson != -2.0;
+  const auto given = Material::given;
+  const bool tc = given(m.axial_conductivity) || given(m.transverse_conductivity);
+  const bool te = given(m.axial_young) || given(m.transverse_young) || given(m.axial_shear) ||
+                  given(m.axial_poisson) || given(m.transverse_poisson);
   if (!tc && !te) return;
   const Family* family = nullptr;
   for (const Family& f : s.families) {
@@ -111,29 +122,33 @@ void validate_transverse(const Scene& s, const std::string& name, const Material
          "transversely isotropic properties need an axis: cylinders or ellipsoids, not "
          "spheres");
   if (tc) {
-    if (m.conductivity != -1.0)
+    if (given(m.conductivity))
       fail(p,
            "give \"conductivity\" or \"axial_conductivity\" with "
            "\"transverse_conductivity\", not both");
     for (const auto& [key, v] :
          {std::pair<const char*, double>{"axial_conductivity", m.axial_conductivity},
           {"transverse_conductivity", m.transverse_conductivity}}) {
-      if (!(v >= 0.0 && std::isfinite(v)))
-        fail(p + "." + key, "must be finite and >= 0 (give both axial and transverse)");
+      if (!(v >= 0.0 && v <= kLargestProperty))
+        fail(p + "." + key,
+             "must be >= 0 and at most 1e100 (give both axial and transverse), got " +
+                 number_text(v));
     }
   }
   if (te) {
-    if (m.young != -1.0 || m.poisson != -2.0)
+    if (given(m.young) || given(m.poisson))
       fail(p,
            "give isotropic (\"young\", \"poisson\") or transversely isotropic constants, "
            "not both");
     for (const auto& [key, v] : {std::pair<const char*, double>{"axial_young", m.axial_young},
                                  {"transverse_young", m.transverse_young},
                                  {"axial_shear", m.axial_shear}}) {
-      if (!(v > 0.0 && std::isfinite(v)))
+      if (!(v > 0.0 && v <= kLargestProperty))
         fail(p + "." + key,
-             "must be finite and > 0 (transversely isotropic elasticity needs axial_young, "
-             "transverse_young, axial_shear, axial_poisson and transverse_poisson)");
+             "must be > 0 and at most 1e100 (transversely isotropic elasticity needs "
+             "axial_young, transverse_young, axial_shear, axial_poisson and transverse_poisson), "
+             "got " +
+                 number_text(v));
     }
     if (!(m.transverse_poisson > -1.0 && m.transverse_poisson < 1.0))
       fail(p + ".transverse_poisson", "must lie in (-1, 1)");
@@ -155,13 +170,35 @@ void validate_materials(const Scene& s) {
   std::vector<std::string> names = {"matrix"};
   for (const Family& f : s.families) {
     names.push_back(f.name);
-    names.push_back(f.name + ".coating");
+    if (f.modifiers.coating > 0.0) names.push_back(f.name + ".coating");
+  }
+  if (!s.materials.empty()) {
+    // Materials are keyed by family name: each must name one phase only.
+    for (size_t i = 0; i < s.families.size(); ++i) {
+      const std::string& n = s.families[i].name;
+      const std::string p = "families[" + std::to_string(i) + "].name";
+      if (n == "matrix")
+        fail(p, "\"matrix\" names the matrix's material: give the family another name");
+      if (n.size() >= 8 && n.compare(n.size() - 8, 8, ".coating") == 0)
+        fail(p,
+             "\"" + n + "\" would read as a coating's material key: give the family another name");
+      for (size_t j = 0; j < i; ++j) {
+        if (s.families[j].name == n)
+          fail(p, "\"" + n + "\" is also families[" + std::to_string(j) +
+                      "]'s name: materials are keyed by name, so give each family its own");
+      }
+    }
   }
   for (size_t m = 0; m < s.materials.size(); ++m) {
     const std::string& name = s.materials[m].first;
     const Material& mat = s.materials[m].second;
     const std::string p = "materials." + name;
     if (std::find(names.begin(), names.end(), name) == names.end()) {
+      const std::string stem = name.size() > 8 ? name.substr(0, name.size() - 8) : "";
+      for (const Family& f : s.families) {
+        if (name == f.name + ".coating")
+          fail(p, "family \"" + stem + "\" has no coating, so no interphase to give a material");
+      }
       std::string list;
       for (const std::string& n : names) list += (list.empty() ? "" : ", ") + n;
       fail(p, "no phase of this name (phases: " + list + ")");
@@ -169,14 +206,18 @@ void validate_materials(const Scene& s) {
     for (size_t o = 0; o < m; ++o) {
       if (s.materials[o].first == name) fail(p, "given twice");
     }
-    if (mat.conductivity != -1.0 && !(mat.conductivity >= 0.0 && std::isfinite(mat.conductivity)))
-      fail(p + ".conductivity", "must be finite and >= 0");
-    if (mat.young != -1.0 && !(mat.young >= 0.0 && std::isfinite(mat.young)))
-      fail(p + ".young", "must be finite and >= 0");
-    if (mat.poisson != -2.0 && !(mat.poisson > -1.0 && mat.poisson < 0.5))
-      fail(p + ".poisson", "must lie in (-1, 0.5)");
-    if ((mat.young >= 0.0) != (mat.poisson > -1.0))
-      fail(p, "give both \"young\" and \"poisson\" (isotropic elasticity), or neither");
+    // Each value on its own, whatever the physics asked for (AMITEX files carry them all).
+    if (Material::given(mat.conductivity) &&
+        !(mat.conductivity >= 0.0 && mat.conductivity <= kLargestProperty))
+      fail(p + ".conductivity",
+           "must be >= 0 and at most 1e100, got " + number_text(mat.conductivity));
+    if (Material::given(mat.young) && !(mat.young >= 0.0 && mat.young <= kLargestProperty))
+      fail(p + ".young", "must be >= 0 and at most 1e100, got " + number_text(mat.young));
+    if (Material::given(mat.poisson) && !(mat.poisson > -1.0 && mat.poisson < 0.5))
+      fail(p + ".poisson", "must lie in (-1, 0.5), got " + number_text(mat.poisson));
+    if (Material::given(mat.young) != Material::given(mat.poisson))
+      fail(p + (Material::given(mat.young) ? ".poisson" : ".young"),
+           "missing: give both \"young\" and \"poisson\" (isotropic elasticity), or neither");
     validate_transverse(s, name, mat, p);
   }
   const HomogenizationSpec& h = s.homogenization;

@@ -115,6 +115,16 @@ std::string read_input(vtkRVEEffectiveProperties* self, vtkImageData* input, vtk
       (!phase || !ids || phase->GetNumberOfTuples() != have || ids->GetNumberOfTuples() != have)) {
     return "the input has no cell data phase and inclusion_id (use the Voxels output)";
   }
+  // Enumerations are checked, not clamped (a Physics of 5 was both physics without a word).
+  if (self->GetPhysics() < 0 || self->GetPhysics() > 2)
+    return "Physics: must be 0 (conductivity), 1 (elasticity) or 2 (both), got " +
+           std::to_string(self->GetPhysics());
+  if (self->GetVoxelRule() < 0 || self->GetVoxelRule() > 3)
+    return "VoxelRule: must be 0 (plain), 1 (voigt), 2 (reuss) or 3 (laminate), got " +
+           std::to_string(self->GetVoxelRule());
+  if (self->GetScheme() < 0 || self->GetScheme() > 1)
+    return "Scheme: must be 0 (rotated) or 1 (moulinec_suquet), got " +
+           std::to_string(self->GetScheme());
   *scene = scene_of(*set);
   rvegen::HomogenizationSpec& h = scene->homogenization;
   h.conductivity = self->GetPhysics() != 1;

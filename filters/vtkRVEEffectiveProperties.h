@@ -38,13 +38,13 @@ class RVEGENFILTERS_EXPORT vtkRVEEffectiveProperties : public vtkTableAlgorithm 
   vtkSetStdStringFromCharMacro(Materials);
   vtkGetCharFromStdStringMacro(Materials);
   /// 0 conductivity, 1 elasticity, 2 both.
-  vtkSetClampMacro(Physics, int, 0, 2);
+  vtkSetMacro(Physics, int);  // checked in RequestData, as the command line checks it
   vtkGetMacro(Physics, int);
   /// 0 plain, 1 Voigt, 2 Reuss, 3 laminate.
-  vtkSetClampMacro(VoxelRule, int, 0, 3);
+  vtkSetMacro(VoxelRule, int);
   vtkGetMacro(VoxelRule, int);
   /// 0 Willot's rotated scheme, 1 Moulinec-Suquet.
-  vtkSetClampMacro(Scheme, int, 0, 1);
+  vtkSetMacro(Scheme, int);
   vtkGetMacro(Scheme, int);
   vtkSetMacro(Tolerance, double);
   vtkGetMacro(Tolerance, double);

@@ -225,6 +225,31 @@ rvegen::InclusionSet PieceOf(const rvegen::InclusionSet& set, vtkInformation* in
   return out;
 }
 
+// The amounts SceneFromProperties reads: 0 leaves a family out, a negative one is an error
+// (it was left out silently too), named by its property.
+void CheckAmounts(const vtkRVEGenerator* g) {
+  auto* self = const_cast<vtkRVEGenerator*>(g);
+  const struct {
+    const char* vf_name;
+    double vf;
+    const char* n_name;
+    int n;
+    int by_count;
+  } fams[3] = {{"SphereVolumeFraction", self->GetSphereVolumeFraction(), "SphereCount",
+                self->GetSphereCount(), self->GetSphereAmount()},
+               {"FibreVolumeFraction", self->GetFibreVolumeFraction(), "FibreCount",
+                self->GetFibreCount(), self->GetFibreAmount()},
+               {"EllipsoidVolumeFraction", self->GetEllipsoidVolumeFraction(), "EllipsoidCount",
+                self->GetEllipsoidCount(), self->GetEllipsoidAmount()}};
+  for (const auto& f : fams) {
+    if (f.by_count ? f.n < 0 : !(f.vf >= 0.0)) {
+      throw rvegen::InputError(std::string(f.by_count ? f.n_name : f.vf_name) +
+                               ": must be >= 0 (0 leaves the family " + "out), got " +
+                               (f.by_count ? std::to_string(f.n) : std::to_string(f.vf)));
+    }
+  }
+}
+
 }  // namespace
 
 int vtkRVEGenerator::RequestInformation(vtkInformation*, vtkInformationVector**,
@@ -284,6 +309,7 @@ int vtkRVEGenerator::RequestData(vtkInformation* request, vtkInformationVector**
     if (this->SceneFile && *this->SceneFile) {
       scene = rvegen::parse_scene(rvegen::read_file(this->SceneFile, size_t(16) << 20));
     } else {
+      CheckAmounts(this);
       scene = SceneFromProperties(this);
       rvegen::validate_scene(scene);
     }

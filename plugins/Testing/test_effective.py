@@ -124,6 +124,16 @@ check(any(q == "stiffness" for q, _, _ in again), "no stiffness after the abort"
 eff.Materials = json.dumps({"matrx": {"conductivity": 1}})
 eff.UpdatePipeline()
 check(not rows(servermanager.Fetch(eff)), "a table for unknown materials")
+# Enumerations out of range: an error and no table, as on the command line (they were clamped
+# to the nearest value and solved).
+eff.Materials = json.dumps(materials)
+for prop, value in (("Physics", 5), ("VoxelRule", 7), ("Scheme", -1)):
+    eff.GetProperty(prop).SetElement(0, value)
+    eff.UpdateVTKObjects()
+    eff.UpdatePipeline()
+    check(not rows(servermanager.Fetch(eff)), "a table for %s %d" % (prop, value))
+    eff.GetProperty(prop).SetElement(0, {"Physics": 0, "VoxelRule": 3, "Scheme": 0}[prop])
+    eff.UpdateVTKObjects()
 
 if failures:
     print("%d failure(s)" % len(failures))

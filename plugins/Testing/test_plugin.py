@@ -205,6 +205,11 @@ gen.UpdatePipeline()
 gen.UpdatePropertyInformation()
 check(gen.GetProperty("Status").GetElement(0) == "invalid",
       "status after an impossible volume fraction: %s" % gen.GetProperty("Status").GetElement(0))
+gen.SphereVolumeFraction = -0.1  # packed without the spheres before
+gen.UpdatePipeline()
+gen.UpdatePropertyInformation()
+check(gen.GetProperty("Status").GetElement(0) == "invalid",
+      "status after a negative volume fraction: %s" % gen.GetProperty("Status").GetElement(0))
 gen.SphereVolumeFraction = 0.2
 gen.UpdatePipeline()
 gen.UpdatePropertyInformation()

@@ -758,6 +758,25 @@ int cmd_homogenize(const std::vector<std::string>& args) {
     say << "rvegen: invalid input: " << e.what() << "\n";
     return kExitInvalid;
   }
+  {
+    // Memory before any large allocation, as generate checks it: the image and the solver's
+    // fields, of which this machine's ranks hold their slabs.
+    rvegen::Scene sized = scene;
+    sized.outputs =
+        rvegen::Outputs{false, true, false, false, false, false, false, false, false, false};
+    const rvegen::ResourceEstimate need = rvegen::estimate_resources(sized);
+    const double here = (need.voxel_bytes + need.homogenization_bytes) * ranks.local_size() /
+                        std::max(1, ranks.size());
+    const double limit = rvegen::available_memory_bytes();
+    if (limit > 0.0 && here > limit) {
+      say << "rvegen: the solve needs about " << rvegen::format_bytes(here)
+          << " on this machine (voxels " << rvegen::format_bytes(need.voxel_bytes)
+          << ", FFT solver " << rvegen::format_bytes(need.homogenization_bytes)
+          << "), above the memory available, " << rvegen::format_bytes(limit)
+          << ": lower voxels.resolution, or run on more machines (mpirun)\n";
+      return kExitInvalid;
+    }
+  }
   try {
     // This rank's planes of z (all of them in one process), on its share of the machine's
     // cores (the processes a launcher put on it), and on at most --threads of them.

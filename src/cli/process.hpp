@@ -21,19 +21,6 @@ inline double peak_memory_mb() {
   return ru.ru_maxrss / 1024.0;  // kilobytes on Linux
 }
 
-/// ` (did you mean "x"?)` with the nearest of `known` to `word` when it is close (at most a
-/// third of its letters differ, as for unknown scene keys), else "".
-inline std::string did_you_mean(const std::string& word, std::initializer_list<const char*> known) {
-  std::string nearest;
-  size_t best = word.size() / 3 + 1;
-  for (const char* k : known) {
-    const size_t d = json_util::edit_distance(word, k);
-    if (d < best) {
-      best = d;
-      nearest = k;
-    }
-  }
-  return nearest.empty() ? "" : " (did you mean \"" + nearest + "\"?)";
-}
+using json_util::did_you_mean;
 
 }  // namespace rvegen::cli

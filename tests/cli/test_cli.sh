@@ -579,6 +579,12 @@ mkdir -p "$WORK/fifo_rve" && mkfifo "$WORK/fifo_rve/inclusions.json"
 expect_rc 2 timeout 20 "$RVEGEN" homogenize "$WORK/fifo_rve" "$WORK/hom.json"
 grep -q "not a regular file" "$WORK/last.err" || fail "fifo inclusion list: $(cat "$WORK/last.err")"
 
+# homogenize estimates its memory before it allocates: at 2048^3 under an 8 GB address-space
+# limit, exit 2 naming the need (it was std::bad_alloc, exit -6).
+sed 's/"resolution":24/"resolution":2048/' "$WORK/hom.json" >"$WORK/hom_huge.json"
+expect_rc 2 bash -c "ulimit -v 8000000; exec \"\$0\" homogenize \"\$1\" \"\$2\"" "$RVEGEN" "$WORK/hom" "$WORK/hom_huge.json"
+grep -q "the solve needs about .* above the memory available" "$WORK/last.err" || fail "homogenize 2048^3: $(cat "$WORK/last.err")"
+
 # An RVE handed in is audited against the scene before any work: edited to overlap (deeply, or
 # by 3 % of a radius), a family past the scene's, a coating the scene does not have, a box that
 # is not the scene's: exit 2 naming the inclusion, never a tensor.
@@ -636,6 +642,7 @@ bad hom_physics_missing "{$BOX,$HOM_FAM,\"homogenization\":{\"tolerance\":1e-5}}
 bad fam_matrix "{$BOX,\"families\":[{\"name\":\"matrix\",\"shape\":\"sphere\",\"radius\":0.1,\"volume_fraction\":0.1}],\"materials\":{\"matrix\":{\"conductivity\":1}}}" 'families\[0\].name: "matrix" names the matrix'
 bad fam_dotcoating "{$BOX,\"families\":[{\"name\":\"x.coating\",\"shape\":\"sphere\",\"radius\":0.1,\"volume_fraction\":0.1}],\"materials\":{\"matrix\":{\"conductivity\":1}}}" 'families\[0\].name: "x.coating" would read as'
 bad fam_twice "{$BOX,\"families\":[{\"name\":\"a\",\"shape\":\"sphere\",\"radius\":0.1,\"volume_fraction\":0.1},{\"name\":\"a\",\"shape\":\"sphere\",\"radius\":0.05,\"volume_fraction\":0.1}],\"materials\":{\"a\":{\"conductivity\":1}}}" 'families\[1\].name: "a" is also families\[0\]'
+bad fe_names "{$BOX,\"families\":[{\"name\":\"a b\",\"shape\":\"sphere\",\"radius\":0.1,\"volume_fraction\":0.1},{\"name\":\"a_b\",\"shape\":\"sphere\",\"radius\":0.05,\"volume_fraction\":0.1}],\"outputs\":[\"inclusions\",\"mesh_voxel\"]}" 'families\[1\].name: the phase "a_b" and families\[0\]'"'"'s "a b" would both be a_b in the finite-element decks'
 bad hom_rule "{$BOX,$HOM_FAM,\"homogenization\":{\"physics\":[\"conductivity\"],\"voxel_rule\":\"mean\"}}" 'homogenization.voxel_rule: unknown rule "mean"'
 # Voxel rules: the report names the rule and counts the cut voxels; every rule's result lies
 # within the bounds, and the rules differ (plain voxels ignore the cut shares).

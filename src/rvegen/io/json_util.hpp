@@ -46,8 +46,20 @@ inline size_t edit_distance(const std::string& a, const std::string& b) {
   return row[b.size()];
 }
 
+/// ` (did you mean "x"?)` with the nearest of `known` to `word` when one is close (at most a
+/// third of its letters differ), else "": for unknown keys, outputs, commands and options.
+inline std::string did_you_mean(const std::string& word, std::initializer_list<const char*> known) {
+  std::string nearest;
+  size_t best = word.size() / 3 + 1;
+  for (const char* k : known) {
+    const size_t d = edit_distance(word, k);
+    if (d < best) best = d, nearest = k;
+  }
+  return nearest.empty() ? "" : " (did you mean \"" + nearest + "\"?)";
+}
+
 /// Fails on the first key of `obj` not in `allowed`, naming it, suggesting the nearest allowed
-/// key when one is close (at most a third of its letters differ), and listing the allowed keys.
+/// key when one is close (did_you_mean), and listing the allowed keys.
 inline void only_keys(const Json& obj, std::initializer_list<const char*> allowed,
                       const std::string& path) {
   if (!obj.is_object()) fail(path, "expected an object");
@@ -55,17 +67,10 @@ inline void only_keys(const Json& obj, std::initializer_list<const char*> allowe
     bool ok = false;
     for (const char* a : allowed) ok |= it.key() == a;
     if (ok) continue;
-    std::string nearest, list;
-    size_t best = it.key().size() / 3 + 1;
-    for (const char* a : allowed) {
-      list += (list.empty() ? "" : ", ") + std::string(a);
-      const size_t d = edit_distance(it.key(), a);
-      if (d < best) best = d, nearest = a;
-    }
+    std::string list;
+    for (const char* a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
     fail(join(path, it.key()),
-         "unknown key" +
-             (nearest.empty() ? std::string() : " (did you mean \"" + nearest + "\"?)") +
-             "; known keys here: " + list);
+         "unknown key" + did_you_mean(it.key(), allowed) + "; known keys here: " + list);
   }
 }
 

@@ -343,16 +343,10 @@ Outputs outputs_from_names(const std::vector<std::string>& names, bool mesh,
       // A flag's list is named as the flag; a scene's "outputs" by its index.
       const std::string at =
           where.rfind("--", 0) == 0 ? where : where + "[" + std::to_string(k) + "]";
-      std::string nearest;
-      size_t best = name.size() / 3 + 1;
-      for (const char* known : {"inclusions", "voxels", "h5", "amitex", "levelsets", "mesh",
-                                "mesh_voxel", "mesh_tet", "statistics"}) {
-        const size_t d = json_util::edit_distance(name, known);
-        if (d < best) best = d, nearest = known;
-      }
       throw InputError(
           at + ": unknown output \"" + name + "\"" +
-          (nearest.empty() ? "" : " (did you mean \"" + nearest + "\"?)") +
+          json_util::did_you_mean(name, {"inclusions", "voxels", "h5", "amitex", "levelsets",
+                                         "mesh", "mesh_voxel", "mesh_tet", "statistics"}) +
           " (inclusions, voxels, h5, amitex, levelsets, mesh, mesh_voxel, mesh_tet, statistics)");
     }
   }

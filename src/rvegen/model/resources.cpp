@@ -1,5 +1,8 @@
 #include "rvegen/model/resources.hpp"
 
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -258,6 +261,15 @@ double available_memory_bytes() {
   if (maxf >> max_text && max_text != "max" && curf >> cur) {
     const double left = std::stod(max_text) - cur;
     if (left > 0.0 && (avail == 0.0 || left < avail)) avail = left;
+  }
+  // An address-space limit (ulimit -v) of this process, less what it maps already.
+  struct rlimit as {};
+  if (::getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY) {
+    double mapped = 0.0;
+    std::ifstream statm("/proc/self/statm");
+    if (statm >> mapped) mapped *= static_cast<double>(::sysconf(_SC_PAGESIZE));
+    const double left = static_cast<double>(as.rlim_cur) - mapped;
+    if (avail == 0.0 || left < avail) avail = std::max(left, 1.0);
   }
   return avail;
 }

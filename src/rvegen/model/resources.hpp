@@ -57,8 +57,8 @@ enum class SettingNames { kScene, kProperties };
 std::string describe_tet_mesh_change(const TetMeshSpec& from, const TetMeshSpec& to,
                                      SettingNames names = SettingNames::kScene);
 
-/// Memory this process may still take: the smaller of MemAvailable (/proc/meminfo) and what
-/// its cgroup allows; 0 when unknown.
+/// Memory this process may still take: the smallest of MemAvailable (/proc/meminfo), what its
+/// cgroup allows, and what its address-space limit (ulimit -v) leaves; 0 when unknown.
 double available_memory_bytes();
 
 /// "1.2 GB (packing 0.3 GB, surfaces 0.1 GB, voxels 0.8 GB, level sets 0 GB)".

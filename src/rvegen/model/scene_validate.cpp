@@ -1,6 +1,7 @@
 // validate_scene: every field and cross-field rule of a scene, however it was built.
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 
@@ -501,6 +502,37 @@ void validate_scene(const Scene& s) {
     count += n;
   }
   if (count > 2e7) fail("families", "more than 2e7 inclusions asked for");
+  if (s.outputs.mesh_voxel || s.outputs.mesh_tet) {
+    // Finite-element decks name each phase's element set and material by its name with every
+    // character but letters and digits made '_' ("a b" and "a_b" are both a_b): two phases of
+    // one name would share a set and a material, and the solver runs them without a word.
+    auto deck_name = [](const std::string& n) {
+      std::string out;
+      for (char c : n) out += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
+      return out;
+    };
+    std::vector<std::pair<std::string, size_t>> seen = {{"matrix", s.families.size()}};
+    for (size_t i = 0; i < s.families.size(); ++i) {
+      const Family& f = s.families[i];
+      std::vector<std::string> names = {f.name};
+      if (f.modifiers.coating > 0.0) names.push_back(f.name + " interphase");
+      if (f.modifiers.debond_gap > 0.0) names.push_back(f.name + " void");
+      for (const std::string& n : names) {
+        for (const auto& [other, j] : seen) {
+          if (deck_name(n) != deck_name(other)) continue;
+          fail("families[" + std::to_string(i) + "].name",
+               "the phase \"" + n + "\" and " +
+                   (j == s.families.size()
+                        ? std::string("the matrix")
+                        : "families[" + std::to_string(j) + "]'s \"" + other + "\"") +
+                   " would both be " + deck_name(n) +
+                   " in the finite-element decks (letters and digits kept, the rest '_'): give "
+                   "the families names that differ there");
+        }
+        seen.push_back({n, i});
+      }
+    }
+  }
   const double total = s.expected_volume_fraction(), limit = max_packable_fraction(s);
   if (total > limit) {
     char buf[160];

@@ -499,7 +499,10 @@ int vtkRVEGenerator::RequestData(vtkInformation* request, vtkInformationVector**
     rvegen::LevelSetOptions lopt;
     lopt.voxel_size = scene.levelset_voxel_size;
     lopt.half_width = scene.levelset_half_width;
-    lopt.exact_shapes = true;  // a port asked for to be seen: every shell's surface
+    // Straight coated shells are exact: grids only where a scene file names "levelsets" in
+    // its outputs (the Surfaces port meshes them; a level set of a thin box's many fibres
+    // needed gigabytes).
+    lopt.exact_shapes = scene.outputs.levelsets_asked;
     // Shells of neighbours may merge, so the level sets are not split by inclusion: piece 0
     // computes them all, the other pieces are empty.
     if (RequestedPiece(outVec->GetInformationObject(2)).first == 0) {

@@ -215,8 +215,9 @@ gen.UpdatePipeline()
 gen.UpdatePropertyInformation()
 check(gen.GetProperty("Status").GetElement(0) == "ok", "status after fixing the setting")
 
-# Panel properties reach the scene: aligned fibres, coated spheres (interphase phase and level
-# sets), a coating with a deformation on the same family is refused.
+# Panel properties reach the scene: aligned fibres, coated spheres (interphase phase, their
+# surfaces meshed, no level set: their shells are exact), a coating with a deformation on the
+# same family is refused.
 props = RVEGenerator(MeshUpTo=0, FibreOrientation=1, FibreAxis=[1, 0, 0], SphereCoating=0.01,
                      Resolution=[32, 32, 32], LevelSetVoxelSize=0.02)
 rows = stats_rows(OutputPort(props, 0))
@@ -225,7 +226,8 @@ check(abs(a.get(0, 0) - 1.0) < 1e-9, "aligned fibres: A_xx = %s" % a.get(0))
 names = servermanager.Fetch(props, idx=1).GetFieldData().GetAbstractArray("phase_names")
 check(names is not None and names.GetNumberOfValues() == 5 and names.GetValue(4) == "spheres interphase",
       "phase names with a coating")
-check(servermanager.Fetch(props, idx=2).GetNumberOfCells() > 1000, "coated spheres: no level-set surfaces")
+check(servermanager.Fetch(props, idx=2).GetNumberOfCells() == 0,
+      "coated spheres: level-set surfaces of exact shells, not asked for")
 # Without Mesh the Surfaces port holds the modified (here coated) inclusions alone: the spheres.
 coated_mesh = servermanager.Fetch(props, idx=3)
 fam = coated_mesh.GetCellData().GetArray("family")
@@ -290,13 +292,15 @@ gen.SceneFile = scene_path
 gen.UpdatePipeline()
 small = servermanager.Fetch(gen, idx=1)
 check(small.GetNumberOfCells() == 16 ** 3, "scene file not honoured (%d cells)" % small.GetNumberOfCells())
-# Coated spheres: the level-set port holds their interphase surfaces.
+# Coated spheres whose scene names "levelsets" in its outputs: the level-set port holds their
+# interphase surfaces (straight coated shells are exact: without it, no grid).
 coated_path = os.path.join(tempfile.mkdtemp(), "coated.json")
 with open(coated_path, "w") as f:
     json.dump({"box": {"size": [1, 1, 1]}, "seed": 2,
                "families": [{"shape": "sphere", "radius": 0.1, "volume_fraction": 0.1,
                              "coating": {"thickness": 0.02}}],
-               "voxels": {"resolution": 16}, "levelsets": {"voxel_size": 0.01}}, f)
+               "voxels": {"resolution": 16}, "levelsets": {"voxel_size": 0.01},
+               "outputs": ["inclusions", "voxels", "levelsets"]}, f)
 gen.SceneFile = coated_path
 lset = servermanager.Fetch(gen, idx=2)
 check(lset.GetNumberOfCells() > 1000, "coated scene: %d level-set triangles" % lset.GetNumberOfCells())

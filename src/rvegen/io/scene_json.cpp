@@ -159,6 +159,43 @@ void parse_through(const Json& j, const std::string& p, const Box& box, Family* 
   f->aspect_ratio = 1.0;  // unused: the length is the box's
 }
 
+// The box axis along which the family's fibres are continuous: given so ("length": "through"),
+// or aligned fibres of one size exactly as long as the periodic box along a box axis (to
+// kThroughRounding), which meet their own images end to end; -1 otherwise.
+int continuous_axis(const Family& f, const Box& box) {
+  int k = 0;
+  f.orientation.axis.cwiseAbs().maxCoeff(&k);
+  if (f.through()) return k;
+  if (f.shape != ShapeKind::Cylinder || !box.periodic ||
+      f.orientation.kind != OrientationLaw::Kind::kAligned || !f.radius.fixed() ||
+      !f.aspect_ratio.fixed())
+    return -1;
+  const double length = 2.0 * f.radius.p1 * f.aspect_ratio.p1;
+  return std::abs(f.orientation.axis[k]) >= 1.0 - kThroughRounding &&
+                 std::abs(length - box.size[k]) <= kThroughRounding * box.size[k]
+             ? k
+             : -1;
+}
+
+// Fibres as long as the box become continuous fibres, written as such, when every family of the
+// scene is continuous along that axis (continuous fibres pack beside no other inclusion): beside
+// others they stay the finite fibres they were.
+void make_fibres_continuous(Scene* s) {
+  int common = -1;
+  for (const Family& f : s->families) {
+    const int k = continuous_axis(f, s->box);
+    if (k < 0 || (common >= 0 && k != common)) return;
+    common = k;
+  }
+  for (Family& f : s->families) {
+    if (f.through()) continue;
+    const int k = common;
+    f.orientation.axis = Vec3::Unit(k) * (f.orientation.axis[k] > 0.0 ? 1.0 : -1.0);
+    f.through_length = s->box.size[k];
+    f.aspect_ratio = 1.0;
+  }
+}
+
 Family parse_family(const Json& j, const std::string& p, const Box& box) {
   const double box_volume = box.volume();
   using namespace json_util;
@@ -259,21 +296,6 @@ Family parse_family(const Json& j, const std::string& p, const Box& box) {
   f.name = j.contains("name") ? string(j["name"], p + ".name") : std::string(shape_name(f.shape));
   if (j.contains("orientation") && !f.through())
     f.orientation = parse_orientation(j["orientation"], p + ".orientation");
-  if (f.shape == ShapeKind::Cylinder && !f.through() && box.periodic &&
-      f.orientation.kind == OrientationLaw::Kind::kAligned && f.radius.fixed() &&
-      f.aspect_ratio.fixed()) {
-    // Aligned fibres exactly as long as the periodic box along a box axis meet their own images
-    // end to end: they are continuous fibres, written as such.
-    int k = 0;
-    f.orientation.axis.cwiseAbs().maxCoeff(&k);
-    const double length = 2.0 * f.radius.p1 * f.aspect_ratio.p1;
-    if (std::abs(f.orientation.axis[k]) >= 1.0 - kThroughRounding &&
-        std::abs(length - box.size[k]) <= kThroughRounding * box.size[k]) {
-      f.orientation.axis = Vec3::Unit(k) * (f.orientation.axis[k] > 0.0 ? 1.0 : -1.0);
-      f.through_length = box.size[k];
-      f.aspect_ratio = 1.0;
-    }
-  }
   if (derived) f.volume_fraction = -1.0;  // the count now says it all
   return f;
 }
@@ -440,6 +462,7 @@ Scene parse_scene(const std::string& text) {
   for (size_t i = 0; i < fams.size(); ++i) {
     s.families.push_back(parse_family(fams[i], "families[" + std::to_string(i) + "]", s.box));
   }
+  make_fibres_continuous(&s);
   if (root.contains("voxels")) {
     const Json& v = root["voxels"];
     only_keys(v, {"resolution", "partial_volume", "subsamples"}, "voxels");

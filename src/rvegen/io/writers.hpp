@@ -53,8 +53,8 @@ void write_surfaces_vtp(const SurfaceMesh& mesh, const std::string& inclusions_j
 /// VTK XML PolyData of the inclusions as points (rvegen::glyph_points: one vertex per inclusion
 /// and per periodic image whose bounding box reaches into the box), streamed to `out`: point data
 /// "inclusion_id", "family", "shape" (0 sphere, 1 cylinder, 2 ellipsoid), "phase", "image" (1 for
-/// a periodic image), "modified" (1 for wavy, deformed, coated or debonded: drawn from
-/// surfaces.vtp), "radius", "half_axis", "semi_axes", "direction" (axis), "orientation" (unit
+/// a periodic image), "modified" (1 for wavy, bent, deformed or debonded: drawn from
+/// surfaces.vtp; a straight coated inclusion's glyph is its core, its shell the "coating"), "radius", "half_axis", "semi_axes", "direction" (axis), "orientation" (unit
 /// quaternion w, x, y, z) and "scale": a unit sphere glyph (radius 0.5) or a cylinder glyph along
 /// y (height 1, radius 0.5), scaled by "scale" then turned by "orientation", is the inclusion
 /// exactly. Field data as write_surfaces_vtp.

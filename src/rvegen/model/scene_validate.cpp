@@ -502,6 +502,24 @@ void validate_scene(const Scene& s) {
     count += n;
   }
   if (count > 2e7) fail("families", "more than 2e7 inclusions asked for");
+  // Continuous fibres pack with continuous fibres along their axis only: against other bodies
+  // their pair tests see the ends of the cylinder one period long that stands for each, where
+  // the fibre continues, and such mixtures jammed far below their targets.
+  for (size_t i = 0; i < s.families.size(); ++i) {
+    if (!s.families[i].through()) continue;
+    int k = 0;
+    s.families[i].orientation.axis.cwiseAbs().maxCoeff(&k);
+    for (size_t j = 0; j < s.families.size(); ++j) {
+      int kj = -1;
+      if (s.families[j].through()) s.families[j].orientation.axis.cwiseAbs().maxCoeff(&kj);
+      if (kj == k) continue;
+      fail("families[" + std::to_string(j) + "]",
+           std::string("continuous fibres (families[") + std::to_string(i) + "], along " +
+               "xyz"[k] +
+               ") pack only with continuous fibres along the same axis: mixing them with other "
+               "inclusions, or with continuous fibres along another axis, is not supported");
+    }
+  }
   if (s.outputs.mesh_voxel || s.outputs.mesh_tet) {
     // Finite-element decks name each phase's element set and material by its name with every
     // character but letters and digits made '_' ("a b" and "a_b" are both a_b): two phases of

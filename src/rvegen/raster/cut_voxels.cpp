@@ -69,7 +69,14 @@ CutVoxels cut_voxels(const InclusionSet& set, const VoxelImage& img, int subsamp
   std::vector<std::vector<CutVoxel>> found(incs.size());
   tbb::parallel_for(size_t(0), incs.size(), [&](size_t m) {
     const Inclusion& inc = incs[m];
-    const BodyQuery body(inc);
+    // A continuous fibre is cut over one period along its axis, as a cylinder that covers the
+    // whole period (its images continue it: the same voxels met again across the box were
+    // counted twice and dropped as shared, and a voxel as long as the box held only part of
+    // the finite fibre).
+    const int axis = through_axis(inc);
+    Inclusion endless = inc;
+    if (axis >= 0) endless.shape.half_axis *= 3.0;
+    const BodyQuery body(axis >= 0 ? endless : inc);
     // Core, shell and matrix in layers (a debonded coated inclusion, whose void lies between
     // core and shell, keeps the two-phase rule at its core).
     const bool coated =
@@ -80,7 +87,10 @@ CutVoxels cut_voxels(const InclusionSet& set, const VoxelImage& img, int subsamp
     for (int a = 0; a < 3; ++a) {
       flo[a] = static_cast<int>(std::floor((lo[a] - img.origin[a]) / img.spacing[a]));
       fhi[a] = static_cast<int>(std::ceil((hi[a] - img.origin[a]) / img.spacing[a])) - 1;
-      if (!periodic) {
+      if (a == axis) {  // one period
+        flo[a] = 0;
+        fhi[a] = img.dims[a] - 1;
+      } else if (!periodic) {
         flo[a] = std::max(flo[a], 0);
         fhi[a] = std::min(fhi[a], img.dims[a] - 1);
       }

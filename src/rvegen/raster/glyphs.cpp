@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 
 #include "rvegen/geometry/shapes.hpp"
+#include "rvegen/model/body.hpp"
 
 namespace rvegen {
 
@@ -38,25 +39,31 @@ GlyphPoints glyph_points(const InclusionSet& set) {
     const Eigen::Quaterniond q(R);
     const Vec3 ha = sh.kind == ShapeKind::Cylinder ? sh.half_axis : Vec3::Zero();
     const Vec3 sa = sh.kind == ShapeKind::Ellipsoid ? sh.semi_axes : Vec3::Zero();
-    // The inclusion, and its periodic images whose bounding box reaches into the box.
+    // The inclusion, and its periodic images whose bounding box reaches into the box. A
+    // continuous fibre is one glyph spanning the box along its axis (moved along its axis it is
+    // the same fibre; its images along it would overhang the box).
+    const int along = through_axis(inc);
+    Vec3 centre = sh.center;
+    if (along >= 0) centre[along] = box.origin[along] + 0.5 * box.size[along];
     Vec3 lo, hi;
-    sh.aabb(&lo, &hi);
+    sh.translated(centre - sh.center).aabb(&lo, &hi);
     const int m = box.periodic ? 1 : 0;
     for (int kz = -m; kz <= m; ++kz) {
       for (int ky = -m; ky <= m; ++ky) {
         for (int kx = -m; kx <= m; ++kx) {
           const Vec3 shift(kx * box.size[0], ky * box.size[1], kz * box.size[2]);
           const bool self = kx == 0 && ky == 0 && kz == 0;
+          if (along >= 0 && (along == 0 ? kx : along == 1 ? ky : kz) != 0) continue;
           if (!self && ((hi + shift).array() <= box.origin.array()).any()) continue;
           if (!self && ((lo + shift).array() >= (box.origin + box.size).array()).any()) continue;
-          const Vec3 c = sh.center + shift;
+          const Vec3 c = centre + shift;
           g.points.insert(g.points.end(), {c[0], c[1], c[2]});
           g.inclusion_id.push_back(inc.id);
           g.family.push_back(inc.family);
           g.shape.push_back(static_cast<int32_t>(sh.kind));
           g.phase.push_back(inc.family + 1);
           g.image.push_back(self ? 0 : 1);
-          g.modified.push_back(inc.mod.any() ? 1 : 0);
+          g.modified.push_back(inc.mod.exact_shape() ? 0 : 1);
           g.radius.push_back(sh.kind == ShapeKind::Ellipsoid ? 0.0 : sh.radius);
           g.coating.push_back(inc.mod.coating);
           g.half_axis.insert(g.half_axis.end(), {ha[0], ha[1], ha[2]});

@@ -22,7 +22,8 @@ struct GlyphPoints {
   std::vector<int32_t> shape;       // ShapeKind as int: 0 sphere, 1 cylinder, 2 ellipsoid
   std::vector<int32_t> phase;       // phase label of the core (family + 1)
   std::vector<int32_t> image;       // 1 for a periodic image
-  std::vector<int32_t> modified;    // 1 for wavy, deformed, coated or debonded (not a glyph)
+  std::vector<int32_t> modified;    // 1 for wavy, bent, deformed or debonded (not a glyph; a
+                                    // straight coated inclusion's glyph is its core)
   std::vector<double> radius;       // 0 for ellipsoids
   std::vector<double> coating;      // interphase thickness (0: none): the shell of a straight
                                     // inclusion is every point within it of the core

@@ -520,6 +520,20 @@ void validate_scene(const Scene& s) {
                "inclusions, or with continuous fibres along another axis, is not supported");
     }
   }
+  if (s.outputs.mesh_tet) {
+    // What the tetrahedral mesher refuses, refused before the packing rather than after it.
+    if (!s.box.periodic) fail("outputs", "mesh_tet needs a periodic box (box.periodic false)");
+    for (size_t i = 0; i < s.families.size(); ++i) {
+      const FamilyModifiers& m = s.families[i].modifiers;
+      if (m.wave_amplitude > 0.0 || m.bend_radius > 0.0 || m.deform_amplitude > 0.0) {
+        fail("outputs",
+             "mesh_tet meshes spheres, cylinders and ellipsoids, plain, coated or (spheres) "
+             "debonded; family \"" +
+                 s.families[i].name + "\" (families[" + std::to_string(i) +
+                 "]) is wavy, bent or deformed (use mesh_voxel for it)");
+      }
+    }
+  }
   if (s.outputs.mesh_voxel || s.outputs.mesh_tet) {
     // Finite-element decks name each phase's element set and material by its name with every
     // character but letters and digits made '_' ("a b" and "a_b" are both a_b): two phases of

@@ -76,7 +76,7 @@ CutVoxels cut_voxels(const InclusionSet& set, const VoxelImage& img, int subsamp
     const int axis = through_axis(inc);
     Inclusion endless = inc;
     if (axis >= 0) endless.shape.half_axis *= 3.0;
-    const BodyQuery body(axis >= 0 ? endless : inc);
+    const BodyQuery body(axis >= 0 ? static_cast<const Inclusion&>(endless) : inc);
     // Core, shell and matrix in layers (a debonded coated inclusion, whose void lies between
     // core and shell, keeps the two-phase rule at its core).
     const bool coated =

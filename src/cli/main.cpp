@@ -112,7 +112,7 @@ const char* kCheckUsage =
     "  pair overlaps, 1 when some do (listing at most N pairs, default 10000), 2 on invalid\n"
     "  input.\n";
 const char* kHomogenizeUsage =
-    "usage: rvegen homogenize DIR SCENE.json [--threads N] [--quiet]\n"
+    "usage: rvegen homogenize DIR SCENE.json [--threads N] [--max-memory SIZE] [--quiet]\n"
     "  Computes the effective properties of an RVE written earlier (DIR/inclusions.json) with\n"
     "  the scene's \"materials\", \"homogenization\" and voxel resolution, and prints them as\n"
     "  JSON (the \"effective\" object of report.json). The scene's families must be the RVE's\n"
@@ -121,7 +121,9 @@ const char* kHomogenizeUsage =
     "  solves its own slab, the image is never gathered, and rank 0 prints the result.\n"
     "  --threads N solves on at most N cores a process (default: all, shared among the\n"
     "  processes a launcher put on the machine; the result does not depend on it); --quiet\n"
-    "  prints no progress.\n"
+    "  prints no progress. --max-memory SIZE (bytes, or with K, M, G) refuses a solve whose\n"
+    "  estimated memory on this machine exceeds SIZE (default: the memory available), before\n"
+    "  any work.\n"
     "  Exit 0 on success, 2 on invalid input, 5 when a solve stopped above its tolerance (the\n"
     "  result is printed with \"converged\": false).\n";
 const char* kDefaultSceneUsage =
@@ -718,14 +720,21 @@ int cmd_homogenize(const std::vector<std::string>& args) {
   std::vector<std::string> files;
   bool quiet = false;
   int threads = 0;  // the process's share of the cores
+  double max_memory = 0.0;
   for (size_t i = 0; i < args.size(); ++i) {
     const std::string& a = args[i];
     if (a == "--quiet" || a == "-q") {
       quiet = true;
+    } else if (a == "--max-memory") {
+      if (i + 1 >= args.size()) return usage_error("--max-memory needs a size", "homogenize");
+      max_memory = parse_size(args[++i]);
+      if (max_memory <= 0.0) {
+        return usage_error("--max-memory: not a size: " + args[i], "homogenize");
+      }
     } else if (a == "--threads") {
       if (!read_threads(args, &i, &threads)) return usage_error(kThreadsNeed, "homogenize");
     } else if (!a.empty() && a[0] == '-') {
-      return unknown_option(a, "homogenize", {"--quiet", "--threads", "--help"});
+      return unknown_option(a, "homogenize", {"--quiet", "--threads", "--max-memory", "--help"});
     } else {
       files.push_back(a);
     }
@@ -768,12 +777,13 @@ int cmd_homogenize(const std::vector<std::string>& args) {
     const rvegen::ResourceEstimate need = rvegen::estimate_resources(sized);
     const double here = (need.voxel_bytes + need.homogenization_bytes) * ranks.local_size() /
                         std::max(1, ranks.size());
-    const double limit = rvegen::available_memory_bytes();
+    const double limit = max_memory > 0.0 ? max_memory : rvegen::available_memory_bytes();
     if (limit > 0.0 && here > limit) {
       say << "rvegen: the solve needs about " << rvegen::format_bytes(here)
           << " on this machine (voxels " << rvegen::format_bytes(need.voxel_bytes)
-          << ", FFT solver " << rvegen::format_bytes(need.homogenization_bytes)
-          << "), above the memory available, " << rvegen::format_bytes(limit)
+          << ", FFT solver " << rvegen::format_bytes(need.homogenization_bytes) << "), above the "
+          << (max_memory > 0.0 ? "--max-memory limit of " : "memory available, ")
+          << rvegen::format_bytes(limit)
           << ": lower voxels.resolution, or run on more machines (mpirun)\n";
       return kExitInvalid;
     }

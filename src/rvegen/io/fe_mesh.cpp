@@ -20,10 +20,7 @@ namespace {
 
 // Abaqus names: letters, digits and underscores, starting with a letter.
 std::string set_name(const std::string& phase) {
-  std::string s;
-  for (char c : phase) s += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
-  if (s.empty() || !std::isalpha(static_cast<unsigned char>(s[0]))) s = "P_" + s;
-  return s;
+  return deck_name(phase);
 }
 
 struct Grid {

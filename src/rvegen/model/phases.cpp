@@ -1,8 +1,16 @@
 #include "rvegen/model/phases.hpp"
 
 #include <algorithm>
+#include <cctype>
 
 namespace rvegen {
+
+std::string deck_name(const std::string& phase) {
+  std::string s;
+  for (char c : phase) s += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
+  if (s.empty() || !std::isalpha(static_cast<unsigned char>(s[0]))) s = "P_" + s;
+  return s;
+}
 
 const char* phase_kind_name(PhaseKind kind) {
   switch (kind) {

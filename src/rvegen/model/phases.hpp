@@ -14,6 +14,10 @@ enum class PhaseKind { kMatrix, kCore, kInterphase, kVoid };
 
 /// The JSON/HDF5 name of a phase kind: "matrix", "core", "interphase", "void".
 const char* phase_kind_name(PhaseKind kind);
+/// A phase's name as the finite-element decks write it (element set, material): letters and
+/// digits kept, every other character '_', "P_" before a name that does not start with a
+/// letter. Two phases of one deck name would share a set and a material.
+std::string deck_name(const std::string& phase);
 
 /// One label of the phase image.
 struct Phase {

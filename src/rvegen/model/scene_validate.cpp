@@ -1,7 +1,6 @@
 // validate_scene: every field and cross-field rule of a scene, however it was built.
 #include <Eigen/Eigenvalues>
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 #include <cstdio>
 
@@ -535,14 +534,9 @@ void validate_scene(const Scene& s) {
     }
   }
   if (s.outputs.mesh_voxel || s.outputs.mesh_tet) {
-    // Finite-element decks name each phase's element set and material by its name with every
-    // character but letters and digits made '_' ("a b" and "a_b" are both a_b): two phases of
-    // one name would share a set and a material, and the solver runs them without a word.
-    auto deck_name = [](const std::string& n) {
-      std::string out;
-      for (char c : n) out += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
-      return out;
-    };
+    // Finite-element decks name each phase's element set and material by deck_name ("a b" and
+    // "a_b" are both a_b): two phases of one name would share a set and a material, and the
+    // solver runs them without a word.
     std::vector<std::pair<std::string, size_t>> seen = {{"matrix", s.families.size()}};
     for (size_t i = 0; i < s.families.size(); ++i) {
       const Family& f = s.families[i];

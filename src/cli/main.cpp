@@ -56,6 +56,7 @@ constexpr const char* kNotConverged =
     "properties (report.json: \"converged\": false): ";
 
 using rvegen::cli::kMaxSceneBytes;
+using rvegen::cli::parse_size;
 using rvegen::cli::peak_memory_mb;
 constexpr size_t kMaxInclusionFileBytes = size_t(2) << 30;
 
@@ -189,19 +190,6 @@ uintmax_t directory_bytes(const std::string& dir, int* files) {
     }
   }
   return total;
-}
-
-// "2G", "512M", "1000000": bytes; negative when malformed.
-double parse_size(const std::string& text) {
-  char* end = nullptr;
-  const double v = std::strtod(text.c_str(), &end);
-  if (end == text.c_str() || !std::isfinite(v) || v <= 0.0) return -1.0;
-  const std::string unit = end;
-  if (unit.empty()) return v;
-  if (unit == "K" || unit == "k") return v * 1024.0;
-  if (unit == "M") return v * 1024.0 * 1024.0;
-  if (unit == "G") return v * 1024.0 * 1024.0 * 1024.0;
-  return -1.0;
 }
 
 double seconds_since(std::chrono::steady_clock::time_point t) {

@@ -26,6 +26,7 @@
 #include "rvegen/model/errors.hpp"
 #include "rvegen/model/phases.hpp"
 #include "rvegen/model/representativity.hpp"
+#include "rvegen/model/resources.hpp"
 #include "rvegen/model/stats.hpp"
 #include "rvegen/packing/packing.hpp"
 #include "rvegen/raster/voxelize.hpp"
@@ -42,7 +43,7 @@ constexpr int kExitOk = 0, kExitOutput = 1, kExitInvalid = 2, kExitNotReached = 
 
 const char* kStudyUsage =
     "usage: rvegen study SCENE.json [-o DIR] [--sizes LIST] [--realizations N]\n"
-    "                    [--target-error E] [--jobs N] [--quiet]\n"
+    "                    [--target-error E] [--jobs N] [--max-memory SIZE] [--quiet]\n"
     "  How big must the RVE be? Generates N realizations (default 10) of the scene at each\n"
     "  size of LIST (box edge multiples of the scene's box, default 1,1.5,2; families given by\n"
     "  count scale their count with the volume, the voxel size stays), computes on each the\n"
@@ -57,7 +58,10 @@ const char* kStudyUsage =
     "  once (default: every core). Under an MPI launcher (mpirun -np N rvegen study ...) the\n"
     "  ranks share the realizations out, each machine's cores shared by its ranks; only the\n"
     "  realization records travel to rank 0, which writes the statistics (the same as one\n"
-    "  process gives).\n"
+    "  process gives). Before any work, each realization's peak memory is estimated: a study\n"
+    "  whose largest size does not fit in the memory available (or --max-memory SIZE, bytes\n"
+    "  or with K, M, G) is refused, and fewer realizations run at once where all would not fit.\n"
+    "  Each record it resumes from is checked (its seed, size, status, values and digest).\n"
     "  Exit 0; 2 on invalid input (or DIR holding a study of another scene); 1 when DIR\n"
     "  cannot be written; 3 when some realization did not reach its target, 5 when some\n"
     "  realization's homogenization did not converge (either way they are left out of the\n"
@@ -292,6 +296,19 @@ json window_summary(const std::vector<std::vector<std::vector<WindowVariance>>>&
   return json();
 }
 
+// A record's digest: FNV-1a (64 bits) of its text without the digest, keyed by the study's
+// scene, so that a record edited by hand, or copied from another study, is found.
+std::string record_digest(json rec, const std::string& signature) {
+  rec.erase("digest");
+  uint64_t h = 0xcbf29ce484222325ull;
+  for (const std::string& body : {signature, rec.dump()}) {
+    for (unsigned char c : body) h = (h ^ c) * 0x100000001b3ull;
+  }
+  char buf[17];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
+  return buf;
+}
+
 // The record of realization k of the box size factor m.
 std::string record_file(double m, int k) {
   return "size_" + size_name(m) + "_" + std::to_string(k) + ".json";
@@ -307,6 +324,8 @@ struct StudyPlan {
   int realizations = 0;
   double target_error = 0.0;
   int ranks = 1;
+  uint64_t seed = 0;      // the scene's seed, from which each realization's is drawn
+  std::string signature;  // the scene as the study holds it (keys each record's digest)
   bool quiet = false;
   std::chrono::steady_clock::time_point start;
 };
@@ -321,6 +340,89 @@ struct StudyRecords {
   std::vector<std::vector<std::vector<WindowVariance>>> windows;
 };
 
+// Checks a record read back against what the study would have written there: its size,
+// realization, seed and digest, a known status, and properties that are finite numbers in
+// their ranges. Throws InputError naming the record and the key.
+void check_record(const json& rec, const StudyPlan& plan, size_t i, int k, const fs::path& p) {
+  auto bad = [&p](const std::string& what) {
+    return InputError(p.string() + ": " + what + " (remove the record to compute it again)");
+  };
+  if (!rec.is_object()) throw bad("not a JSON object");
+  auto number = [&](const char* key) {
+    if (!rec.contains(key) || !rec[key].is_number()) throw bad(std::string(key) + ": not a number");
+    return rec[key];
+  };
+  if (size_name(number("size").get<double>()) != size_name(plan.sizes[i]))
+    throw bad("size: " + rec["size"].dump() + ", where the study expects " +
+              size_name(plan.sizes[i]));
+  const json& real = number("realization");
+  if (!real.is_number_integer() || real.get<long long>() != k)
+    throw bad("realization: " + real.dump() + ", where the study expects " + std::to_string(k));
+  const json& seed = number("seed");
+  const uint64_t want = realization_seed(plan.seed, plan.sizes[i], k);
+  if (!seed.is_number_unsigned() || seed.get<uint64_t>() != want)
+    throw bad("seed: " + seed.dump() + ", where the study draws " + std::to_string(want));
+  if (!rec.contains("status") || !rec["status"].is_string()) throw bad("status: not a string");
+  const std::string status = rec["status"].get<std::string>();
+  if (status != "ok" && status != "target_not_reached" && status != "not_converged" &&
+      status != "nothing_placed")
+    throw bad("status: \"" + status + "\" is not a status the study writes");
+  if (!rec.contains("digest") || !rec["digest"].is_string())
+    throw bad("digest: missing (the study writes one in every record)");
+  // The values first (an error names the one that is wrong), then the digest.
+  const bool same = rec["digest"].get<std::string>() == record_digest(rec, plan.signature);
+  if (status != "ok") {
+    if (!same) throw bad("changed after the study wrote it (its digest does not match)");
+    return;
+  }
+  if (!rec.contains("properties") || !rec["properties"].is_object())
+    throw bad("properties: not an object");
+  for (auto it = rec["properties"].begin(); it != rec["properties"].end(); ++it) {
+    const std::string& name = it.key();
+    const std::string where = "properties." + name;
+    if (!it.value().is_number() || !std::isfinite(it.value().get<double>()))
+      throw bad(where + ": " + it.value().dump() + " is not a finite number");
+    const double v = it.value().get<double>();
+    auto starts = [&name](const char* prefix) { return name.rfind(prefix, 0) == 0; };
+    const bool share =
+        starts("volume_fraction") || starts("voxel_fraction") || starts("orientation.");
+    if (share && !(v >= 0.0 && v <= 1.0))
+      throw bad(where + ": " + it.value().dump() + " is not in [0, 1]");
+    if ((starts("conductivity.") || starts("stiffness.")) && !(v > 0.0))
+      throw bad(where + ": " + it.value().dump() + " is not positive");
+    if (!share && !(v >= 0.0)) throw bad(where + ": " + it.value().dump() + " is negative");
+  }
+  if (rec.contains("windows")) {
+    const json& w = rec["windows"];
+    if (!w.is_object() || !w.contains("volume_fraction") || !w["volume_fraction"].is_array())
+      throw bad("windows: not the study's window variances");
+    for (const json& row : w["volume_fraction"]) {
+      bool ok = row.is_array() && row.size() == 5 && row[0].is_number_integer() &&
+                row[2].is_number_unsigned();
+      for (size_t c = 0; ok && c < 5; ++c)
+        ok = row[c].is_number() && std::isfinite(row[c].get<double>()) &&
+             row[c].get<double>() >= 0.0;
+      if (!ok)
+        throw bad("windows.volume_fraction: " + row.dump() +
+                  " is not [k, volume, windows, variance, mean]");
+    }
+  }
+  if (!same) throw bad("changed after the study wrote it (its digest does not match)");
+}
+
+// Reads and checks the record of realization k of size i.
+json read_record(const StudyPlan& plan, size_t i, int k) {
+  const fs::path p = plan.rdir / record_file(plan.sizes[i], k);
+  json rec;
+  try {
+    rec = json::parse(read_file(p.string(), kMaxSceneBytes));
+  } catch (const std::exception& e) {
+    throw InputError(p.string() + " is not a realization record: " + e.what());
+  }
+  check_record(rec, plan, i, k, p);
+  return rec;
+}
+
 // Reads the records of the realizations asked for (files beyond them are kept, not used);
 // throws InputError naming a record that cannot be read.
 StudyRecords read_records(const StudyPlan& plan) {
@@ -331,13 +433,7 @@ StudyRecords read_records(const StudyPlan& plan) {
   r.windows.resize(sizes.size());
   for (size_t i = 0; i < sizes.size(); ++i) {
     for (int k = 0; k < plan.realizations; ++k) {
-      const fs::path p = plan.rdir / record_file(plan.sizes[i], k);
-      json rec;
-      try {
-        rec = json::parse(read_file(p.string(), kMaxSceneBytes));
-      } catch (const std::exception& e) {
-        throw InputError(p.string() + " is not a realization record: " + e.what());
-      }
+      const json rec = read_record(plan, i, k);
       const std::string status = rec.value("status", "");
       if (status != "ok") {
         ++(status == "not_converged" ? r.not_converged : r.not_reached)[i];
@@ -544,7 +640,7 @@ int cmd_study(const std::vector<std::string>& args) {
   };
   std::string scene_path, out_dir = "study", sizes_text = "1,1.5,2";
   int realizations = 10, jobs = 0;
-  double target_error = 0.01;
+  double target_error = 0.01, max_memory = 0.0;
   bool quiet = false;
   auto number = [&](size_t& i, const char* what, double lo, double hi, double* v) {
     if (i + 1 >= args.size()) return false;
@@ -581,12 +677,16 @@ int cmd_study(const std::vector<std::string>& args) {
         if (!number(i, "--jobs", 1, 4096, &v) || v != std::floor(v))
           return usage_error("--jobs needs a whole number in [1, 4096]");
         jobs = static_cast<int>(v);
+      } else if (a == "--max-memory") {
+        if (i + 1 >= args.size() || (max_memory = parse_size(args[++i])) <= 0.0)
+          return usage_error("--max-memory needs a size such as 8G, 512M or 1000000 (bytes)");
       } else if (a == "--quiet" || a == "-q") {
         quiet = true;
       } else if (!a.empty() && a[0] == '-') {
-        return usage_error("unknown option " + a + " of study" +
-                           did_you_mean(a, {"-o", "--output", "--sizes", "--realizations",
-                                            "--target-error", "--jobs", "--quiet", "--help"}));
+        return usage_error(
+            "unknown option " + a + " of study" +
+            did_you_mean(a, {"-o", "--output", "--sizes", "--realizations", "--target-error",
+                             "--jobs", "--max-memory", "--quiet", "--help"}));
       } else if (scene_path.empty()) {
         scene_path = a;
       } else {
@@ -614,10 +714,60 @@ int cmd_study(const std::vector<std::string>& args) {
     err << "rvegen: invalid study of " << scene_path << ": " << e.what() << "\n";
     return kExitInvalid;
   }
+  // Memory before any work: the largest size's realization (packing, image and solver; a
+  // study writes no outputs of its own), times the realizations run at once on this machine
+  // (its ranks' jobs together). A study that cannot hold one is refused; one that cannot hold
+  // them all runs fewer at once.
+  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  const int share = std::max(1, cores / std::max(1, ranks.local_size()));
+  int at_once = jobs > 0 ? jobs : share;
+  {
+    ResourceEstimate largest;
+    double largest_size = 0.0;
+    for (size_t i = 0; i < sizes.size(); ++i) {
+      Scene sized = scenes[i][0];
+      sized.outputs = Outputs{};
+      sized.outputs.inclusions = sized.outputs.levelsets = false;
+      const ResourceEstimate need = estimate_resources(sized);
+      if (need.total_bytes() > largest.total_bytes()) largest = need, largest_size = sizes[i];
+    }
+    const double limit = max_memory > 0.0 ? max_memory : available_memory_bytes();
+    const double one = largest.total_bytes() * ranks.local_size();
+    const std::string where =
+        std::string(max_memory > 0.0 ? "the --max-memory limit of " : "the memory available, ") +
+        format_bytes(limit);
+    if (limit > 0.0 && one > limit) {
+      err << "rvegen: a realization at size " << size_name(largest_size) << " needs about "
+          << describe(largest) << (ranks.local_size() > 1 ? " per rank" : "") << ", above " << where
+          << ": give smaller --sizes (or a coarser voxels.resolution)\n";
+      return kExitInvalid;
+    }
+    if (limit > 0.0 && one * at_once > limit) {
+      const int fit = std::max(1, static_cast<int>(limit / one));
+      if (ranks.root() && !quiet)
+        err << "study: " << fit << " realization(s) at once (of " << at_once << "): each needs "
+            << "about " << format_bytes(largest.total_bytes()) << ", within " << where << "\n";
+      at_once = fit;
+    }
+  }
   // The study's directory: new, or one holding a study of the same scene. Rank 0 decides and
   // prepares it; the other ranks follow its answer.
   const fs::path dir(out_dir), rdir = dir / "realizations";
   const std::string signature = scene_to_json(base);
+  StudyPlan plan;
+  plan.scene_path = scene_path;
+  plan.dir = dir;
+  plan.rdir = rdir;
+  plan.sizes = sizes;
+  for (const auto& per_size : scenes) plan.volumes.push_back(per_size[0].box.volume());
+  plan.base_volume = base.box.volume();
+  plan.realizations = realizations;
+  plan.target_error = target_error;
+  plan.ranks = ranks.size();
+  plan.seed = base.seed;
+  plan.signature = signature;
+  plan.quiet = quiet;
+  plan.start = t0;
   std::error_code ec;
   int ready = kExitOk;
   if (ranks.root()) {
@@ -659,15 +809,29 @@ int cmd_study(const std::vector<std::string>& args) {
     fs::path path;
   };
   auto record_name = [&sizes](size_t i, int k) { return record_file(sizes[i], k); };
+  // Each record kept is checked before any work: a study stops on one it cannot trust
+  // rather than after computing the others.
   std::vector<int> missing_ids;  // size index * realizations + k
+  int kept_ok = kExitOk;
   if (ranks.root()) {
-    for (size_t i = 0; i < sizes.size(); ++i) {
+    for (size_t i = 0; i < sizes.size() && kept_ok == kExitOk; ++i) {
       for (int k = 0; k < realizations; ++k) {
-        if (!fs::exists(rdir / record_name(i, k), ec))
+        if (!fs::exists(rdir / record_name(i, k), ec)) {
           missing_ids.push_back(static_cast<int>(i) * realizations + k);
+          continue;
+        }
+        try {
+          read_record(plan, i, k);
+        } catch (const std::exception& e) {
+          err << "rvegen: " << e.what() << "\n";
+          kept_ok = kExitInvalid;
+          break;
+        }
       }
     }
   }
+  kept_ok = ranks.broadcast(kept_ok);
+  if (kept_ok != kExitOk) return kept_ok;
   missing_ids = ranks.broadcast(missing_ids);
   std::vector<Task> todo;
   for (size_t t = static_cast<size_t>(ranks.rank()); t < missing_ids.size();
@@ -694,11 +858,10 @@ int cmd_study(const std::vector<std::string>& args) {
   std::atomic<size_t> done{0};
   std::string failure;
   std::vector<std::string> written(todo.size());  // the records this rank computed
-  // Each rank takes its share of the machine's cores (the processes a launcher put on it).
-  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  const int share = std::max(1, cores / std::max(1, ranks.local_size()));
+  // Each rank takes its share of the machine's cores (the processes a launcher put on it),
+  // and no more realizations at once than its memory holds.
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
-                            static_cast<size_t>(jobs > 0 ? jobs : share));
+                            static_cast<size_t>(at_once));
   tbb::parallel_for(size_t(0), todo.size(), size_t(1), [&](size_t t) {
     {
       std::lock_guard<std::mutex> lock(say);
@@ -729,6 +892,12 @@ int cmd_study(const std::vector<std::string>& args) {
       }
     } catch (const NothingPlaced&) {
       rec["status"] = "nothing_placed";
+    } catch (const std::bad_alloc&) {
+      std::lock_guard<std::mutex> lock(say);
+      if (failure.empty())
+        failure = "out of memory in realization " + std::to_string(task.k) + " at size " +
+                  size_name(sizes[task.size]) + " (run fewer at once: --jobs, or --max-memory)";
+      return;
     } catch (const std::exception& e) {
       std::lock_guard<std::mutex> lock(say);
       if (failure.empty()) failure = e.what();
@@ -736,6 +905,7 @@ int cmd_study(const std::vector<std::string>& args) {
     }
     rec["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
     if (ranks.size() > 1) rec["rank"] = ranks.rank();
+    rec["digest"] = record_digest(rec, signature);
     written[t] = rec.dump(1) + "\n";
     try {
       write_whole(task.path, written[t]);
@@ -791,18 +961,6 @@ int cmd_study(const std::vector<std::string>& args) {
     if (stopped != kExitOk) return stopped;
   }
   // The statistics are rank 0's; every rank ends with its exit code.
-  StudyPlan plan;
-  plan.scene_path = scene_path;
-  plan.dir = dir;
-  plan.rdir = rdir;
-  plan.sizes = sizes;
-  for (const auto& per_size : scenes) plan.volumes.push_back(per_size[0].box.volume());
-  plan.base_volume = base.box.volume();
-  plan.realizations = realizations;
-  plan.target_error = target_error;
-  plan.ranks = ranks.size();
-  plan.quiet = quiet;
-  plan.start = t0;
   return ranks.broadcast(ranks.root() ? write_statistics(plan, rank_peaks_mb) : kExitOk);
 }
 

@@ -950,6 +950,29 @@ grep -q "size_1.5_1.json is not a realization record" "$WORK/last.err" ||
   fail "study: the damaged record was not named: $(cat "$WORK/last.err")"
 cmp -s "$WORK/study_damaged/study.json" "$WORK/study_damaged.before" ||
   fail "study: statistics rewritten from a damaged record"
+# A record resumed from is checked before any work: a value edited (still a number), a string
+# or null property, a seed of another study; each names the record and the key, and nothing is
+# computed or rewritten.
+for edit in 's/"conductivity.k11": [0-9.e-]*/"conductivity.k11": 99/@changed after the study wrote it' \
+            's/"conductivity.k11": [0-9.e-]*/"conductivity.k11": "abc"/@properties.conductivity.k11: "abc" is not a finite number' \
+            's/"volume_fraction": [0-9.e-]*/"volume_fraction": null/@properties.volume_fraction: null' \
+            's/"seed": [0-9]*/"seed": 7/@seed: 7, where the study draws'; do
+  rm -rf "$WORK/study_edited"
+  cp -r "$WORK/study_a" "$WORK/study_edited"
+  sed -i "${edit%%@*}" "$WORK/study_edited/realizations/size_1_1.json"
+  expect_rc 2 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_edited" --sizes 1,1.5 --realizations 4 -q
+  grep -qF "size_1_1.json: ${edit#*@}" "$WORK/last.err" || fail "study: edited record ($edit): $(cat "$WORK/last.err")"
+  [ -e "$WORK/study_edited/realizations/size_1_3.json" ] && fail "study: computed before checking the records ($edit)"
+  cmp -s "$WORK/study_edited/study.json" "$WORK/study_a/study.json" || fail "study: statistics rewritten ($edit)"
+done
+# Memory before any work: a size whose realization cannot fit is refused, naming the size; a
+# limit that holds one realization but not two runs one at a time.
+expect_rc 2 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_mem" --sizes 1,8 --max-memory 300M -q
+grep -q "a realization at size 8 needs about .* above the --max-memory limit of 315 MB" "$WORK/last.err" ||
+  fail "study --max-memory: $(cat "$WORK/last.err")"
+[ -e "$WORK/study_mem" ] && fail "study: a refused study left a directory behind"
+expect_rc 0 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_mem" --sizes 1 --realizations 2 --max-memory 100M --jobs 2
+grep -q "study: 1 realization(s) at once (of 2)" "$WORK/last.err" || fail "study: jobs not fitted to memory: $(cat "$WORK/last.err")"
 # The window method through the study: dilute spheres (phi 0.02, radius 0.01), whose integral
 # range has a closed form, A3 = V_s S(0) / (1 - phi) with S(0) = (1 - phi)^4 / (1 + 2 phi)^2
 # (tests/test_representativity.cpp says why): within 10 %.

@@ -13,6 +13,7 @@
 #include "rvegen/io/writers.hpp"
 #include "rvegen/model/scene.hpp"
 #include "rvegen/packing/packing.hpp"
+#include "rvegen/pipeline/run.hpp"
 #include "rvegen/raster/glyphs.hpp"
 #include "rvegen/raster/levelset.hpp"
 #include "rvegen/raster/mesh.hpp"
@@ -318,8 +319,12 @@ int vtkRVEGenerator::RequestData(vtkInformation* request, vtkInformationVector**
     vtkErrorMacro(<< "invalid scene: " << e.what());
     return 0;
   }
-  // Output settings do not change the packing: the cache is keyed by the packing part alone.
-  const std::string key = rvegen::packing_to_json(scene);
+  // Output settings do not change the packing: the cache is keyed by the packing part alone,
+  // and by what moves the packed inclusions (a scene's tetrahedral mesh nudges them off its
+  // cell's faces, as the command line does).
+  const rvegen::TetMeshSpec& tm = scene.tet_mesh;
+  const std::string key = rvegen::packing_to_json(scene) +
+                          (scene.outputs.mesh_tet && tm.shift_cell && tm.nudge ? "|nudged" : "");
   // After an abort the flag is cleared, so the next update runs; but the other ports of the
   // update that was aborted (ParaView updates ports 0, 1, 2, 3 in turn) must not start the
   // packing again: a later port asked for the same scene is left empty at once.
@@ -360,7 +365,7 @@ int vtkRVEGenerator::RequestData(vtkInformation* request, vtkInformationVector**
       try {
         // The packing on this->Threads cores (the same RVE for any number).
         tbb::task_arena packing(this->Threads > 0 ? this->Threads : tbb::task_arena::automatic);
-        packing.execute([&] { cache->result = rvegen::generate(scene, monitor); });
+        packing.execute([&] { cache->result = rvegen::pack_scene(scene, monitor).result; });
         packed_here = 1;
       } catch (const rvegen::Cancelled&) {
         aborted = true;
@@ -448,6 +453,11 @@ int vtkRVEGenerator::RequestData(vtkInformation* request, vtkInformationVector**
     inclusions->SetName("rvegen_inclusions");
     inclusions->InsertNextValue(rvegen::write_inclusions_json(result.set));
     points->GetFieldData()->AddArray(inclusions);
+    // The scene's least gap, which the RVE Tetrahedral Mesh keeps when it nudges inclusions.
+    vtkNew<vtkDoubleArray> min_gap;
+    min_gap->SetName("rvegen_min_gap");
+    min_gap->InsertNextValue(scene.min_gap);
+    points->GetFieldData()->AddArray(min_gap);
     ++this->PortExecutions[0];
     output_done();
   }

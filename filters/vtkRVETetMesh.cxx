@@ -1,10 +1,13 @@
 #include "vtkRVETetMesh.h"
 
 #include "rvegen/femesh/tet_mesh.hpp"
+#include "rvegen/io/inclusions_json.hpp"
 #include "rvegen/model/resources.hpp"
 #include "rvegen/model/scene.hpp"
+#include "rvegen/pipeline/run.hpp"
 #include "vtkCellArray.h"
 #include "vtkCellData.h"
+#include "vtkDoubleArray.h"
 #include "vtkFieldData.h"
 #include "vtkIdTypeArray.h"
 #include "vtkInformation.h"
@@ -14,6 +17,7 @@
 #include "vtkObjectFactory.h"
 #include "vtkPoints.h"
 #include "vtkRVECommon.h"
+#include "vtkStringArray.h"
 #include "vtkUnsignedCharArray.h"
 #include "vtkUnstructuredGrid.h"
 
@@ -29,6 +33,8 @@ vtkRVETetMesh::vtkRVETetMesh()
       ChordError(kDefaults.chord_error),
       GapElements(kDefaults.gap_elements),
       ShiftCell(kDefaults.shift_cell),
+      Nudge(kDefaults.nudge),
+      MinGap(-1.0),
       KeepVolumes(kDefaults.keep_volumes),
       Order(kDefaults.order),
       OptimizeThreshold(kDefaults.optimize_threshold) {}
@@ -57,35 +63,28 @@ int vtkRVETetMesh::RequestData(vtkInformation*, vtkInformationVector** in,
   t.chord_error = this->ChordError;
   t.gap_elements = this->GapElements;
   t.shift_cell = this->ShiftCell;
+  t.nudge = this->Nudge;
   t.keep_volumes = this->KeepVolumes;
   t.order = this->Order;
   t.optimize_threshold = this->OptimizeThreshold;
+  // The least gap a nudge keeps: MinGap, or the scene's that the input carries (the RVE
+  // Generator's field data rvegen_min_gap), else 0.
+  double min_gap = this->MinGap;
+  if (min_gap < 0.0) {
+    auto* given = vtkDoubleArray::SafeDownCast(
+        input->GetFieldData() ? input->GetFieldData()->GetArray("rvegen_min_gap") : nullptr);
+    min_gap = given && given->GetNumberOfValues() > 0 ? given->GetValue(0) : 0.0;
+  }
   rvegen::TetMesh mesh;
+  rvegen::Nudged nudged;
   try {
     rvegen::validate_tet_mesh_spec(scene);
-    // A mesh the machine cannot hold is refused before it starts (as the command line does).
-    rvegen::check_tet_meshable(set);
-    const double have = rvegen::available_memory_bytes();
-    const rvegen::TetMeshNeed need = rvegen::tet_mesh_need(set, scene.tet_mesh, have);
-    if (have > 0.0 && need.bytes > have) {
-      rvegen::TetMeshSpec fit;
-      rvegen::TetMeshNeed fit_need;
-      std::string instead;
-      if (rvegen::coarser_tet_mesh_that_fits(
-              set, scene.tet_mesh, have,
-              [have](const rvegen::TetMeshNeed& n) { return n.bytes <= have; }, &fit, &fit_need)) {
-        instead = "; with " +
-                  rvegen::describe_tet_mesh_change(scene.tet_mesh, fit,
-                                                   rvegen::SettingNames::kProperties) +
-                  " it would need about " + rvegen::format_bytes(fit_need.bytes);
-      }
-      vtkErrorMacro(<< "the tetrahedral mesh (" << (need.capped ? "more than " : "about ")
-                    << static_cast<long long>(need.elements) << " elements) would need about "
-                    << rvegen::format_bytes(need.bytes) << ", more than the "
-                    << rvegen::format_bytes(have) << " available" << instead
-                    << " (raise ChordError or MaxSize, or lower GapElements)");
-      return 0;
-    }
+    // The pipeline's steps, as the command line takes them: the inclusions moved off the
+    // chosen cell's faces where there is room, then a mesh the machine cannot hold refused
+    // before it starts.
+    nudged = rvegen::nudge_for_tet_mesh(&set, t, min_gap);
+    rvegen::check_tet_mesh_fits(set, t, rvegen::memory_limit(0.0), rvegen::ResourceEstimate{},
+                                rvegen::SettingNames::kProperties);
     rvegen::TetMeshOptions opt;
     static_cast<rvegen::TetMeshSpec&>(opt) = scene.tet_mesh;
     this->UpdateProgress(0.0);
@@ -143,6 +142,22 @@ int vtkRVETetMesh::RequestData(vtkInformation*, vtkInformationVector** in,
   moved->SetName("moved_nodes");
   moved->InsertNextValue(static_cast<int>(mesh.moved_nodes));
   grid->GetFieldData()->AddArray(moved);
+  // The cell meshed (the box moved along its axes, ShiftCell): the mesh lies there, not at the
+  // box, and is the same periodic medium.
+  vtkNew<vtkDoubleArray> origin;
+  origin->SetName("cell_origin");
+  origin->SetNumberOfComponents(3);
+  origin->InsertNextTuple(mesh.box.origin.data());
+  grid->GetFieldData()->AddArray(origin);
+  vtkNew<vtkIntArray> nudge_counts;
+  nudge_counts->SetName("nudged_inclusions");
+  nudge_counts->InsertNextValue(nudged.moved);
+  grid->GetFieldData()->AddArray(nudge_counts);
+  // The inclusions meshed (after the nudge), as inclusions.json has them.
+  vtkNew<vtkStringArray> inclusions;
+  inclusions->SetName("rvegen_inclusions");
+  inclusions->InsertNextValue(rvegen::write_inclusions_json(set));
+  grid->GetFieldData()->AddArray(inclusions);
   this->UpdateProgress(1.0);
   return 1;
 }
@@ -154,6 +169,8 @@ void vtkRVETetMesh::PrintSelf(ostream& os, vtkIndent indent) {
      << indent << "ChordError: " << this->ChordError << "\n"
      << indent << "GapElements: " << this->GapElements << "\n"
      << indent << "ShiftCell: " << this->ShiftCell << "\n"
+     << indent << "Nudge: " << this->Nudge << "\n"
+     << indent << "MinGap: " << this->MinGap << "\n"
      << indent << "KeepVolumes: " << this->KeepVolumes << "\n"
      << indent << "Order: " << this->Order << "\n"
      << indent << "OptimizeThreshold: " << this->OptimizeThreshold << "\n";

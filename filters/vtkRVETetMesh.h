@@ -5,10 +5,13 @@
  * Input: the Inclusions output of the RVE Generator, or inclusions.vtp written by rvegen
  * generate (both carry the inclusion list in field data "rvegen_inclusions"). Output: a
  * vtkUnstructuredGrid of tetrahedra following every interface, with opposite box faces meshed
- * alike (cell data phase and inclusion_id; field data phase_names, and merged_nodes, the nodes
- * the mesher left at one position and rvegen merged). Spheres, cylinders and ellipsoids,
- * coated or not, and debonded spheres; other inclusions give an error naming the family. The sizes are
- * those of a scene's "mesh_tet" object (0: the default). Progress follows the mesher's stages;
+ * alike (cell data phase and inclusion_id; field data phase_names, merged_nodes (the nodes
+ * the mesher left at one position and rvegen merged), cell_origin (the lower corner of the cell
+ * meshed: the box moved along its axes with ShiftCell), nudged_inclusions and rvegen_inclusions,
+ * the inclusions meshed). The steps are the command line's (rvegen/pipeline/run.hpp): the same
+ * inclusions give the same nudged inclusions and the same cell. Spheres, cylinders and ellipsoids,
+ * coated or not, and debonded spheres; other inclusions give an error naming the family. The sizes
+ * are those of a scene's "mesh_tet" object (0: the default). Progress follows the mesher's stages;
  * Abort stops it (within a stage it first finishes with coarse elements) and leaves the output
  * empty.
  */
@@ -41,6 +44,15 @@ class RVEGENFILTERS_EXPORT vtkRVETetMesh : public vtkUnstructuredGridAlgorithm {
   vtkSetMacro(ShiftCell, bool);
   vtkGetMacro(ShiftCell, bool);
   vtkBooleanMacro(ShiftCell, bool);
+  /// With ShiftCell, whether inclusions that every cell would graze move off its faces by a
+  /// few of their sizes at most, where there is room (a scene's mesh_tet.nudge).
+  vtkSetMacro(Nudge, bool);
+  vtkGetMacro(Nudge, bool);
+  vtkBooleanMacro(Nudge, bool);
+  /// The least gap a nudged inclusion keeps to the others; negative: the scene's, which the
+  /// RVE Generator's Inclusions carry (field data rvegen_min_gap), else 0.
+  vtkSetMacro(MinGap, double);
+  vtkGetMacro(MinGap, double);
   /// Whether the nodes inside curved interfaces move along the normal so that each phase keeps
   /// its exact volume (off: every interface node on the exact surface).
   vtkSetMacro(KeepVolumes, bool);
@@ -65,6 +77,8 @@ class RVEGENFILTERS_EXPORT vtkRVETetMesh : public vtkUnstructuredGridAlgorithm {
   double ChordError;
   double GapElements;
   bool ShiftCell;
+  bool Nudge;
+  double MinGap;
   bool KeepVolumes;
   int Order;
   double OptimizeThreshold;

@@ -15,11 +15,14 @@
 #include "rvegen/femesh/tet_mesh.hpp"
 #include "rvegen/geometry/pair.hpp"
 #include "rvegen/io/fe_mesh.hpp"
+#include "rvegen/io/inclusions_json.hpp"
 #include "rvegen/io/report.hpp"
 #include "rvegen/io/writers.hpp"
 #include "rvegen/model/body.hpp"
 #include "rvegen/model/neighbours.hpp"
 #include "rvegen/model/shell_overlaps.hpp"
+#include "rvegen/packing/audit.hpp"
+#include "rvegen/pipeline/run.hpp"
 
 namespace rvegen {
 namespace {
@@ -1207,6 +1210,33 @@ TEST(TetMesh, InclusionsEveryCellGrazesAreNudgedOffTheCellChosenAfterwards) {
   expect_apart(set, gap);
   InclusionSet again = set;
   EXPECT_EQ(nudge_off_cell(&again, o, gap).moved, 0);
+}
+
+// The pipeline's nudge (every front end's): the set is moved where the mesh needs it and
+// audited; a set nudged once is left as it is by a second nudge (the RVE Tetrahedral Mesh
+// filter nudges what the RVE Generator may have nudged already), and with nudge or
+// shift_cell off nothing moves.
+TEST(TetMesh, ThePipelinesNudgeMovesOnceAndLeavesANudgedSetAsItIs) {
+  const double r = 0.02, gap = 0.002;
+  InclusionSet set = shallow_fibres(r);
+  const InclusionSet before = set;
+  TetMeshSpec spec;
+  InclusionSet off = set;
+  spec.nudge = false;
+  EXPECT_EQ(nudge_for_tet_mesh(&off, spec, gap).moved, 0);
+  EXPECT_EQ(write_inclusions_json(off), write_inclusions_json(before));
+  spec.nudge = true;
+  spec.shift_cell = false;
+  EXPECT_EQ(nudge_for_tet_mesh(&off, spec, gap).moved, 0);
+  spec.shift_cell = true;
+  const Nudged first = nudge_for_tet_mesh(&set, spec, gap);
+  EXPECT_GE(first.moved, 1);
+  EXPECT_TRUE(audit(set, 16).clean());
+  const std::string once = write_inclusions_json(set);
+  EXPECT_NE(once, write_inclusions_json(before));
+  const Nudged second = nudge_for_tet_mesh(&set, spec, gap);
+  EXPECT_EQ(second.moved, 0);
+  EXPECT_EQ(write_inclusions_json(set), once);
 }
 
 // Every phase's volume in the mesh and the exact one, by label.

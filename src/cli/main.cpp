@@ -1,6 +1,5 @@
 // rvegen: command-line generator and auditor of Representative Volume Elements.
 #include <tbb/global_control.h>
-#include <tbb/parallel_invoke.h>
 
 #include <algorithm>
 #include <chrono>
@@ -16,27 +15,20 @@
 #include <string>
 #include <vector>
 
-#include "effective.hpp"
 #include "process.hpp"
 #include "ranks.hpp"
 #include "rvegen/femesh/lsan_suppressions.hpp"  // in sanitizer builds
-#include "rvegen/femesh/tet_mesh.hpp"
-#include "rvegen/io/amitex.hpp"
-#include "rvegen/io/fe_mesh.hpp"
-#include "rvegen/io/hdf5_writer.hpp"
 #include "rvegen/io/inclusions_json.hpp"
 #include "rvegen/io/report.hpp"
+#include "rvegen/io/report_sections.hpp"
 #include "rvegen/io/scene_json.hpp"
 #include "rvegen/io/writers.hpp"
-#include "rvegen/model/body.hpp"
 #include "rvegen/model/inclusion_set.hpp"
 #include "rvegen/model/resources.hpp"
 #include "rvegen/model/scene.hpp"
 #include "rvegen/packing/audit.hpp"
 #include "rvegen/packing/packing.hpp"
-#include "rvegen/raster/glyphs.hpp"
-#include "rvegen/raster/levelset.hpp"
-#include "rvegen/raster/mesh.hpp"
+#include "rvegen/pipeline/run.hpp"
 #include "rvegen/raster/voxelize.hpp"
 #include "study.hpp"
 
@@ -208,73 +200,6 @@ std::function<void(rvegen::InclusionSet&)> fault_hook() {
   };
 }
 
-// A mesh's three files (STEM.inp, .msh, .vtu), formatted side by side: each writer is serial,
-// and they only read the mesh.
-using Fill = std::function<void(std::FILE*)>;
-void write_mesh_files(rvegen::OutputSet& out, const std::string& stem, const Fill& inp,
-                      const Fill& msh, const Fill& vtu) {
-  tbb::parallel_invoke([&] { out.write_with(stem + ".inp", inp); },
-                       [&] { out.write_with(stem + ".msh", msh); },
-                       [&] { out.write_with(stem + ".vtu", vtu); });
-}
-
-// report.json's "mesh_tet": counts, the volume of each phase against the exact one, the least
-// element volume and the distribution of the elements' least dihedral angles.
-nlohmann::ordered_json tet_mesh_report(const rvegen::InclusionSet& set,
-                                       const rvegen::TetMesh& mesh) {
-  const rvegen::TetQuality q = rvegen::tet_quality(mesh);
-  std::vector<double> exact = rvegen::phase_volume_fractions(set, mesh.phases);
-  for (double& v : exact) v *= set.box.volume();
-  nlohmann::ordered_json r;
-  r["files"] = {"mesh_tet.inp", "mesh_tet.msh", "mesh_tet.vtu"};
-  r["mesher"] = "Gmsh (OpenCASCADE, " + mesh.volume_mesher + ")";
-  r["tetrahedra"] = mesh.tets.size();
-  // 1: 4-node tetrahedra (C3D4); 2: 10-node (C3D10), straight edges (mesh_tet.order).
-  r["order"] = mesh.mid.empty() ? 1 : 2;
-  r["nodes"] = mesh.nodes.size();
-  r["periodic_pairs"] = mesh.periodic.size();
-  r["merged_nodes"] = mesh.merged_nodes;
-  r["snapped_nodes"] = mesh.snapped_nodes;
-  // Interface nodes moved along the normal to keep the phases' volumes (mesh_tet.keep_volumes).
-  r["moved_nodes"] = mesh.moved_nodes;
-  // Nodes inside one region moved to lift elements under 5 degrees.
-  r["relocated_nodes"] = mesh.relocated_nodes;
-  // Nodes added inside one region where elements under 5 degrees were left.
-  r["inserted_nodes"] = mesh.inserted_nodes;
-  r["remade_slivers"] = mesh.remade_slivers;
-  r["sliver_rounds"] = mesh.sliver_rounds;
-  r["flat_elements_removed"] = mesh.flat_elements_removed;
-  r["raised_triangles"] = mesh.raised_triangles;
-  r["flipped_chords"] = mesh.flipped_chords;
-  r["retries"] = mesh.retries;
-  // The cell meshed: the box, or the box moved along its axes (mesh_tet.shift_cell).
-  r["cell_origin"] = {mesh.box.origin[0], mesh.box.origin[1], mesh.box.origin[2]};
-  // (1 and more alike: far from grazing anything; no inclusion near an edge gives 1.)
-  r["face_clearance"] = std::min(1.0, rvegen::face_clearance(set, mesh.box.origin));
-  r["edge_clearance"] = std::min(1.0, rvegen::edge_clearance(set, mesh.box.origin));
-  r["min_element_volume"] = q.min_volume;
-  nlohmann::ordered_json phases = nlohmann::ordered_json::array();
-  for (const rvegen::Phase& p : mesh.phases) {
-    const double v = q.phase_volume[p.label];
-    phases.push_back({{"label", p.label},
-                      {"name", p.name},
-                      {"volume", v},
-                      {"exact_volume", exact[p.label]},
-                      {"relative_error", exact[p.label] > 0.0 ? v / exact[p.label] - 1.0 : 0.0}});
-  }
-  r["phases"] = phases;
-  nlohmann::ordered_json d;
-  d["min"] = q.min_dihedral;
-  d["quantile_1_percent"] = q.quantiles[0];
-  d["quantile_5_percent"] = q.quantiles[1];
-  d["median"] = q.quantiles[2];
-  d["below_5_degrees"] = q.below_5_degrees;
-  d["bins_from"] = rvegen::TetQuality::kBins;
-  d["counts"] = q.dihedral_counts;
-  r["min_dihedral_degrees"] = d;
-  return r;
-}
-
 const char* kThreadsNeed = "--threads needs a whole number in [1, 4096]";
 // The count after --threads at args[*i] into *threads, *i moved past it; false when none is
 // there or it is not a whole number in [1, 4096].
@@ -286,6 +211,37 @@ bool read_threads(const std::vector<std::string>& args, size_t* i, int* threads)
   *threads = static_cast<int>(t);
   ++*i;
   return true;
+}
+
+// The summary line of a run written, and its exit code: 3 when the target was not reached
+// (the best valid configuration was written), 5 when a solve did not converge.
+int finish_generate(const rvegen::RunOutcome& run, const rvegen::Scene& scene,
+                    const std::string& out_dir, bool quiet,
+                    std::chrono::steady_clock::time_point t0) {
+  if (!quiet) {
+    const auto vf =
+        rvegen::family_volume_fractions(run.result.set, static_cast<int>(scene.families.size()));
+    double total = 0.0;
+    for (double v : vf) total += v;
+    int files = 0;
+    const uintmax_t bytes = directory_bytes(out_dir, &files);
+    std::fprintf(stderr,
+                 "rvegen: %zu inclusions, volume fraction %.4f, %.2f s -> %s (%s in %d files)\n",
+                 run.result.set.inclusions.size(), total, seconds_since(t0), out_dir.c_str(),
+                 human_bytes(bytes).c_str(), files);
+  }
+  if (run.result.status != rvegen::PackingStatus::kOk) {
+    std::cerr << "rvegen: target volume fraction not reached (status "
+              << rvegen::status_name(run.result.status) << ", "
+              << rvegen::stop_reason_name(run.result.stop_reason)
+              << "); the best valid configuration found was written\n";
+    return kExitNotReached;
+  }
+  if (!run.not_converged.empty()) {
+    std::cerr << kNotConverged << run.not_converged << "\n";
+    return kExitNotConverged;
+  }
+  return kExitOk;
 }
 
 int cmd_generate(const std::vector<std::string>& args) {
@@ -354,23 +310,13 @@ int cmd_generate(const std::vector<std::string>& args) {
   }
   // Memory: the estimated peak against the limit, before any large allocation. The tetrahedral
   // mesh's share is only a guess before packing (its thin gaps are not known yet): when the
-  // scene fits without it, the inclusions are packed and the mesher's own size field decides
-  // below, and offers settings that fit this RVE, so that one run reaches them.
-  const rvegen::ResourceEstimate need = rvegen::estimate_resources(scene);
-  const double limit = max_memory > 0.0 ? max_memory : rvegen::available_memory_bytes();
-  const std::string above_limit =
-      std::string(", above the ") +
-      (max_memory > 0.0 ? "--max-memory limit of " : "memory available, ") +
-      rvegen::format_bytes(limit);
-  const bool over = limit > 0.0 && need.total_bytes() > limit;
-  bool mesh_guess_over = false;
-  if (over && scene.outputs.mesh_tet) {
-    rvegen::Scene without = scene;
-    without.outputs.mesh_tet = false;
-    mesh_guess_over = rvegen::estimate_resources(without).total_bytes() <= limit;
-  }
-  if (over && !mesh_guess_over) {
-    std::cerr << "rvegen: the scene needs about " << rvegen::describe(need) << above_limit << "\n";
+  // scene fits without it, the inclusions are packed and the mesher's own size field decides,
+  // and offers settings that fit this RVE, so that one run reaches them.
+  rvegen::RunPlan plan;
+  try {
+    plan = rvegen::plan_run(scene, rvegen::memory_limit(max_memory));
+  } catch (const rvegen::InputError& e) {
+    std::cerr << "rvegen: " << e.what() << "\n";
     return kExitInvalid;
   }
   // --threads: every parallel phase (packing, voxels, FFT) on at most that many cores; the same
@@ -380,302 +326,30 @@ int cmd_generate(const std::vector<std::string>& args) {
     thread_limit = std::make_unique<tbb::global_control>(
         tbb::global_control::max_allowed_parallelism, static_cast<size_t>(threads));
   }
-  rvegen::ProgressFn progress;
-  if (!quiet) progress = [](const std::string& line) { std::cerr << line << "\n"; };
-  rvegen::RunTimings timings;
+  rvegen::RunOptions options;
+  if (!quiet) options.progress = [](const std::string& line) { std::cerr << line << "\n"; };
+  options.threads = threads;
+  options.start = t0;
+  options.before_audit = fault_hook();
   try {
     // The output place is checked (and a private staging directory made) before the work.
     rvegen::OutputSet out(out_dir);
-    if (mesh_guess_over && progress) {
-      progress("tetrahedral mesh: about " +
-               std::to_string(static_cast<long long>(need.tetrahedra)) +
-               " elements guessed from the scene, " + rvegen::format_bytes(need.total_bytes()) +
-               " at peak" + above_limit + ": packing, then the packed inclusions' gaps decide");
+    const rvegen::RunOutcome run = rvegen::run_to_directory(scene, plan, options, out);
+    if (run.slivers > 0) {
+      // Written all the same (the mesh conforms and fills the box); the analyst decides.
+      std::cerr << "rvegen: mesh_tet: " << run.slivers
+                << " elements have a dihedral angle under 5 degrees (least " << run.least_dihedral
+                << "); report.json's mesh_tet gives their distribution. Thin gaps and "
+                   "inclusions that barely cross a box face (a thin cap, whose edge angle "
+                   "bounds its elements') make them: another min_gap or mesh_tet.min_size "
+                   "may help.\n";
     }
-    rvegen::PackingResult result = rvegen::generate(scene, progress, fault_hook());
-    timings.phases.emplace_back("packing", result.seconds);
-    timings.phases.emplace_back("audit", result.audit_seconds);
-    // Inclusions that the mesh's cell cannot keep off are moved off its faces where there is
-    // room, before anything is written; the moved set is audited like the packed one (and, should
-    // that fail, the packed set is kept).
-    rvegen::Nudged nudged;
-    if (scene.outputs.mesh_tet) rvegen::check_tet_meshable(result.set);
-    if (scene.outputs.mesh_tet && scene.tet_mesh.shift_cell && scene.tet_mesh.nudge) {
-      rvegen::InclusionSet moved = result.set;
-      nudged = rvegen::nudge_off_chosen_cell(&moved, scene.min_gap);
-      if (nudged.moved > 0) {
-        if (rvegen::audit(moved, 16).clean()) {
-          result.set = std::move(moved);
-        } else {
-          nudged.stuck += nudged.moved;
-          nudged.moved = 0;
-        }
-      }
-      if (progress && (nudged.moved > 0 || nudged.stuck > 0)) {
-        progress("tetrahedral mesh: " + std::to_string(nudged.moved) +
-                 " inclusions moved off the cell's faces, " + std::to_string(nudged.stuck) +
-                 " with no room to");
-      }
-    }
-    // The tetrahedral mesh of the packed set, from the mesher's own size field (the gaps between
-    // the inclusions are known now), against the same limit, before anything is written.
-    rvegen::TetMeshNeed mesh_need;
-    if (scene.outputs.mesh_tet) {
-      mesh_need = rvegen::tet_mesh_need(result.set, scene.tet_mesh, limit);
-      rvegen::ResourceEstimate packed = need;
-      packed.tetrahedra = mesh_need.elements;
-      packed.tet_mesh_bytes = mesh_need.bytes;
-      const std::string about = (mesh_need.capped ? "more than " : "about ") +
-                                std::to_string(static_cast<long long>(mesh_need.elements)) +
-                                " elements, " + rvegen::format_bytes(packed.total_bytes());
-      if (limit > 0.0 && packed.total_bytes() > limit) {
-        // The first coarser mesh of this RVE that would fit, if any.
-        rvegen::TetMeshSpec fit;
-        rvegen::TetMeshNeed fit_need;
-        std::string instead;
-        if (rvegen::coarser_tet_mesh_that_fits(
-                result.set, scene.tet_mesh, limit,
-                [&](const rvegen::TetMeshNeed& n) {
-                  rvegen::ResourceEstimate e = packed;
-                  e.tet_mesh_bytes = n.bytes;
-                  return e.total_bytes() <= limit;
-                },
-                &fit, &fit_need)) {
-          packed.tet_mesh_bytes = fit_need.bytes;
-          instead = "; with " + rvegen::describe_tet_mesh_change(scene.tet_mesh, fit) +
-                    " this RVE's mesh would need about " +
-                    std::to_string(static_cast<long long>(fit_need.elements)) + " elements, " +
-                    rvegen::format_bytes(packed.total_bytes());
-        }
-        throw rvegen::InputError(
-            "mesh_tet: the tetrahedral mesh of this RVE needs " + about + " at peak" + above_limit +
-            instead +
-            " (raise mesh_tet.chord_error or max_size, lower gap_elements, or give a larger "
-            "min_gap: thin gaps take the smallest elements)");
-      }
-      if (progress) progress("tetrahedral mesh: " + about + " expected");
-    }
-    auto timed = [&](const std::string& what, const std::function<void()>& f) {
-      const auto t = std::chrono::steady_clock::now();
-      f();
-      const double sec = seconds_since(t);
-      timings.phases.emplace_back(what, sec);
-      if (progress) {
-        char buf[160];
-        std::snprintf(buf, sizeof buf, "%s: %.2f s", what.c_str(), sec);
-        progress(buf);
-      }
-    };
-    const rvegen::Outputs& want = scene.outputs;
-    std::string inclusions;
-    if (want.inclusions) {
-      timed("write inclusions.json", [&] {
-        inclusions = rvegen::write_inclusions_json(result.set);
-        out.write("inclusions.json", inclusions);
-      });
-      timed("write inclusions.vtp", [&] {
-        out.write_with("inclusions.vtp",
-                       [&](std::FILE* f) { rvegen::write_points_vtp(result.set, inclusions, f); });
-      });
-    }
-    // Surfaces: of every inclusion when the mesh is asked for; otherwise of the wavy, deformed,
-    // coated and debonded ones only (their shape is not a glyph), when there are any.
-    rvegen::InclusionSet meshed = rvegen::meshed_inclusions(result.set, want.mesh, true);
-    if (!meshed.inclusions.empty()) {
-      timed("surfaces", [&] {
-        const rvegen::SurfaceMesh mesh =
-            rvegen::tessellate(meshed, rvegen::mesh_options(scene, scene.box));
-        out.write_with("surfaces.vtp",
-                       [&](std::FILE* f) { rvegen::write_surfaces_vtp(mesh, inclusions, f); });
-      });
-    }
-    meshed = rvegen::InclusionSet{};
-    inclusions.clear();
-    inclusions.shrink_to_fit();
-    rvegen::LevelSets levelsets;
-    if (progress && need.band_voxels > 0.0) {
-      char buf[160];
-      std::snprintf(buf, sizeof buf, "level sets: about %.3g narrow-band voxels to compute",
-                    need.band_voxels);
-      progress(buf);
-    }
-    if (want.levelsets)
-      timed("level sets", [&] {
-        rvegen::LevelSetOptions lopt;
-        lopt.voxel_size = scene.levelset_voxel_size;
-        lopt.half_width = scene.levelset_half_width;
-        lopt.exact_shapes = want.levelsets_asked;
-        levelsets = rvegen::build_level_sets(result.set, lopt);
-        if (!levelsets.empty())
-          out.write("levelsets.vdb", rvegen::vdb_bytes(levelsets, result.set));
-        levelsets.data.reset();  // the report keeps the grid summaries only
-      });
-    rvegen::VoxelImage image;
-    if (want.image() || scene.homogenization.any()) {
-      timed("voxels", [&] {
-        rvegen::VoxelOptions vopt;
-        vopt.partial_volume = scene.partial_volume;
-        vopt.subsamples = scene.subsamples;
-        image = rvegen::voxelize(result.set, scene.resolution, vopt);
-      });
-    }
-    if (want.voxels) {
-      timed("write voxels.vti", [&] {
-        out.write_with("voxels.vti", [&](std::FILE* f) { rvegen::write_vti(image, f); });
-      });
-    }
-    if (want.amitex) {
-      timed("write material.vtk", [&] {
-        out.write_with("material.vtk", [&](std::FILE* f) { rvegen::write_material_vtk(image, f); });
-        out.write_with("zoneID.vtk", [&](std::FILE* f) { rvegen::write_zone_vtk(image, f); });
-        out.write("amitex_materials.xml", rvegen::amitex_materials_xml(scene, result.set, image));
-        out.write("amitex_loading.xml", rvegen::amitex_loading_xml());
-        out.write("amitex_algorithm.xml", rvegen::amitex_algorithm_xml());
-        if (rvegen::amitex_conductivity_wanted(scene)) {
-          out.write("amitex_conductivity_materials.xml",
-                    rvegen::amitex_conductivity_materials_xml(scene, image));
-          out.write("amitex_conductivity_loading.xml", rvegen::amitex_conductivity_loading_xml());
-          out.write("amitex_conductivity_algorithm.xml",
-                    rvegen::amitex_conductivity_algorithm_xml());
-        }
-        out.write("amitex_run.sh", rvegen::amitex_run_sh(scene));
-      });
-    }
-    if (want.mesh_voxel) {
-      timed("write mesh_voxel.inp, .msh, .vtu", [&] {
-        write_mesh_files(
-            out, "mesh_voxel", [&](std::FILE* f) { rvegen::write_abaqus_voxel_mesh(image, f); },
-            [&](std::FILE* f) { rvegen::write_gmsh_voxel_mesh(image, f); },
-            [&](std::FILE* f) { rvegen::write_voxel_mesh_vtu(image, f); });
-        for (const bool elastic : {false, true}) {
-          const std::string deck = rvegen::abaqus_voxel_deck(scene, result.set, image, elastic);
-          if (!deck.empty()) {
-            out.write(elastic ? "run_voxel_elasticity.inp" : "run_voxel_conductivity.inp", deck);
-          }
-        }
-      });
-    }
-    nlohmann::ordered_json tet_report;
-    if (want.mesh_tet) {
-      rvegen::TetMesh tets;
-      timed("tetrahedral mesh", [&] {
-        rvegen::TetMeshOptions topt;
-        static_cast<rvegen::TetMeshSpec&>(topt) = scene.tet_mesh;
-        topt.threads = threads;
-        tets = rvegen::tet_mesh(result.set, topt, [&](double, const std::string& line) {
-          if (!line.empty() && progress) progress(line);
-          return true;
-        });
-      });
-      timed("write mesh_tet.inp, .msh, .vtu", [&] {
-        write_mesh_files(
-            out, "mesh_tet", [&](std::FILE* f) { rvegen::write_abaqus_tet_mesh(tets, f); },
-            [&](std::FILE* f) { rvegen::write_gmsh_tet_mesh(tets, f); },
-            [&](std::FILE* f) { rvegen::write_tet_mesh_vtu(tets, f); });
-      });
-      tet_report = tet_mesh_report(result.set, tets);
-      // Inclusions moved off the cell's faces before anything was written (mesh_tet.nudge), and
-      // those that graze it with no room to move.
-      tet_report["nudged_inclusions"] = nudged.moved;
-      tet_report["nudge_stuck"] = nudged.stuck;
-      // The estimate the memory check used, beside the count it estimated.
-      tet_report["estimated_tetrahedra"] = std::llround(mesh_need.elements);
-      const auto& angles = tet_report["min_dihedral_degrees"];
-      if (angles["below_5_degrees"].get<long long>() > 0) {
-        // Written all the same (the mesh conforms and fills the box); the analyst decides.
-        std::cerr << "rvegen: mesh_tet: " << angles["below_5_degrees"].get<long long>()
-                  << " elements have a dihedral angle under 5 degrees (least "
-                  << angles["min"].get<double>()
-                  << "); report.json's mesh_tet gives their distribution. Thin gaps and "
-                     "inclusions that barely cross a box face (a thin cap, whose edge angle "
-                     "bounds its elements') make them: another min_gap or mesh_tet.min_size "
-                     "may help.\n";
-      }
-      for (const bool elastic : {false, true}) {
-        const std::string deck = rvegen::abaqus_tet_deck(scene, result.set, tets, elastic);
-        const char* name = elastic ? "run_tet_elasticity.inp" : "run_tet_conductivity.inp";
-        if (!deck.empty()) {
-          out.write(name, deck);
-          tet_report["files"].push_back(name);
-        }
-      }
-    }
-    nlohmann::ordered_json effective;
-    rvegen::EffectiveProperties solved;
-    std::string not_converged;  // what the solves left above their tolerance
-    std::vector<rvegen::LocalField> fields;
-    if (scene.homogenization.any()) {
-      timed("homogenization", [&] {
-        effective = rvegen::cli::effective_properties(scene, result.set, image, progress, &solved);
-      });
-      not_converged = rvegen::unconverged(solved, scene.homogenization.tolerance);
-      // The local fields for rve.h5 (scene.homogenization.fields), per load case.
-      auto add = [&](const char* physics, const char* what, const char* names, int count,
-                     const std::vector<std::vector<float>>& per_load) {
-        for (size_t l = 0; l < per_load.size(); ++l) {
-          fields.push_back({std::string(physics) + "/load_" + std::to_string(l) + "/" + what, names,
-                            count, &per_load[l]});
-        }
-      };
-      add("conductivity", "gradient", "1 2 3", 3, solved.gradient);
-      add("conductivity", "flux", "1 2 3", 3, solved.flux);
-      add("elasticity", "strain", "11 22 33 23 13 12", 6, solved.strain);
-      add("elasticity", "stress", "11 22 33 23 13 12", 6, solved.stress);
-    }
-    rvegen::ReportStatistics stats;
-    if (want.statistics) {
-      timed("statistics", [&] { stats = rvegen::report_statistics(scene, result); });
-    }
-    auto report_now = [&] {
-      timings.total_seconds = seconds_since(t0);
-      timings.peak_memory_mb = peak_memory_mb();
-      std::string text =
-          rvegen::report_json(scene, result, want.image() ? &image : nullptr, timings, &levelsets,
-                              want.statistics ? &stats : nullptr);
-      if (effective.is_null() && tet_report.is_null()) return text;
-      nlohmann::ordered_json report = nlohmann::ordered_json::parse(text);
-      if (!tet_report.is_null()) report["mesh_tet"] = tet_report;
-      if (!effective.is_null()) report["effective"] = effective;
-      return report.dump(2) + "\n";
-    };
-    // rve.h5 carries the report as it stood before rve.h5 itself was written.
-    if (want.h5) {
-      timed("write rve.h5", [&] {
-        out.write("rve.xdmf", rvegen::xdmf_text(image, "rve.h5", fields));
-        rvegen::write_hdf5(out.staged_path("rve.h5"), image, result.set,
-                           rvegen::scene_to_json(scene), report_now(), fields);
-      });
-    }
-    out.write("report.json", report_now());
     out.commit();
     if (!out.leftover().empty()) {
       std::cerr << "rvegen: the previous set in " << out_dir << " could not be removed (not ours "
                 << "to delete); it stays at " << out.leftover() << "\n";
     }
-    const auto vf =
-        rvegen::family_volume_fractions(result.set, static_cast<int>(scene.families.size()));
-    double total = 0.0;
-    for (double v : vf) total += v;
-    if (!quiet) {
-      int files = 0;
-      const uintmax_t bytes = directory_bytes(out_dir, &files);
-      std::fprintf(stderr,
-                   "rvegen: %zu inclusions, volume fraction %.4f, %.2f s -> %s (%s in %d files)\n",
-                   result.set.inclusions.size(), total, seconds_since(t0), out_dir.c_str(),
-                   human_bytes(bytes).c_str(), files);
-    }
-    if (result.status != rvegen::PackingStatus::kOk) {
-      std::cerr << "rvegen: target volume fraction not reached (status "
-                << rvegen::status_name(result.status) << ", "
-                << rvegen::stop_reason_name(result.stop_reason)
-                << "); the best valid configuration found was written\n";
-      return kExitNotReached;
-    }
-    if (!not_converged.empty()) {
-      std::cerr << kNotConverged << not_converged << "\n";
-      return kExitNotConverged;
-    }
-    return kExitOk;
+    return finish_generate(run, scene, out_dir, quiet, t0);
   } catch (const rvegen::AuditFailure& e) {
     std::cerr << "rvegen: " << e.what() << "; nothing was written\n";
     return kExitAudit;
@@ -691,7 +365,7 @@ int cmd_generate(const std::vector<std::string>& args) {
     std::cerr << "rvegen: " << e.what() << "; " << out_dir << " is unchanged\n";
     return kExitOutput;
   } catch (const std::bad_alloc&) {
-    std::cerr << "rvegen: out of memory (the estimate was " << rvegen::describe(need)
+    std::cerr << "rvegen: out of memory (the estimate was " << rvegen::describe(plan.need)
               << "); nothing was written\n";
     return kExitInvalid;
   } catch (const std::exception& e) {
@@ -794,9 +468,13 @@ int cmd_homogenize(const std::vector<std::string>& args) {
     const auto progress = [&](const std::string& line) {
       if (!quiet) say << line << "\n";
     };
-    rvegen::EffectiveProperties solved;
-    const auto out = rvegen::cli::effective_properties(scene, set, image, progress, &solved, comm);
-    if (ranks.root()) std::cout << out.dump(2) << "\n";
+    const rvegen::EffectiveProperties solved =
+        rvegen::solve_effective(scene, set, image, progress, comm);
+    if (ranks.root()) {
+      const std::string section =
+          rvegen::effective_section(scene.homogenization, solved, rvegen::ranks_of(comm));
+      std::cout << nlohmann::ordered_json::parse(section).dump(2) << "\n";
+    }
     const std::string not_converged = rvegen::unconverged(solved, scene.homogenization.tolerance);
     if (!not_converged.empty()) {
       say << kNotConverged << not_converged << "\n";

@@ -2,8 +2,6 @@
 // the peak memory the whole command used and the memory sizes given to it.
 #pragma once
 
-#include <sys/resource.h>
-
 #include <cmath>
 #include <cstddef>
 #include <cstdlib>
@@ -11,17 +9,13 @@
 #include <string>
 
 #include "rvegen/io/json_util.hpp"
+#include "rvegen/model/resources.hpp"
 
 namespace rvegen::cli {
 
 constexpr size_t kMaxSceneBytes = size_t(16) << 20;
 
-/// Peak resident memory of this process so far, in MiB.
-inline double peak_memory_mb() {
-  struct rusage ru {};
-  if (getrusage(RUSAGE_SELF, &ru) != 0) return 0.0;
-  return ru.ru_maxrss / 1024.0;  // kilobytes on Linux
-}
+using rvegen::peak_memory_mb;
 
 /// "2G", "512M", "1000000": bytes; negative when malformed (--max-memory).
 inline double parse_size(const std::string& text) {

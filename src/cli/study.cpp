@@ -29,6 +29,7 @@
 #include "rvegen/model/resources.hpp"
 #include "rvegen/model/stats.hpp"
 #include "rvegen/packing/packing.hpp"
+#include "rvegen/pipeline/run.hpp"
 #include "rvegen/raster/voxelize.hpp"
 
 namespace rvegen::cli {
@@ -877,7 +878,7 @@ int cmd_study(const std::vector<std::string>& args) {
     rec["box"] = {s.box.size[0], s.box.size[1], s.box.size[2]};
     rec["volume"] = s.box.volume();
     try {
-      const PackingResult r = generate(s);
+      const PackingResult r = pack_scene(s, Monitor{}).result;
       rec["status"] = status_name(r.status);
       rec["count"] = r.set.inclusions.size();
       json windows = json::object();

@@ -73,7 +73,7 @@ ReportStatistics report_statistics(const Scene& scene, const PackingResult& r) {
 
 std::string report_json(const Scene& scene, const PackingResult& r, const VoxelImage* image,
                         const RunTimings& timings, const LevelSets* levelsets,
-                        const ReportStatistics* stats) {
+                        const ReportStatistics* stats, const std::vector<ReportSection>& sections) {
   using OJson = nlohmann::ordered_json;
   const int nf = static_cast<int>(scene.families.size());
   const std::vector<double> vf = family_volume_fractions(r.set, nf);
@@ -206,6 +206,7 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
     vox["conflicts"] = image->conflicts;
     root["voxels"] = vox;
   }
+  for (const ReportSection& s : sections) root[s.first] = OJson::parse(s.second);
   return root.dump(2) + "\n";
 }
 

@@ -44,11 +44,16 @@ struct ReportStatistics {
 };
 ReportStatistics report_statistics(const Scene& scene, const PackingResult& result);
 
+/// A section of report.json after the packing's: its key and its JSON object text
+/// (report_sections.hpp builds "mesh_tet" and "effective").
+using ReportSection = std::pair<std::string, std::string>;
+
 /// report.json text. `image` may be null (then no voxel statistics), `levelsets` too (then no
 /// level-set section), `stats` too (then no g(r) and no nearest-neighbour section: the
-/// "statistics" output left out).
+/// "statistics" output left out); `sections` follow in their order.
 std::string report_json(const Scene& scene, const PackingResult& result, const VoxelImage* image,
                         const RunTimings& timings, const LevelSets* levelsets = nullptr,
-                        const ReportStatistics* stats = nullptr);
+                        const ReportStatistics* stats = nullptr,
+                        const std::vector<ReportSection>& sections = {});
 
 }  // namespace rvegen

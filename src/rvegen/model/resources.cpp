@@ -242,6 +242,12 @@ ResourceEstimate estimate_resources(const Scene& scene) {
   return e;
 }
 
+double peak_memory_mb() {
+  struct rusage ru {};
+  if (getrusage(RUSAGE_SELF, &ru) != 0) return 0.0;
+  return ru.ru_maxrss / 1024.0;  // kilobytes on Linux
+}
+
 double available_memory_bytes() {
   double avail = 0.0;
   std::ifstream mi("/proc/meminfo");

@@ -61,6 +61,9 @@ std::string describe_tet_mesh_change(const TetMeshSpec& from, const TetMeshSpec&
 /// cgroup allows, and what its address-space limit (ulimit -v) leaves; 0 when unknown.
 double available_memory_bytes();
 
+/// Peak resident memory of this process so far, in MiB (0 when unknown).
+double peak_memory_mb();
+
 /// "1.2 GB (packing 0.3 GB, surfaces 0.1 GB, voxels 0.8 GB, level sets 0 GB)".
 std::string describe(const ResourceEstimate& e);
 /// "1.2 GB".

@@ -15,8 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "process.hpp"
-#include "ranks.hpp"
+#include "args.hpp"
 #include "rvegen/femesh/lsan_suppressions.hpp"  // in sanitizer builds
 #include "rvegen/io/inclusions_json.hpp"
 #include "rvegen/io/report.hpp"
@@ -28,7 +27,9 @@
 #include "rvegen/model/scene.hpp"
 #include "rvegen/packing/audit.hpp"
 #include "rvegen/packing/packing.hpp"
+#include "rvegen/pipeline/ranks.hpp"
 #include "rvegen/pipeline/run.hpp"
+#include "rvegen/pipeline/rve_input.hpp"
 #include "rvegen/raster/voxelize.hpp"
 #include "study.hpp"
 
@@ -47,10 +48,14 @@ constexpr const char* kNotConverged =
     "rvegen: homogenization did not converge, so its tensors are not the RVE's effective "
     "properties (report.json: \"converged\": false): ";
 
+using rvegen::kMaxInclusionFileBytes;
 using rvegen::cli::kMaxSceneBytes;
-using rvegen::cli::parse_size;
+using rvegen::cli::number_in;
 using rvegen::cli::peak_memory_mb;
-constexpr size_t kMaxInclusionFileBytes = size_t(2) << 30;
+using rvegen::cli::read_args;
+using rvegen::cli::size_in_bytes;
+using rvegen::cli::split_commas;
+using rvegen::cli::UsageError;
 
 #ifndef RVEGEN_VERSION
 #define RVEGEN_VERSION "unknown"
@@ -146,44 +151,6 @@ int usage_error(const std::string& msg, const std::string& command = "") {
   return kExitInvalid;
 }
 
-// An unknown option of `command`, with the nearest known one when it is close.
-int unknown_option(const std::string& option, const std::string& command,
-                   std::initializer_list<const char*> known) {
-  return usage_error(
-      "unknown option " + option + " of " + command + rvegen::cli::did_you_mean(option, known),
-      command);
-}
-
-// "812 KB", "71.1 MB", "1.54 GB" (decimal units, three significant figures or so).
-std::string human_bytes(uintmax_t bytes) {
-  char buf[32];
-  const double b = static_cast<double>(bytes);
-  if (b < 1e3) {
-    std::snprintf(buf, sizeof buf, "%.0f B", b);
-  } else if (b < 1e6) {
-    std::snprintf(buf, sizeof buf, "%.0f KB", b / 1e3);
-  } else if (b < 1e9) {
-    std::snprintf(buf, sizeof buf, "%.1f MB", b / 1e6);
-  } else {
-    std::snprintf(buf, sizeof buf, "%.2f GB", b / 1e9);
-  }
-  return buf;
-}
-
-// Bytes of the regular files in `dir` (what a run wrote).
-uintmax_t directory_bytes(const std::string& dir, int* files) {
-  uintmax_t total = 0;
-  *files = 0;
-  std::error_code ec;
-  for (const auto& e : std::filesystem::directory_iterator(dir, ec)) {
-    if (e.is_regular_file(ec)) {
-      total += e.file_size(ec);
-      ++*files;
-    }
-  }
-  return total;
-}
-
 double seconds_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
@@ -200,17 +167,9 @@ std::function<void(rvegen::InclusionSet&)> fault_hook() {
   };
 }
 
-const char* kThreadsNeed = "--threads needs a whole number in [1, 4096]";
-// The count after --threads at args[*i] into *threads, *i moved past it; false when none is
-// there or it is not a whole number in [1, 4096].
-bool read_threads(const std::vector<std::string>& args, size_t* i, int* threads) {
-  if (*i + 1 >= args.size()) return false;
-  char* end = nullptr;
-  const long t = std::strtol(args[*i + 1].c_str(), &end, 10);
-  if (args[*i + 1].empty() || *end != '\0' || t < 1 || t > 4096) return false;
-  *threads = static_cast<int>(t);
-  ++*i;
-  return true;
+const char* kThreadsNeed = "a whole number in [1, 4096]";
+int read_threads(const std::string& v) {
+  return static_cast<int>(number_in(v, 1, 4096, true, "--threads", kThreadsNeed));
 }
 
 // The summary line of a run written, and its exit code: 3 when the target was not reached
@@ -223,12 +182,9 @@ int finish_generate(const rvegen::RunOutcome& run, const rvegen::Scene& scene,
         rvegen::family_volume_fractions(run.result.set, static_cast<int>(scene.families.size()));
     double total = 0.0;
     for (double v : vf) total += v;
-    int files = 0;
-    const uintmax_t bytes = directory_bytes(out_dir, &files);
-    std::fprintf(stderr,
-                 "rvegen: %zu inclusions, volume fraction %.4f, %.2f s -> %s (%s in %d files)\n",
+    std::fprintf(stderr, "rvegen: %zu inclusions, volume fraction %.4f, %.2f s -> %s (%s)\n",
                  run.result.set.inclusions.size(), total, seconds_since(t0), out_dir.c_str(),
-                 human_bytes(bytes).c_str(), files);
+                 rvegen::describe_directory(out_dir).c_str());
   }
   if (run.result.status != rvegen::PackingStatus::kOk) {
     std::cerr << "rvegen: target volume fraction not reached (status "
@@ -249,55 +205,35 @@ int cmd_generate(const std::vector<std::string>& args) {
     std::cout << kGenerateUsage;
     return kExitOk;
   }
-  std::string scene_path, out_dir = "rve", outputs_list;
+  std::string scene_path, out_dir = "rve";
+  std::vector<std::string> outputs;  // --outputs
   bool quiet = false, outputs_given = false;
   double max_memory = 0.0;
   int threads = 0;  // all cores
-  for (size_t i = 0; i < args.size(); ++i) {
-    if (args[i] == "-o" || args[i] == "--output") {
-      if (i + 1 >= args.size()) return usage_error("-o needs a directory", "generate");
-      out_dir = args[++i];
-    } else if (args[i] == "--outputs") {
-      if (i + 1 >= args.size()) {
-        return usage_error("--outputs needs a list such as inclusions,voxels,h5", "generate");
-      }
-      outputs_list = args[++i];
-      outputs_given = true;
-    } else if (args[i] == "--quiet" || args[i] == "-q") {
-      quiet = true;
-    } else if (args[i] == "--threads") {
-      if (!read_threads(args, &i, &threads)) return usage_error(kThreadsNeed, "generate");
-    } else if (args[i] == "--max-memory") {
-      if (i + 1 >= args.size()) return usage_error("--max-memory needs a size", "generate");
-      max_memory = parse_size(args[++i]);
-      if (max_memory <= 0.0) {
-        return usage_error("--max-memory: not a size: " + args[i], "generate");
-      }
-    } else if (!args[i].empty() && args[i][0] == '-') {
-      return unknown_option(
-          args[i], "generate",
-          {"-o", "--output", "--outputs", "--quiet", "--threads", "--max-memory", "--help"});
-    } else if (scene_path.empty()) {
-      scene_path = args[i];
-    } else {
-      return usage_error("more than one scene file given", "generate");
-    }
+  try {
+    const auto files = read_args(
+        args, "generate",
+        {{{"-o", "--output"}, "a directory", [&](const std::string& v) { out_dir = v; }},
+         {{"--outputs"},
+          "a list such as inclusions,voxels,h5",
+          [&](const std::string& v) { outputs = split_commas(v), outputs_given = true; }},
+         {{"-q", "--quiet"}, "", [&](const std::string&) { quiet = true; }},
+         {{"--threads"}, kThreadsNeed, [&](const std::string& v) { threads = read_threads(v); }},
+         {{"--max-memory"}, "a size", [&](const std::string& v) {
+            max_memory = size_in_bytes(v, "--max-memory");
+          }}});
+    if (files.size() > 1) throw UsageError("more than one scene file given");
+    if (!files.empty()) scene_path = files[0];
+  } catch (const UsageError& e) {
+    return usage_error(e.what(), "generate");
   }
   const auto t0 = std::chrono::steady_clock::now();
   rvegen::Scene scene;
   try {
     scene = scene_path.empty() ? rvegen::default_scene()
                                : rvegen::parse_scene(rvegen::read_file(scene_path, kMaxSceneBytes));
-    if (outputs_given) {
-      std::vector<std::string> names;
-      size_t at = 0;
-      while (at <= outputs_list.size()) {
-        const size_t comma = std::min(outputs_list.find(',', at), outputs_list.size());
-        names.push_back(outputs_list.substr(at, comma - at));
-        at = comma + 1;
-      }
-      scene.outputs = rvegen::outputs_from_names(names, scene.outputs.mesh, "--outputs");
-    }
+    if (outputs_given)
+      scene.outputs = rvegen::outputs_from_names(outputs, scene.outputs.mesh, "--outputs");
     if (scene.homogenization.fields && !(scene.homogenization.any() && scene.outputs.h5)) {
       throw rvegen::InputError(
           "homogenization.fields: the local fields go into rve.h5: ask for a physics and add "
@@ -383,28 +319,21 @@ int cmd_homogenize(const std::vector<std::string>& args) {
   bool quiet = false;
   int threads = 0;  // the process's share of the cores
   double max_memory = 0.0;
-  for (size_t i = 0; i < args.size(); ++i) {
-    const std::string& a = args[i];
-    if (a == "--quiet" || a == "-q") {
-      quiet = true;
-    } else if (a == "--max-memory") {
-      if (i + 1 >= args.size()) return usage_error("--max-memory needs a size", "homogenize");
-      max_memory = parse_size(args[++i]);
-      if (max_memory <= 0.0) {
-        return usage_error("--max-memory: not a size: " + args[i], "homogenize");
-      }
-    } else if (a == "--threads") {
-      if (!read_threads(args, &i, &threads)) return usage_error(kThreadsNeed, "homogenize");
-    } else if (!a.empty() && a[0] == '-') {
-      return unknown_option(a, "homogenize", {"--quiet", "--threads", "--max-memory", "--help"});
-    } else {
-      files.push_back(a);
-    }
+  try {
+    files = read_args(
+        args, "homogenize",
+        {{{"-q", "--quiet"}, "", [&](const std::string&) { quiet = true; }},
+         {{"--threads"}, kThreadsNeed, [&](const std::string& v) { threads = read_threads(v); }},
+         {{"--max-memory"}, "a size", [&](const std::string& v) {
+            max_memory = size_in_bytes(v, "--max-memory");
+          }}});
+  } catch (const UsageError& e) {
+    return usage_error(e.what(), "homogenize");
   }
   if (files.size() != 2)
     return usage_error("homogenize needs an RVE directory and a scene file", "homogenize");
-  const rvegen::cli::Ranks ranks;  // z slabs of the grid under an MPI launcher
-  std::ostream& say = rvegen::cli::say_once(ranks);
+  const rvegen::Ranks ranks;  // z slabs of the grid under an MPI launcher
+  std::ostream& say = rvegen::say_once(ranks);
   rvegen::Scene scene;
   rvegen::InclusionSet set;
   try {
@@ -412,64 +341,27 @@ int cmd_homogenize(const std::vector<std::string>& args) {
     if (!scene.homogenization.any()) {
       throw rvegen::InputError("homogenization.physics: give conductivity, elasticity or both");
     }
-    const std::string path = files[0] + "/inclusions.json";
-    set = rvegen::read_inclusions_json(rvegen::read_file(path, kMaxInclusionFileBytes));
-    std::vector<std::string> names;
-    for (const rvegen::Family& f : scene.families) names.push_back(f.name);
-    if (set.family_names != names) {
-      std::string have, want;
-      for (const auto& n : set.family_names) have += (have.empty() ? "" : ", ") + n;
-      for (const auto& n : names) want += (want.empty() ? "" : ", ") + n;
-      throw rvegen::InputError("families: the scene's (" + want + ") are not the RVE's (" + have +
-                               ")");
-    }
-    // What is handed in is audited like what is packed: the scene's families and box, no
-    // overlap, nothing outside a closed box.
-    rvegen::check_rve_for_scene(set, scene, path);
+    set = rvegen::read_rve_for_scene(files[0], scene);
+    // Memory before any large allocation, as generate checks it.
+    rvegen::check_solve_fits(scene, rvegen::memory_limit(max_memory),
+                             static_cast<double>(ranks.local_size()) / std::max(1, ranks.size()));
   } catch (const std::exception& e) {
     say << "rvegen: invalid input: " << e.what() << "\n";
     return kExitInvalid;
   }
-  {
-    // Memory before any large allocation, as generate checks it: the image and the solver's
-    // fields, of which this machine's ranks hold their slabs.
-    rvegen::Scene sized = scene;
-    sized.outputs =
-        rvegen::Outputs{false, true, false, false, false, false, false, false, false, false};
-    const rvegen::ResourceEstimate need = rvegen::estimate_resources(sized);
-    const double here = (need.voxel_bytes + need.homogenization_bytes) * ranks.local_size() /
-                        std::max(1, ranks.size());
-    const double limit = max_memory > 0.0 ? max_memory : rvegen::available_memory_bytes();
-    if (limit > 0.0 && here > limit) {
-      say << "rvegen: the solve needs about " << rvegen::format_bytes(here)
-          << " on this machine (voxels " << rvegen::format_bytes(need.voxel_bytes)
-          << ", FFT solver " << rvegen::format_bytes(need.homogenization_bytes) << "), above the "
-          << (max_memory > 0.0 ? "--max-memory limit of " : "memory available, ")
-          << rvegen::format_bytes(limit)
-          << ": lower voxels.resolution, or run on more machines (mpirun)\n";
-      return kExitInvalid;
-    }
-  }
   try {
-    // This rank's planes of z (all of them in one process), on its share of the machine's
-    // cores (the processes a launcher put on it), and on at most --threads of them.
+    // This rank's planes of z, on its share of the machine's cores (the processes a launcher
+    // put on it), and on at most --threads of them.
     const rvegen::Communicator comm = ranks.communicator();
     const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
     int allowed = std::max(1, cores / ranks.local_size());
     if (threads > 0) allowed = std::min(allowed, threads);
     tbb::global_control share(tbb::global_control::max_allowed_parallelism,
                               static_cast<size_t>(allowed));
-    const std::array<int, 3>& res = scene.resolution;
-    const std::array<int, 2> z = rvegen::spectral::fft_slab(res, comm);
-    rvegen::VoxelOptions vopt;
-    vopt.partial_volume = false;
-    vopt.extent = {0, res[0], 0, res[1], z[0], z[1]};
-    const rvegen::VoxelImage image = rvegen::voxelize(set, res, vopt);
     const auto progress = [&](const std::string& line) {
       if (!quiet) say << line << "\n";
     };
-    const rvegen::EffectiveProperties solved =
-        rvegen::solve_effective(scene, set, image, progress, comm);
+    const rvegen::EffectiveProperties solved = rvegen::homogenize_rve(scene, set, progress, comm);
     if (ranks.root()) {
       const std::string section =
           rvegen::effective_section(scene.homogenization, solved, rvegen::ranks_of(comm));
@@ -495,23 +387,18 @@ int cmd_check(const std::vector<std::string>& args) {
   std::string path;
   bool as_json = false;
   size_t max_pairs = 10000;
-  for (size_t i = 0; i < args.size(); ++i) {
-    const std::string& a = args[i];
-    if (a == "--json") {
-      as_json = true;
-    } else if (a == "--max-pairs") {
-      if (i + 1 >= args.size()) return usage_error("--max-pairs needs a number", "check");
-      const double n = parse_size(args[++i]);
-      if (!(n >= 1.0 && n <= 1e9) || n != std::floor(n))
-        return usage_error("--max-pairs: not a count in [1, 1e9]: " + args[i], "check");
-      max_pairs = static_cast<size_t>(n);
-    } else if (!a.empty() && a[0] == '-') {
-      return unknown_option(a, "check", {"--json", "--max-pairs", "--help"});
-    } else if (path.empty()) {
-      path = a;
-    } else {
-      return usage_error("more than one file given", "check");
-    }
+  try {
+    const auto files =
+        read_args(args, "check",
+                  {{{"--json"}, "", [&](const std::string&) { as_json = true; }},
+                   {{"--max-pairs"}, "a count in [1, 1e9]", [&](const std::string& v) {
+                      max_pairs = static_cast<size_t>(
+                          number_in(v, 1, 1e9, true, "--max-pairs", "a count in [1, 1e9]"));
+                    }}});
+    if (files.size() > 1) throw UsageError("more than one file given");
+    if (!files.empty()) path = files[0];
+  } catch (const UsageError& e) {
+    return usage_error(e.what(), "check");
   }
   if (path.empty()) return usage_error("check needs an inclusion file", "check");
   rvegen::InclusionSet set;
@@ -522,37 +409,9 @@ int cmd_check(const std::vector<std::string>& args) {
     return kExitInvalid;
   }
   const rvegen::AuditReport report = rvegen::audit(set, max_pairs);
+  std::cout << (as_json ? rvegen::audit_json(set, report) : rvegen::audit_text(set, report));
   const auto& overlaps = report.overlaps;
   const auto& outside = report.outside;
-  const auto& inc = set.inclusions;
-  if (as_json) {
-    nlohmann::ordered_json j;
-    j["n"] = inc.size();
-    j["count"] = overlaps.size();
-    j["truncated"] = report.truncated;
-    nlohmann::ordered_json list = nlohmann::ordered_json::array();
-    for (const auto& o : overlaps) {
-      list.push_back({{"a", inc[o.a].id},
-                      {"b", inc[o.b].id},
-                      {"type", rvegen::contact_type_name(o.contact.type)},
-                      {"depth", o.contact.depth},
-                      {"shift", {o.shift[0], o.shift[1], o.shift[2]}}});
-    }
-    j["overlapping_pairs"] = list;
-    nlohmann::ordered_json out = nlohmann::ordered_json::array();
-    for (int i : outside) out.push_back(inc[i].id);
-    j["outside_box"] = out;
-    std::cout << j.dump(1) << "\n";
-  } else {
-    for (const auto& o : overlaps) {
-      std::printf("overlap: %d %d type %s depth %.6g%s\n", inc[o.a].id, inc[o.b].id,
-                  rvegen::contact_type_name(o.contact.type), o.contact.depth,
-                  o.shift.isZero() ? "" : " (periodic image)");
-    }
-    for (int i : outside) std::printf("outside box: %d\n", inc[i].id);
-    std::printf("%zu inclusions, %s%zu overlapping pairs, %zu outside the box\n", inc.size(),
-                report.truncated ? "at least " : "", overlaps.size(), outside.size());
-  }
   return overlaps.empty() && outside.empty() ? kExitOk : kExitOverlap;
 }
 
@@ -586,7 +445,7 @@ int main(int argc, char** argv) {
     return kExitOk;
   }
   return usage_error("unknown command \"" + cmd + "\"" +
-                     rvegen::cli::did_you_mean(
+                     rvegen::json_util::did_you_mean(
                          cmd, {"generate", "check", "homogenize", "study", "default-scene"}) +
                      " (generate, check, homogenize, study, default-scene)");
 }

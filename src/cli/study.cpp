@@ -13,11 +13,11 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
-#include "process.hpp"
-#include "ranks.hpp"
+#include "args.hpp"
 #include "rvegen/io/scene_json.hpp"
 #include "rvegen/io/writers.hpp"
 #include "rvegen/model/errors.hpp"
+#include "rvegen/pipeline/ranks.hpp"
 #include "rvegen/study/study.hpp"
 
 namespace rvegen::cli {
@@ -55,103 +55,6 @@ const char* kStudyUsage =
     "  cannot be written; 3 when some realization did not reach its target, 5 when some\n"
     "  realization's homogenization did not converge (either way they are left out of the\n"
     "  statistics, and counted: study.json's not_reached and not_converged).\n";
-
-// The records this rank computes: its share of the missing realizations, on its cores, with
-// a progress line each. Returns the first failure (empty: none) and the records by file name.
-std::string compute_share(const StudyPlan& plan, const std::vector<int>& missing,
-                          const Ranks& ranks, int at_once, bool quiet, json* records) {
-  struct Task {
-    size_t size;
-    int k;
-  };
-  std::vector<Task> todo;
-  for (size_t t = static_cast<size_t>(ranks.rank()); t < missing.size();
-       t += static_cast<size_t>(ranks.size()))
-    todo.push_back(
-        {static_cast<size_t>(missing[t] / plan.realizations), missing[t] % plan.realizations});
-  std::error_code ec;
-  if (!ranks.root()) fs::create_directories(plan.rdir, ec);  // rank 0 gets a copy of each
-  const std::string who = ranks.size() > 1 ? "rank " + std::to_string(ranks.rank()) + ": " : "";
-  std::mutex say;
-  std::atomic<size_t> done{0};
-  std::string failure;
-  std::vector<std::string> written(todo.size());
-  tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
-                            static_cast<size_t>(at_once));
-  tbb::parallel_for(size_t(0), todo.size(), size_t(1), [&](size_t t) {
-    {
-      std::lock_guard<std::mutex> lock(say);
-      if (!failure.empty()) return;
-    }
-    const Task& task = todo[t];
-    const std::string file = study_record_file(plan.sizes[task.size], task.k);
-    std::string status, error;
-    double seconds = 0.0;
-    try {
-      written[t] = run_realization(plan, task.size, task.k, ranks.size() > 1 ? ranks.rank() : -1,
-                                   &status, &seconds);
-      write_whole(plan.rdir / file, written[t]);
-    } catch (const std::bad_alloc&) {
-      error = "out of memory in realization " + std::to_string(task.k) + " at size " +
-              study_size_name(plan.sizes[task.size]) +
-              " (run fewer at once: --jobs, or --max-memory)";
-    } catch (const std::exception& e) {
-      error = e.what();
-    }
-    std::lock_guard<std::mutex> lock(say);
-    if (!error.empty()) {
-      if (failure.empty()) failure = error;
-      written[t].clear();
-      return;
-    }
-    if (!quiet) {
-      char buf[200];
-      std::snprintf(buf, sizeof buf, "%zu/%zu done (size %s, realization %d, %s, %.1f s)", ++done,
-                    todo.size(), study_size_name(plan.sizes[task.size]).c_str(), task.k,
-                    status.c_str(), seconds);
-      std::cerr << "study: " << who << buf << "\n";
-    }
-  });
-  *records = json::object();
-  for (size_t t = 0; t < todo.size(); ++t) {
-    if (!written[t].empty())
-      (*records)[study_record_file(plan.sizes[todo[t].size], todo[t].k)] = written[t];
-  }
-  return failure;
-}
-
-// Only the records and each rank's peak memory travel to rank 0 (a record is a few hundred
-// bytes: no image, no inclusion list). Rank 0 keeps a copy of any record it does not see on
-// its own disk, and returns the first rank's failure (empty: none); `peaks` gets every rank's
-// peak memory on rank 0.
-std::string gather_records(const StudyPlan& plan, const Ranks& ranks, const std::string& failure,
-                           const json& records, std::vector<double>* peaks) {
-  json mine = json::object();
-  mine["failure"] = failure;
-  mine["records"] = records;
-  mine["peak_memory_mb"] = peak_memory_mb();
-  if (!ranks.root()) {
-    ranks.gather(mine.dump());
-    return "";
-  }
-  std::string first;
-  std::error_code ec;
-  for (const std::string& text : ranks.gather(mine.dump())) {
-    const json theirs = json::parse(text);
-    peaks->push_back(theirs["peak_memory_mb"].get<double>());
-    const std::string f = theirs["failure"].get<std::string>();
-    if (first.empty()) first = f;
-    for (auto it = theirs["records"].begin(); it != theirs["records"].end(); ++it) {
-      if (fs::exists(plan.rdir / it.key(), ec)) continue;
-      try {
-        write_whole(plan.rdir / it.key(), it.value().get<std::string>());
-      } catch (const std::exception& e) {
-        if (first.empty()) first = e.what();
-      }
-    }
-  }
-  return first;
-}
 
 // Rank 0's statistics, said as the exit code.
 int statistics(const StudyPlan& plan, const std::vector<double>& peaks, bool quiet) {
@@ -199,58 +102,41 @@ int cmd_study(const std::vector<std::string>& args) {
   int realizations = 10, jobs = 0;
   double target_error = 0.01, max_memory = 0.0;
   bool quiet = false;
-  auto number = [&](size_t& i, const char* what, double lo, double hi, double* v) {
-    if (i + 1 >= args.size()) return false;
-    char* end = nullptr;
-    *v = std::strtod(args[++i].c_str(), &end);
-    if (*end != '\0' || !(*v >= lo && *v <= hi)) {
-      throw InputError(std::string(what) + ": \"" + args[i] + "\" is not a number in [" +
-                       study_size_name(lo) + ", " + study_size_name(hi) + "]");
-    }
-    return true;
-  };
+  for (const std::string& a : args) {
+    if (a != "-h" && a != "--help") continue;
+    if (ranks.root()) std::cout << kStudyUsage;
+    return kExitOk;
+  }
   try {
-    for (size_t i = 0; i < args.size(); ++i) {
-      const std::string& a = args[i];
-      double v = 0.0;
-      if (a == "-h" || a == "--help") {
-        if (ranks.root()) std::cout << kStudyUsage;
-        return kExitOk;
-      } else if (a == "-o" || a == "--output") {
-        if (i + 1 >= args.size()) return usage_error("-o needs a directory");
-        out_dir = args[++i];
-      } else if (a == "--sizes") {
-        if (i + 1 >= args.size()) return usage_error("--sizes needs a list such as 1,1.5,2");
-        sizes_text = args[++i];
-      } else if (a == "--realizations") {
-        if (!number(i, "--realizations", 1, 100000, &v) || v != std::floor(v))
-          return usage_error("--realizations needs a whole number in [1, 100000]");
-        realizations = static_cast<int>(v);
-      } else if (a == "--target-error") {
-        if (!number(i, "--target-error", 1e-9, 1.0, &v))
-          return usage_error("--target-error needs a relative error such as 0.01");
-        target_error = v;
-      } else if (a == "--jobs") {
-        if (!number(i, "--jobs", 1, 4096, &v) || v != std::floor(v))
-          return usage_error("--jobs needs a whole number in [1, 4096]");
-        jobs = static_cast<int>(v);
-      } else if (a == "--max-memory") {
-        if (i + 1 >= args.size() || (max_memory = parse_size(args[++i])) <= 0.0)
-          return usage_error("--max-memory needs a size such as 8G, 512M or 1000000 (bytes)");
-      } else if (a == "--quiet" || a == "-q") {
-        quiet = true;
-      } else if (!a.empty() && a[0] == '-') {
-        return usage_error(
-            "unknown option " + a + " of study" +
-            did_you_mean(a, {"-o", "--output", "--sizes", "--realizations", "--target-error",
-                             "--jobs", "--max-memory", "--quiet", "--help"}));
-      } else if (scene_path.empty()) {
-        scene_path = a;
-      } else {
-        return usage_error("more than one scene file given");
-      }
-    }
-  } catch (const InputError& e) {
+    const auto files = read_args(
+        args, "study",
+        {{{"-o", "--output"}, "a directory", [&](const std::string& v) { out_dir = v; }},
+         {{"--sizes"}, "a list such as 1,1.5,2", [&](const std::string& v) { sizes_text = v; }},
+         {{"--realizations"},
+          "a whole number in [1, 100000]",
+          [&](const std::string& v) {
+            realizations = static_cast<int>(
+                number_in(v, 1, 1e5, true, "--realizations", "a whole number in [1, 100000]"));
+          }},
+         {{"--target-error"},
+          "a relative error such as 0.01",
+          [&](const std::string& v) {
+            target_error = number_in(v, 1e-9, 1.0, false, "--target-error",
+                                     "a relative error in [1e-9, 1] such as 0.01");
+          }},
+         {{"--jobs"},
+          "a whole number in [1, 4096]",
+          [&](const std::string& v) {
+            jobs = static_cast<int>(
+                number_in(v, 1, 4096, true, "--jobs", "a whole number in [1, 4096]"));
+          }},
+         {{"--max-memory"},
+          "a size",
+          [&](const std::string& v) { max_memory = size_in_bytes(v, "--max-memory"); }},
+         {{"-q", "--quiet"}, "", [&](const std::string&) { quiet = true; }}});
+    if (files.size() > 1) throw UsageError("more than one scene file given");
+    if (!files.empty()) scene_path = files[0];
+  } catch (const UsageError& e) {
     return usage_error(e.what());
   }
   if (scene_path.empty()) return usage_error("study needs a scene file");
@@ -305,10 +191,10 @@ int cmd_study(const std::vector<std::string>& args) {
                   plan.sizes.size(), realizations, missing.size(), total - missing.size());
     std::cerr << "study: " << buf << "\n";
   }
-  json records;
-  const std::string failure = compute_share(plan, missing, ranks, at_once, quiet, &records);
   std::vector<double> peaks;  // on rank 0: every rank's peak memory, in rank order
-  const std::string first = gather_records(plan, ranks, failure, records, &peaks);
+  ProgressFn progress;
+  if (!quiet) progress = [](const std::string& line) { std::cerr << "study: " << line << "\n"; };
+  const std::string first = run_study_share(plan, missing, ranks, at_once, progress, &peaks);
   int stopped = kExitOk;
   if (ranks.root() && !first.empty()) {
     err << "rvegen: study stopped: " << first << "\n";

@@ -1,6 +1,7 @@
 #include "rvegen/io/report_sections.hpp"
 
 #include <algorithm>
+#include <cstdio>
 #include <nlohmann/json.hpp>
 
 #include "rvegen/io/report.hpp"
@@ -142,6 +143,47 @@ std::string effective_section(const HomogenizationSpec& h, const EffectiveProper
     out["stiffness"] = s;
   }
   return out.dump();
+}
+
+std::string audit_json(const InclusionSet& set, const AuditReport& report) {
+  const auto& inc = set.inclusions;
+  Json j;
+  j["n"] = inc.size();
+  j["count"] = report.overlaps.size();
+  j["truncated"] = report.truncated;
+  Json list = Json::array();
+  for (const auto& o : report.overlaps) {
+    list.push_back({{"a", inc[o.a].id},
+                    {"b", inc[o.b].id},
+                    {"type", contact_type_name(o.contact.type)},
+                    {"depth", o.contact.depth},
+                    {"shift", {o.shift[0], o.shift[1], o.shift[2]}}});
+  }
+  j["overlapping_pairs"] = list;
+  Json out = Json::array();
+  for (int i : report.outside) out.push_back(inc[i].id);
+  j["outside_box"] = out;
+  return j.dump(1) + "\n";
+}
+
+std::string audit_text(const InclusionSet& set, const AuditReport& report) {
+  const auto& inc = set.inclusions;
+  std::string text;
+  char buf[200];
+  for (const auto& o : report.overlaps) {
+    std::snprintf(buf, sizeof buf, "overlap: %d %d type %s depth %.6g%s\n", inc[o.a].id,
+                  inc[o.b].id, contact_type_name(o.contact.type), o.contact.depth,
+                  o.shift.isZero() ? "" : " (periodic image)");
+    text += buf;
+  }
+  for (int i : report.outside) {
+    std::snprintf(buf, sizeof buf, "outside box: %d\n", inc[i].id);
+    text += buf;
+  }
+  std::snprintf(buf, sizeof buf, "%zu inclusions, %s%zu overlapping pairs, %zu outside the box\n",
+                inc.size(), report.truncated ? "at least " : "", report.overlaps.size(),
+                report.outside.size());
+  return text + buf;
 }
 
 }  // namespace rvegen

@@ -10,6 +10,7 @@
 #include "rvegen/homogenize/effective.hpp"
 #include "rvegen/model/inclusion_set.hpp"
 #include "rvegen/model/scene.hpp"
+#include "rvegen/packing/audit.hpp"
 
 namespace rvegen {
 
@@ -33,5 +34,11 @@ std::string tet_mesh_section(const InclusionSet& set, const TetMesh& mesh,
 /// (named when more than one).
 std::string effective_section(const HomogenizationSpec& h, const EffectiveProperties& e,
                               int ranks = 1);
+
+/// `rvegen check --json`: the count of inclusions, of overlapping pairs (each with the ids, the
+/// pair test, the depth and the periodic shift) and the inclusions outside a closed box.
+std::string audit_json(const InclusionSet& set, const AuditReport& report);
+/// `rvegen check`: a line per overlap and per inclusion outside the box, then the counts.
+std::string audit_text(const InclusionSet& set, const AuditReport& report);
 
 }  // namespace rvegen

@@ -732,4 +732,44 @@ std::string read_file(const std::string& path, size_t max_bytes) {
   out.resize(got);
   return out;
 }
+namespace {
+
+// "812 KB", "71.1 MB", "1.54 GB" (decimal units, three significant figures or so).
+std::string human_bytes(uintmax_t bytes) {
+  char buf[32];
+  const double b = static_cast<double>(bytes);
+  if (b < 1e3) {
+    std::snprintf(buf, sizeof buf, "%.0f B", b);
+  } else if (b < 1e6) {
+    std::snprintf(buf, sizeof buf, "%.0f KB", b / 1e3);
+  } else if (b < 1e9) {
+    std::snprintf(buf, sizeof buf, "%.1f MB", b / 1e6);
+  } else {
+    std::snprintf(buf, sizeof buf, "%.2f GB", b / 1e9);
+  }
+  return buf;
+}
+
+// Bytes of the regular files in `dir` (what a run wrote).
+uintmax_t directory_bytes(const std::string& dir, int* files) {
+  uintmax_t total = 0;
+  *files = 0;
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(dir, ec)) {
+    if (e.is_regular_file(ec)) {
+      total += e.file_size(ec);
+      ++*files;
+    }
+  }
+  return total;
+}
+
+}  // namespace
+
+std::string describe_directory(const std::string& dir) {
+  int files = 0;
+  const uintmax_t bytes = directory_bytes(dir, &files);
+  return human_bytes(bytes) + " in " + std::to_string(files) + " files";
+}
+
 }  // namespace rvegen

@@ -109,6 +109,10 @@ class OutputError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// What a directory holds, as a run's last line gives it: "1.1 MB in 4 files" (its regular
+/// files; decimal units).
+std::string describe_directory(const std::string& dir);
+
 /// Reads a whole file; refuses one that is not a regular file or is larger than `max_bytes`
 /// (without reading it all). Throws InputError naming the path.
 std::string read_file(const std::string& path, size_t max_bytes = size_t(1) << 30);

@@ -1,8 +1,11 @@
 #include "rvegen/study/study.hpp"
 
+#include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
+#include <mutex>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -516,6 +519,104 @@ json property_statistics(const std::string& name, const std::vector<std::vector<
   return p;
 }
 
+// The records this rank computes: its share of the missing realizations, on its cores, with
+// a progress line each. Returns the first failure (empty: none) and the records by file name.
+std::string compute_share(const StudyPlan& plan, const std::vector<int>& missing,
+                          const Ranks& ranks, int at_once, const ProgressFn& progress,
+                          json* records) {
+  struct Task {
+    size_t size;
+    int k;
+  };
+  std::vector<Task> todo;
+  for (size_t t = static_cast<size_t>(ranks.rank()); t < missing.size();
+       t += static_cast<size_t>(ranks.size()))
+    todo.push_back(
+        {static_cast<size_t>(missing[t] / plan.realizations), missing[t] % plan.realizations});
+  std::error_code ec;
+  if (!ranks.root()) fs::create_directories(plan.rdir, ec);  // rank 0 gets a copy of each
+  const std::string who = ranks.size() > 1 ? "rank " + std::to_string(ranks.rank()) + ": " : "";
+  std::mutex say;
+  std::atomic<size_t> done{0};
+  std::string failure;
+  std::vector<std::string> written(todo.size());
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
+                            static_cast<size_t>(at_once));
+  tbb::parallel_for(size_t(0), todo.size(), size_t(1), [&](size_t t) {
+    {
+      std::lock_guard<std::mutex> lock(say);
+      if (!failure.empty()) return;
+    }
+    const Task& task = todo[t];
+    const std::string file = study_record_file(plan.sizes[task.size], task.k);
+    std::string status, error;
+    double seconds = 0.0;
+    try {
+      written[t] = run_realization(plan, task.size, task.k, ranks.size() > 1 ? ranks.rank() : -1,
+                                   &status, &seconds);
+      write_whole(plan.rdir / file, written[t]);
+    } catch (const std::bad_alloc&) {
+      error = "out of memory in realization " + std::to_string(task.k) + " at size " +
+              study_size_name(plan.sizes[task.size]) +
+              " (run fewer at once: --jobs, or --max-memory)";
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+    std::lock_guard<std::mutex> lock(say);
+    if (!error.empty()) {
+      if (failure.empty()) failure = error;
+      written[t].clear();
+      return;
+    }
+    if (progress) {
+      char buf[200];
+      std::snprintf(buf, sizeof buf, "%zu/%zu done (size %s, realization %d, %s, %.1f s)", ++done,
+                    todo.size(), study_size_name(plan.sizes[task.size]).c_str(), task.k,
+                    status.c_str(), seconds);
+      progress(who + buf);
+    }
+  });
+  *records = json::object();
+  for (size_t t = 0; t < todo.size(); ++t) {
+    if (!written[t].empty())
+      (*records)[study_record_file(plan.sizes[todo[t].size], todo[t].k)] = written[t];
+  }
+  return failure;
+}
+
+// Only the records and each rank's peak memory travel to rank 0 (a record is a few hundred
+// bytes: no image, no inclusion list). Rank 0 keeps a copy of any record it does not see on
+// its own disk, and returns the first rank's failure (empty: none); `peaks` gets every rank's
+// peak memory on rank 0.
+std::string gather_records(const StudyPlan& plan, const Ranks& ranks, const std::string& failure,
+                           const json& records, std::vector<double>* peaks) {
+  json mine = json::object();
+  mine["failure"] = failure;
+  mine["records"] = records;
+  mine["peak_memory_mb"] = peak_memory_mb();
+  if (!ranks.root()) {
+    ranks.gather(mine.dump());
+    return "";
+  }
+  std::string first;
+  std::error_code ec;
+  for (const std::string& text : ranks.gather(mine.dump())) {
+    const json theirs = json::parse(text);
+    peaks->push_back(theirs["peak_memory_mb"].get<double>());
+    const std::string f = theirs["failure"].get<std::string>();
+    if (first.empty()) first = f;
+    for (auto it = theirs["records"].begin(); it != theirs["records"].end(); ++it) {
+      if (fs::exists(plan.rdir / it.key(), ec)) continue;
+      try {
+        write_whole(plan.rdir / it.key(), it.value().get<std::string>());
+      } catch (const std::exception& e) {
+        if (first.empty()) first = e.what();
+      }
+    }
+  }
+  return first;
+}
+
 }  // namespace
 
 std::vector<double> parse_study_sizes(const std::string& text) {
@@ -684,6 +785,14 @@ std::string run_realization(const StudyPlan& plan, size_t i, int k, int rank, st
   rec["digest"] = record_digest(rec, plan.signature);
   *status = rec["status"].get<std::string>();
   return rec.dump(1) + "\n";
+}
+
+std::string run_study_share(const StudyPlan& plan, const std::vector<int>& missing,
+                            const Ranks& ranks, int at_once, const ProgressFn& progress,
+                            std::vector<double>* peaks) {
+  json records;
+  const std::string failure = compute_share(plan, missing, ranks, at_once, progress, &records);
+  return gather_records(plan, ranks, failure, records, peaks);
 }
 
 }  // namespace rvegen

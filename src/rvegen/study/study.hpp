@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "rvegen/model/scene.hpp"
+#include "rvegen/pipeline/ranks.hpp"
 #include "rvegen/pipeline/run.hpp"
 
 namespace rvegen {
@@ -74,6 +75,16 @@ std::string study_record_file(double m, int k);
 /// pipeline throws, except NothingPlaced (a record of its own).
 std::string run_realization(const StudyPlan& plan, size_t i, int k, int rank, std::string* status,
                             double* seconds);
+
+/// Computes this rank's share of the `missing` realizations (every ranks()-th), `at_once` at a
+/// time, each written as a record with a progress line; then only the records and each rank's
+/// peak memory travel to rank 0 (a record is a few hundred bytes: no image, no inclusion
+/// list), which keeps a copy of any record it does not see on its own disk and gets every
+/// rank's peak in `peaks`. Every rank calls. Returns, on rank 0, the first rank's failure
+/// (empty: none).
+std::string run_study_share(const StudyPlan& plan, const std::vector<int>& missing,
+                            const Ranks& ranks, int at_once, const ProgressFn& progress,
+                            std::vector<double>* peaks);
 
 /// Writes `text` to `path` through a temporary file and a rename: a killed run leaves the old
 /// file or the new one, never half of one. Throws OutputError.

@@ -1,5 +1,5 @@
 // The processes of one command started by an MPI launcher (mpirun, mpiexec, srun with PMI):
-// their number, this one's rank, and the few collective steps `rvegen study` needs. Started
+// their number, this one's rank, and the few collective steps `rvegen study` and `rvegen homogenize` need. Started
 // without a launcher, the command is one process and MPI is never initialised.
 #pragma once
 
@@ -9,7 +9,7 @@
 
 #include "rvegen/homogenize/spectral.hpp"
 
-namespace rvegen::cli {
+namespace rvegen {
 
 class Ranks {
  public:
@@ -45,4 +45,4 @@ class Ranks {
 /// ranks, which meet the same input and would repeat them.
 std::ostream& say_once(const Ranks& ranks);
 
-}  // namespace rvegen::cli
+}  // namespace rvegen

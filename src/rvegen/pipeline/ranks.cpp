@@ -1,4 +1,4 @@
-#include "ranks.hpp"
+#include "rvegen/pipeline/ranks.hpp"
 
 // The C interface only (Open MPI and MPICH would otherwise pull in their C++ bindings).
 #define OMPI_SKIP_MPICXX 1
@@ -9,7 +9,7 @@
 #include <iostream>
 #include <string>
 
-namespace rvegen::cli {
+namespace rvegen {
 namespace {
 
 // The number of processes a launcher started, from the variables it sets (Open MPI, then the
@@ -90,4 +90,4 @@ std::vector<std::string> Ranks::gather(const std::string& text) const {
   return out;
 }
 
-}  // namespace rvegen::cli
+}  // namespace rvegen

@@ -488,19 +488,26 @@ class OutputSetTest : public testing::Test {
   std::string dir_;
 };
 
+// The report every set rvegen writes ends with: its keys, and the files staged with their
+// sizes (what a later run checks before it replaces them).
+std::string report_of(const OutputSet& out, const std::string& extra = "") {
+  return "{\"status\": \"ok\", \"seed\": 1, \"timings\": {}" + extra +
+         ", \"files\": " + out.files_json() + "}";
+}
+
 TEST_F(OutputSetTest, ASetReplacesThePreviousOneWholeStaleFilesIncluded) {
   {
     OutputSet out(dir_);
     out.write("inclusions.json", "first");
     out.write("levelsets.vdb", "grids");
-    out.write("report.json", "{}");  // as every set rvegen writes
+    out.write("report.json", report_of(out));  // as every set rvegen writes
     out.commit();
   }
   EXPECT_EQ(read("inclusions.json"), "first");
   {
     OutputSet out(dir_);
     out.write("inclusions.json", "second");
-    out.write("report.json", "{}");
+    out.write("report.json", report_of(out));
     out.commit();
   }
   EXPECT_EQ(read("inclusions.json"), "second");
@@ -512,17 +519,17 @@ TEST_F(OutputSetTest, WithoutCommitNothingChanges) {
   {
     OutputSet out(dir_);
     out.write("inclusions.json", "first");
-    out.write("report.json", "{\"run\": 1}");
+    out.write("report.json", report_of(out, ", \"run\": 1"));
     out.commit();
   }
   {
     OutputSet out(dir_);
     out.write("inclusions.json", "second");
-    out.write("report.json", "{}");
+    out.write("report.json", report_of(out));
     // No commit: an error happened.
   }
   EXPECT_EQ(read("inclusions.json"), "first");
-  EXPECT_EQ(read("report.json"), "{\"run\": 1}");
+  EXPECT_NE(read("report.json").find("\"run\": 1"), std::string::npos);
   EXPECT_TRUE(leftovers().empty());
 }
 
@@ -555,18 +562,97 @@ TEST_F(OutputSetTest, AHandMadeInclusionListIsTheUsers) {
   EXPECT_EQ(read("inclusions.json"), "my own");
 }
 
+TEST_F(OutputSetTest, AReportThatDoesNotListTheFilesBesideItIsTheUsers) {
+  // A report.json of the user's own, alone; then a real report copied beside the user's own
+  // inclusions.json: neither is a set an earlier run wrote, and nothing is replaced.
+  fs::create_directories(dir_);
+  std::ofstream(fs::path(dir_) / "report.json") << "{\"my\": \"report\"}";
+  EXPECT_THROW(OutputSet{dir_}, OutputError);
+  EXPECT_EQ(read("report.json"), "{\"my\": \"report\"}");
+  const std::string other = root_.string() + "/other";
+  {
+    OutputSet out(other);
+    out.write("inclusions.json", "packed");
+    out.write("report.json", report_of(out));
+    out.commit();
+  }
+  fs::copy_file(fs::path(other) / "report.json", fs::path(dir_) / "report.json",
+                fs::copy_options::overwrite_existing);
+  std::ofstream(fs::path(dir_) / "inclusions.json") << "{\"mine\": 1}";
+  try {
+    OutputSet out(dir_);
+    ADD_FAILURE() << "a copied report was taken for the user's inclusions.json";
+  } catch (const OutputError& e) {
+    EXPECT_NE(std::string(e.what()).find("not the report of the files beside it"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(read("inclusions.json"), "{\"mine\": 1}");
+  fs::remove_all(other);
+}
+
+TEST_F(OutputSetTest, FoldersThatLookLikeStagingButHoldTheUsersFilesStay) {
+  const fs::path a = root_ / ".rve.rvegen-4194305-abcdef", b = root_ / ".rve.rvegen-backup";
+  fs::create_directories(a);
+  fs::create_directories(b);
+  std::ofstream(a / "my_thesis.tex") << "thesis";
+  std::ofstream(b / "old_results.csv") << "1,2";
+  {
+    OutputSet out(dir_);
+    out.write("inclusions.json", "x");
+    out.write("report.json", report_of(out));
+    out.commit();
+  }
+  EXPECT_TRUE(fs::exists(a / "my_thesis.tex"));
+  EXPECT_TRUE(fs::exists(b / "old_results.csv"));
+  EXPECT_FALSE(fs::exists(fs::path(dir_) / "my_thesis.tex"));
+}
+
+TEST_F(OutputSetTest, AUsersFileLeftByARunKilledAfterTheSwapGoesBackIntoTheDirectory) {
+  // The previous set under the staging name of a run killed between the swap and the move
+  // back, with the file the user put into the directory meanwhile.
+  {
+    OutputSet out(dir_);
+    out.write("inclusions.json", "new");
+    out.write("report.json", report_of(out));
+    out.commit();
+  }
+  const fs::path stale = root_ / ".rve.rvegen-4194305-qwerty";
+  fs::create_directories(stale);
+  {
+    const std::string old = root_.string() + "/old";
+    OutputSet out(old);
+    out.write("inclusions.json", "old");
+    out.write("report.json", report_of(out));
+    out.commit();
+    for (const auto& e : fs::directory_iterator(old))
+      fs::rename(e.path(), stale / e.path().filename());
+    fs::remove(old);
+  }
+  std::ofstream(stale / "notes.txt") << "mine";
+  {
+    OutputSet out(dir_);
+    out.write("inclusions.json", "newer");
+    out.write("report.json", report_of(out));
+    out.commit();
+  }
+  EXPECT_FALSE(fs::exists(stale));
+  EXPECT_EQ(read("notes.txt"), "mine");
+  EXPECT_EQ(read("inclusions.json"), "newer");
+}
+
 TEST_F(OutputSetTest, AFileAddedWhileTheRunWorksStays) {
   {
     OutputSet out(dir_);
     out.write("inclusions.json", "first");
     out.write("levelsets.vdb", "grids");
-    out.write("report.json", "{}");
+    out.write("report.json", report_of(out));
     out.commit();
   }
   {
     OutputSet out(dir_);  // checked: an earlier set
     out.write("inclusions.json", "second");
-    out.write("report.json", "{}");
+    out.write("report.json", report_of(out));
     // The user puts a file and a folder into DIR while the run works.
     std::ofstream(fs::path(dir_) / "notes.txt") << "mine";
     fs::create_directories(fs::path(dir_) / "plots");
@@ -619,7 +705,8 @@ TEST_F(OutputSetTest, PlantedLinksAreNeverFollowed) {
 TEST_F(OutputSetTest, ADirectoryUnderAnOutputNameIsTheUsers) {
   fs::create_directories(fs::path(dir_) / "levelsets.vdb");
   std::ofstream(fs::path(dir_) / "levelsets.vdb" / "mine.txt") << "mine";
-  std::ofstream(fs::path(dir_) / "report.json") << "{}";
+  std::ofstream(fs::path(dir_) / "report.json")
+      << "{\"status\": \"ok\", \"seed\": 1, \"timings\": {}}";
   try {
     OutputSet out(dir_);
     ADD_FAILURE() << "a directory named levelsets.vdb was taken for an output";

@@ -15,6 +15,7 @@
 #include <cstring>
 #include <filesystem>
 #include <list>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <stdexcept>
 
@@ -451,21 +452,6 @@ bool process_alive(long pid) {
   return state != 'Z' && state != 'X';
 }
 
-// Leftovers of killed runs: staging directories whose process is gone.
-void remove_orphans(const fs::path& target) {
-  const std::string prefix = staging_prefix(target);
-  std::error_code ec;
-  for (fs::directory_iterator it(target.parent_path(), ec), end; !ec && it != end;
-       it.increment(ec)) {
-    const std::string name = it->path().filename().string();
-    if (name.compare(0, prefix.size(), prefix) != 0) continue;
-    const long pid = std::strtol(name.c_str() + prefix.size(), nullptr, 10);
-    if (process_alive(pid)) continue;
-    std::error_code rm;
-    fs::remove_all(it->path(), rm);
-  }
-}
-
 // Old runs of this program wrote hidden temporaries (.<name>.tmp.<pid>) into the directory.
 bool own_file(const std::string& name) {
   for (const std::string& known : OutputSet::file_names()) {
@@ -474,6 +460,105 @@ bool own_file(const std::string& name) {
     if (name.compare(0, tmp.size(), tmp) == 0) return true;
   }
   return false;
+}
+
+// The process number of a staging directory's name (prefix, digits, '-', six characters of
+// mkdtemp, and "-old" for a set moved aside), or -1 when the name is not one.
+long staging_pid(const std::string& name, const std::string& prefix) {
+  if (name.compare(0, prefix.size(), prefix) != 0) return -1;
+  size_t at = prefix.size(), digits = 0;
+  while (at < name.size() && name[at] >= '0' && name[at] <= '9') ++at, ++digits;
+  if (digits == 0 || digits > 10 || at >= name.size() || name[at] != '-') return -1;
+  const std::string rest = name.substr(at + 1);
+  if (rest.size() != 6 && !(rest.size() == 10 && rest.compare(6, 4, "-old") == 0)) return -1;
+  return std::strtol(name.c_str() + prefix.size(), nullptr, 10);
+}
+
+bool move_users_entries(const fs::path& from, const fs::path& to);
+bool own_report(const fs::path& target, const std::vector<std::string>& named);
+
+// The output names `dir` holds as regular files (a staged file's ".part" counts as its name);
+// false in `only_ours` when it holds anything else.
+std::vector<std::string> own_entries(const fs::path& dir, bool* only_ours) {
+  std::vector<std::string> named;
+  *only_ours = true;
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    std::error_code kind;
+    std::string name = it->path().filename().string();
+    if (name.size() > 5 && name.compare(name.size() - 5, 5, ".part") == 0)
+      name.resize(name.size() - 5);
+    if (own_file(name) && fs::is_regular_file(it->symlink_status(kind))) {
+      named.push_back(name);
+    } else {
+      *only_ours = false;
+    }
+  }
+  if (ec) *only_ours = false;
+  return named;
+}
+
+// Leftovers of killed runs: staging directories whose process is gone. One that holds only
+// output files is removed. A run killed after it swapped the sets leaves there the previous
+// set (its report.json lists its files) and what the user put into the directory meanwhile:
+// the user's entries go back into the directory, then the set is removed. A directory under
+// such a name that holds anything else is the user's, and stays.
+void remove_orphans(const fs::path& target) {
+  const std::string prefix = staging_prefix(target);
+  std::error_code ec;
+  std::vector<fs::path> stale;
+  for (fs::directory_iterator it(target.parent_path(), ec), end; !ec && it != end;
+       it.increment(ec)) {
+    const long pid = staging_pid(it->path().filename().string(), prefix);
+    std::error_code kind;
+    if (pid < 0 || process_alive(pid) || !fs::is_directory(it->symlink_status(kind))) continue;
+    stale.push_back(it->path());
+  }
+  for (const fs::path& dir : stale) {
+    bool only_ours = false;
+    const std::vector<std::string> named = own_entries(dir, &only_ours);
+    if (!only_ours) {
+      std::error_code there;
+      const bool previous_set =
+          std::find(named.begin(), named.end(), "report.json") != named.end() &&
+          own_report(dir, named);
+      if (!previous_set || !fs::is_directory(fs::symlink_status(target, there)) ||
+          !move_users_entries(dir, target))
+        continue;
+      own_entries(dir, &only_ours);
+      if (!only_ours) continue;
+    }
+    std::error_code rm;
+    fs::remove_all(dir, rm);
+  }
+}
+
+// Whether report.json in `target` is one rvegen wrote for the files beside it: a JSON object
+// with the report's keys, whose "files" (name and bytes) holds each of `named` with its size.
+// Reports of runs that listed no files are taken on their keys alone.
+bool own_report(const fs::path& target, const std::vector<std::string>& named) {
+  std::string text;
+  try {
+    text = read_file((target / "report.json").string(), size_t(64) << 20);
+  } catch (const std::exception&) {
+    return false;
+  }
+  const nlohmann::json r = nlohmann::json::parse(text, nullptr, false);
+  if (r.is_discarded() || !r.is_object() || !r.contains("status") || !r.contains("seed") ||
+      !r.contains("timings"))
+    return false;
+  if (!r.contains("files")) return true;
+  const nlohmann::json& files = r["files"];
+  if (!files.is_object()) return false;
+  for (const std::string& name : named) {
+    if (name == "report.json") continue;
+    std::error_code ec;
+    const auto size = fs::file_size(target / name, ec);
+    if (ec || !files.contains(name) || !files[name].is_number_unsigned() ||
+        files[name].get<uintmax_t>() != size)
+      return false;
+  }
+  return true;
 }
 
 // Moves what a user put into the previous set's directory `from` while the run worked (anything
@@ -587,6 +672,13 @@ OutputSet::OutputSet(const std::string& dir) : dir_(dir) {
                         "rvegen replaces the output directory as a whole, so give a new or empty "
                         "directory, or one an earlier run wrote");
     }
+    if (foreign.empty() && !named.empty() && !own_report(target, named)) {
+      throw OutputError("output directory " + dir +
+                        " holds a report.json that is not the report of the files beside it "
+                        "(an earlier run lists its files and their sizes there), so no earlier "
+                        "run wrote them; rvegen replaces the output directory as a whole, so give "
+                        "a new or empty directory, or one an earlier run wrote");
+    }
     if (!foreign.empty()) {
       std::string list;
       for (size_t i = 0; i < foreign.size() && i < 5; ++i) list += (i ? ", " : "") + foreign[i];
@@ -650,6 +742,19 @@ void OutputSet::write_with(const std::string& name, const std::function<void(std
     throw OutputError("cannot write " + path + ": " + std::strerror(err));
   }
   if (std::fclose(f) != 0) throw OutputError("cannot write " + path + ": " + std::strerror(errno));
+}
+
+std::string OutputSet::files_json() const {
+  std::string out = "{";
+  std::error_code ec;
+  for (const std::string& name : file_names()) {
+    const fs::path p = fs::path(stage_) / name;
+    if (!fs::is_regular_file(fs::symlink_status(p, ec))) continue;
+    const auto size = fs::file_size(p, ec);
+    if (ec) continue;
+    out += (out.size() > 1 ? ", \"" : "\"") + name + "\": " + std::to_string(size);
+  }
+  return out + "}";
 }
 
 void OutputSet::write(const std::string& name, const std::string& bytes) {

@@ -54,10 +54,11 @@ void write_surfaces_vtp(const SurfaceMesh& mesh, const std::string& inclusions_j
 /// and per periodic image whose bounding box reaches into the box), streamed to `out`: point data
 /// "inclusion_id", "family", "shape" (0 sphere, 1 cylinder, 2 ellipsoid), "phase", "image" (1 for
 /// a periodic image), "modified" (1 for wavy, bent, deformed or debonded: drawn from
-/// surfaces.vtp; a straight coated inclusion's glyph is its core, its shell the "coating"), "radius", "half_axis", "semi_axes", "direction" (axis), "orientation" (unit
-/// quaternion w, x, y, z) and "scale": a unit sphere glyph (radius 0.5) or a cylinder glyph along
-/// y (height 1, radius 0.5), scaled by "scale" then turned by "orientation", is the inclusion
-/// exactly. Field data as write_surfaces_vtp.
+/// surfaces.vtp; a straight coated inclusion's glyph is its core, its shell the "coating"),
+/// "radius", "half_axis", "semi_axes", "direction" (axis), "orientation" (unit quaternion w, x, y,
+/// z) and "scale": a unit sphere glyph (radius 0.5) or a cylinder glyph along y (height 1, radius
+/// 0.5), scaled by "scale" then turned by "orientation", is the inclusion exactly. Field data as
+/// write_surfaces_vtp.
 void write_points_vtp(const InclusionSet& set, const std::string& inclusions_json, std::FILE* out);
 
 /// The files one run writes into its output directory, and nothing else. An output directory
@@ -89,6 +90,9 @@ class OutputSet {
   /// Path of `name` in the staging directory, for writers that open files themselves (HDF5);
   /// the file must not exist yet.
   std::string staged_path(const std::string& name) const;
+  /// The files staged so far with their sizes in bytes, as a JSON object (report.json's
+  /// "files": a later run takes a directory whose files it lists for one it may replace).
+  std::string files_json() const;
   /// Puts the staged set in place of the directory (see above).
   void commit();
   /// The output directory as given, and the staging directory.

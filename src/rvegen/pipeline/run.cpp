@@ -278,6 +278,8 @@ void report_stage(Run& run) {
                  report_now(), fields);
     });
   }
+  // The files of the set and their sizes: what a later run checks before it replaces them.
+  run.sections.emplace_back("files", run.out.files_json());
   run.out.write("report.json", report_now());
 }
 

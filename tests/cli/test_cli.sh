@@ -965,6 +965,22 @@ for edit in 's/"conductivity.k11": [0-9.e-]*/"conductivity.k11": 99/@changed aft
   [ -e "$WORK/study_edited/realizations/size_1_3.json" ] && fail "study: computed before checking the records ($edit)"
   cmp -s "$WORK/study_edited/study.json" "$WORK/study_a/study.json" || fail "study: statistics rewritten ($edit)"
 done
+# Records that are not the study's: nested 100000 deep (it crashed the reader), not JSON (named
+# plainly, not in the JSON library's words), a link to another file.
+rm -rf "$WORK/study_edited" && cp -r "$WORK/study_a" "$WORK/study_edited"
+$py -c "import sys; open(sys.argv[1], 'w').write('{\"a\": ' + '[' * 100000 + ']' * 100000 + '}')" "$WORK/study_edited/realizations/size_1_1.json"
+expect_rc 2 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_edited" --sizes 1,1.5 --realizations 3 -q
+grep -q "size_1_1.json is not a realization record: .*nested deeper than 256 levels" "$WORK/last.err" || fail "study: deep record: $(head -c 300 "$WORK/last.err")"
+echo '{"seed": NaN}' >"$WORK/study_edited/realizations/size_1_1.json"
+expect_rc 2 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_edited" --sizes 1,1.5 --realizations 3 -q
+grep -q "size_1_1.json is not a realization record: .*line 1, column" "$WORK/last.err" && ! grep -q "json.exception" "$WORK/last.err" || fail "study: NaN record: $(cat "$WORK/last.err")"
+rm "$WORK/study_edited/realizations/size_1_1.json"
+ln -s "$WORK/study_a/realizations/size_1_1.json" "$WORK/study_edited/realizations/size_1_1.json"
+expect_rc 2 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_edited" --sizes 1,1.5 --realizations 3 -q
+grep -q "size_1_1.json is not a realization record: a link" "$WORK/last.err" || fail "study: linked record: $(cat "$WORK/last.err")"
+echo '{"box":{"size":[1,1,1]}} trailing' >"$WORK/trailing.json"
+expect_rc 2 "$RVEGEN" generate -q "$WORK/trailing.json" -o "$WORK/trailing"
+grep -q "not valid JSON" "$WORK/last.err" && ! grep -q "json.exception" "$WORK/last.err" || fail "scene with trailing text: $(cat "$WORK/last.err")"
 # Memory before any work: a size whose realization cannot fit is refused, naming the size; a
 # limit that holds one realization but not two runs one at a time.
 expect_rc 2 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_mem" --sizes 1,8 --max-memory 300M -q

@@ -11,6 +11,9 @@ namespace {
 // but scans the whole parent at every closing brace: quadratic in the length of an array.)
 class StrictBuilder {
  public:
+  /// No input of rvegen nests deeper; deeper documents are refused before they exhaust the
+  /// stack of the code that walks them.
+  static constexpr size_t kMaxDepth = 256;
   Json root;
 
   bool null() { return put(nullptr); }
@@ -77,6 +80,9 @@ class StrictBuilder {
     return true;
   }
   bool open(Json&& empty, bool array) {
+    if (frames_.size() >= kMaxDepth)
+      throw InputError(where().substr(0, 60) + "...: nested deeper than " +
+                       std::to_string(kMaxDepth) + " levels");
     Json* s = slot();
     *s = std::move(empty);
     frames_.push_back({s, array, {}, {}});
@@ -91,6 +97,13 @@ class StrictBuilder {
   std::string error_;
 };
 
+// The JSON library's message without its own tag ("[json.exception.parse_error.101] ").
+std::string plain(const std::string& message) {
+  if (message.rfind("[json.exception.", 0) != 0) return message;
+  const size_t end = message.find("] ");
+  return end == std::string::npos ? message : message.substr(end + 2);
+}
+
 }  // namespace
 
 Json parse(const std::string& text, const std::string& what) {
@@ -99,9 +112,10 @@ Json parse(const std::string& text, const std::string& what) {
   try {
     ok = Json::sax_parse(text, &b);
   } catch (const Json::exception& e) {
-    throw InputError(what + ": not valid JSON at " + b.where() + " (" + e.what() + ")");
+    throw InputError(what + ": not valid JSON at " + b.where() + " (" + plain(e.what()) + ")");
   }
-  if (!ok) throw InputError(what + ": not valid JSON at " + b.where() + " (" + b.error() + ")");
+  if (!ok)
+    throw InputError(what + ": not valid JSON at " + b.where() + " (" + plain(b.error()) + ")");
   return std::move(b.root);
 }
 

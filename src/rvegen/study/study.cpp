@@ -5,15 +5,16 @@
 
 #include <algorithm>
 #include <atomic>
-#include <mutex>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <map>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "rvegen/homogenize/effective.hpp"
+#include "rvegen/io/json_util.hpp"
 #include "rvegen/io/report.hpp"
 #include "rvegen/io/scene_json.hpp"
 #include "rvegen/io/writers.hpp"
@@ -366,11 +367,22 @@ void check_record(const json& rec, const StudyPlan& plan, size_t i, int k, const
 // Reads and checks the record of realization k of size i.
 json read_record(const StudyPlan& plan, size_t i, int k) {
   const fs::path p = plan.rdir / record_file(plan.sizes[i], k);
+  // A record is a regular file the study wrote: not a link to another file. Read strictly
+  // first (keys given twice, depth, the JSON library's errors named plainly), then in the
+  // order it was written, which its digest covers.
+  std::error_code ec;
+  if (fs::is_symlink(fs::symlink_status(p, ec)))
+    throw InputError(p.string() +
+                     " is not a realization record: a link, not a file the study "
+                     "wrote (remove the record to compute it again)");
   json rec;
   try {
-    rec = json::parse(read_file(p.string(), kMaxRecordBytes));
+    const std::string text = read_file(p.string(), kMaxRecordBytes);
+    json_util::parse(text, "the record");
+    rec = json::parse(text);
   } catch (const std::exception& e) {
-    throw InputError(p.string() + " is not a realization record: " + e.what());
+    throw InputError(p.string() + " is not a realization record: " + e.what() +
+                     " (remove the record to compute it again)");
   }
   check_record(rec, plan, i, k, p);
   return rec;

@@ -9,6 +9,7 @@
 
 #include "rvegen/io/inclusions_json.hpp"
 #include "rvegen/model/inclusion_set.hpp"
+#include "rvegen/packing/audit.hpp"
 #include "rvegen/raster/glyphs.hpp"
 #include "rvegen/raster/mesh.hpp"
 #include "rvegen/raster/voxelize.hpp"
@@ -226,6 +227,13 @@ inline bool RVEInclusionsFromFieldData(vtkDataObject* input, rvegen::InclusionSe
     *set = rvegen::read_inclusions_json(a->GetValue(0));
   } catch (const std::exception& e) {
     *error = std::string("invalid rvegen_inclusions: ") + e.what();
+    return false;
+  }
+  // What is handed in is audited like what is packed (as rvegen homogenize does): no RVE with
+  // overlapping inclusions, or one leaving a closed box, is voxelized, meshed or solved.
+  const rvegen::AuditReport report = rvegen::audit(*set, 3);
+  if (!report.clean()) {
+    *error = "invalid rvegen_inclusions: " + rvegen::describe_failure(report, *set);
     return false;
   }
   return true;

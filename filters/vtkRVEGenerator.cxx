@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <exception>
 #include <memory>
 #include <utility>
@@ -251,6 +252,37 @@ void CheckAmounts(const vtkRVEGenerator* g) {
   }
 }
 
+// The choices and limits are checked as the command line checks a scene's: a value out of range
+// is named, never clamped or cast. `scene_file`: the packing's settings come from it, and only
+// the source's own (Threads, MeshUpTo) are checked here.
+void CheckRanges(const vtkRVEGenerator* g, bool scene_file) {
+  auto* self = const_cast<vtkRVEGenerator*>(g);
+  const struct {
+    const char* name;
+    double value, lo, hi;
+  } ranges[] = {{"Method", double(self->GetMethod()), 0, 1},
+                {"SphereAmount", double(self->GetSphereAmount()), 0, 1},
+                {"FibreAmount", double(self->GetFibreAmount()), 0, 1},
+                {"EllipsoidAmount", double(self->GetEllipsoidAmount()), 0, 1},
+                {"FibreLengthLaw", double(self->GetFibreLengthLaw()), 0, 2},
+                {"FibreOrientation", double(self->GetFibreOrientation()), 0, 4},
+                {"EllipsoidOrientation", double(self->GetEllipsoidOrientation()), 0, 3},
+                {"Seed", double(self->GetSeed()), 0, 2147483647.0},
+                {"TimeBudget", self->GetTimeBudget(), 1e-3, 1e7},
+                {"MeshUpTo", double(self->GetMeshUpTo()), 0, 1e9},
+                {"Threads", double(self->GetThreads()), 0, 1024}};
+  for (const auto& r : ranges) {
+    const std::string name = r.name;
+    if (scene_file && name != "MeshUpTo" && name != "Threads") continue;
+    if (!(r.value >= r.lo && r.value <= r.hi)) {
+      char buf[200];
+      std::snprintf(buf, sizeof buf, "%s: must lie in [%g, %g], got %g", r.name, r.lo, r.hi,
+                    r.value);
+      throw rvegen::InputError(buf);
+    }
+  }
+}
+
 }  // namespace
 
 int vtkRVEGenerator::RequestInformation(vtkInformation*, vtkInformationVector**,
@@ -307,6 +339,7 @@ int vtkRVEGenerator::RequestData(vtkInformation* request, vtkInformationVector**
   vtkImageData* image = vtkImageData::GetData(outVec, 1);
   rvegen::Scene scene;
   try {
+    CheckRanges(this, this->SceneFile && *this->SceneFile);
     if (this->SceneFile && *this->SceneFile) {
       scene = rvegen::parse_scene(rvegen::read_file(this->SceneFile, size_t(16) << 20));
     } else {
@@ -559,7 +592,10 @@ void vtkRVEGenerator::PrintSelf(ostream& os, vtkIndent indent) {
   os << indent << "SceneFile: " << (this->SceneFile ? this->SceneFile : "(none)") << "\n";
   os << indent << "Seed: " << this->Seed << "\n";
   os << indent << "Method: " << this->Method << " ("
-     << rvegen::method_name(static_cast<rvegen::Method>(this->Method)) << ")\n";
+     << (this->Method == 0 || this->Method == 1
+             ? rvegen::method_name(static_cast<rvegen::Method>(this->Method))
+             : "not a method")
+     << ")\n";
   v3("BoxSize", this->BoxSize);
   os << indent << "Periodic: " << this->Periodic << "\n";
   os << indent << "MinGap: " << this->MinGap << "\n";

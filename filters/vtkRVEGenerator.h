@@ -77,24 +77,24 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   /// (axis, kappa), 3 planar (axis = the plane normal), 4 tensor (fibres only:
   /// FibreOrientationTensor, the orientation tensor A2 as a11 a22 a33 a12 a13 a23). Modifiers: see
   /// the scene file's "coating", "waviness", "deformation", "debonding" (0 leaves a modifier out).
-  vtkSetClampMacro(Method, int, 0, 1);
+  vtkSetMacro(Method, int);
   vtkGetMacro(Method, int);
   vtkSetMacro(SphereRadiusStd, double);
   vtkGetMacro(SphereRadiusStd, double);
   /// How each family's amount is given: 0 by its volume fraction (SphereVolumeFraction, ...),
   /// 1 by its count (SphereCount, ...). A family whose chosen amount is 0 is left out.
-  vtkSetClampMacro(SphereAmount, int, 0, 1);
+  vtkSetMacro(SphereAmount, int);
   vtkGetMacro(SphereAmount, int);
-  vtkSetClampMacro(FibreAmount, int, 0, 1);
+  vtkSetMacro(FibreAmount, int);
   vtkGetMacro(FibreAmount, int);
-  vtkSetClampMacro(EllipsoidAmount, int, 0, 1);
+  vtkSetMacro(EllipsoidAmount, int);
   vtkGetMacro(EllipsoidAmount, int);
   vtkSetMacro(SphereCount, int);
   vtkGetMacro(SphereCount, int);
   /// Law of the fibres' aspect ratio (their length over the radius): 0 fixed (FibreAspectRatio),
   /// 1 lognormal (mean FibreAspectRatio, standard deviation FibreAspectRatioStd), 2 Weibull
   /// (shape FibreWeibullShape, scale FibreWeibullScale: the usual fit of moulded fibre lengths).
-  vtkSetClampMacro(FibreLengthLaw, int, 0, 2);
+  vtkSetMacro(FibreLengthLaw, int);
   vtkGetMacro(FibreLengthLaw, int);
   vtkSetMacro(FibreAspectRatioStd, double);
   vtkGetMacro(FibreAspectRatioStd, double);
@@ -108,11 +108,11 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   vtkGetMacro(FibreCount, int);
   vtkSetMacro(EllipsoidCount, int);
   vtkGetMacro(EllipsoidCount, int);
-  vtkSetClampMacro(FibreOrientation, int, 0, 4);
+  vtkSetMacro(FibreOrientation, int);
   vtkGetMacro(FibreOrientation, int);
   vtkSetMacro(FibreKappa, double);
   vtkGetMacro(FibreKappa, double);
-  vtkSetClampMacro(EllipsoidOrientation, int, 0, 3);
+  vtkSetMacro(EllipsoidOrientation, int);
   vtkGetMacro(EllipsoidOrientation, int);
   vtkSetMacro(EllipsoidKappa, double);
   vtkGetMacro(EllipsoidKappa, double);
@@ -153,18 +153,18 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
 
   /// Time budget of the packing in seconds (md.max_seconds and rsa.max_seconds of a scene
   /// file); when it is spent the best valid configuration is shown (status target_not_reached).
-  vtkSetClampMacro(TimeBudget, double, 0.001, 1e7);
+  vtkSetMacro(TimeBudget, double);
   vtkGetMacro(TimeBudget, double);
 
   /// The Surfaces output meshes every inclusion when the RVE holds at most this many (so Apply
   /// shows the true shapes); above, only the modified ones unless Mesh is on.
-  vtkSetClampMacro(MeshUpTo, int, 0, 1000000000);
+  vtkSetMacro(MeshUpTo, int);
   vtkGetMacro(MeshUpTo, int);
 
   /// Threads for the packing and the voxels (0: all cores; the same RVE with any number). Under
   /// MPI with several ranks on one machine, give each rank its share (cores / ranks) rather than
   /// letting every rank use all cores.
-  vtkSetClampMacro(Threads, int, 0, 1024);
+  vtkSetMacro(Threads, int);
   vtkGetMacro(Threads, int);
 
   vtkSetVector3Macro(Resolution, int);

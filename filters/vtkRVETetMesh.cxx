@@ -78,6 +78,9 @@ int vtkRVETetMesh::RequestData(vtkInformation*, vtkInformationVector** in,
   rvegen::TetMesh mesh;
   rvegen::Nudged nudged;
   try {
+    if (this->Order != 1 && this->Order != 2)
+      throw rvegen::InputError("Order: 1 (4-node) or 2 (10-node), got " +
+                               std::to_string(this->Order));
     rvegen::validate_tet_mesh_spec(scene);
     // The pipeline's steps, as the command line takes them: the inclusions moved off the
     // chosen cell's faces where there is room, then a mesh the machine cannot hold refused

@@ -59,7 +59,7 @@ class RVEGENFILTERS_EXPORT vtkRVETetMesh : public vtkUnstructuredGridAlgorithm {
   vtkGetMacro(KeepVolumes, bool);
   vtkBooleanMacro(KeepVolumes, bool);
   /// Element order: 1 for 4-node tetrahedra, 2 for 10-node ones (VTK_QUADRATIC_TETRA).
-  vtkSetClampMacro(Order, int, 1, 2);
+  vtkSetMacro(Order, int);
   vtkGetMacro(Order, int);
   /// The mesher's optimiser improves the elements of quality (0 to 1) under this (0: none).
   vtkSetMacro(OptimizeThreshold, double);

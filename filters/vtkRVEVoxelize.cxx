@@ -54,6 +54,10 @@ vtkTypeBool vtkRVEVoxelize::ProcessRequest(vtkInformation* request, vtkInformati
       vtkErrorMacro(<< error);
       return 0;
     }
+    if (this->Subsamples < 1 || this->Subsamples > 16) {
+      vtkErrorMacro(<< "Subsamples must be in [1, 16], got " << this->Subsamples);
+      return 0;
+    }
     for (int a = 0; a < 3; ++a) {
       if (this->Resolution[a] < 1 || this->Resolution[a] > 4096) {
         vtkErrorMacro(<< "Resolution[" << a << "] must be in [1, 4096], got "

@@ -23,7 +23,7 @@ class RVEGENFILTERS_EXPORT vtkRVEVoxelize : public vtkAlgorithm {
   vtkGetVector3Macro(Resolution, int);
   vtkSetMacro(PartialVolume, bool);
   vtkGetMacro(PartialVolume, bool);
-  vtkSetClampMacro(Subsamples, int, 1, 16);
+  vtkSetMacro(Subsamples, int);
   vtkGetMacro(Subsamples, int);
 
   vtkTypeBool ProcessRequest(vtkInformation* request, vtkInformationVector** inInfo,

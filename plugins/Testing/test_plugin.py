@@ -214,6 +214,47 @@ gen.SphereVolumeFraction = 0.2
 gen.UpdatePipeline()
 gen.UpdatePropertyInformation()
 check(gen.GetProperty("Status").GetElement(0) == "ok", "status after fixing the setting")
+# A choice or limit out of range is named, never clamped or cast (Method 7 ran RSA, Seed -1
+# ran seed 2^64 - 1, TimeBudget 0 ran 0.001 s ...).
+for name, bad_value in (("Method", 7), ("FibreOrientation", 9), ("SphereAmount", 2),
+                        ("Seed", -1), ("TimeBudget", 0), ("Threads", -3), ("MeshUpTo", -1)):
+    good_value = gen.SMProxy.GetProperty(name).GetElement(0)  # the number, not its label
+    gen.SMProxy.GetProperty(name).SetElement(0, bad_value)
+    gen.UpdateVTKObjects()
+    gen.UpdatePipeline()
+    gen.UpdatePropertyInformation()
+    check(gen.GetProperty("Status").GetElement(0) == "invalid",
+          "%s %s: status %s" % (name, bad_value, gen.GetProperty("Status").GetElement(0)))
+    gen.SMProxy.GetProperty(name).SetElement(0, good_value)
+    gen.UpdateVTKObjects()
+gen.UpdatePipeline()
+gen.UpdatePropertyInformation()
+check(gen.GetProperty("Status").GetElement(0) == "ok", "status after the ranges")
+vox_bad = RVEVoxelize(Input=OutputPort(gen, 0), Subsamples=0, Resolution=[8, 8, 8])
+vox_bad.UpdatePipeline()
+check(servermanager.Fetch(vox_bad).GetNumberOfPoints() == 0, "Subsamples 0 was taken")
+# An inclusion list handed in by field data is audited as rvegen homogenize audits one: two
+# overlapping spheres give an error and no image.
+from vtkmodules.vtkCommonDataModel import vtkPolyData
+from vtkmodules.vtkCommonCore import vtkStringArray, vtkPoints
+handed = vtkPolyData()
+handed_points = vtkPoints()
+handed_points.InsertNextPoint(0.5, 0.5, 0.5)
+handed.SetPoints(handed_points)
+listed = vtkStringArray()
+listed.SetName("rvegen_inclusions")
+listed.InsertNextValue(json.dumps({
+    "format": "rvegen.inclusions/1", "box": {"origin": [0, 0, 0], "size": [1, 1, 1], "periodic": True},
+    "family_names": ["spheres"], "inclusions": [
+        {"id": 0, "family": 0, "shape": "sphere", "center": [0.5, 0.5, 0.5], "radius": 0.2},
+        {"id": 1, "family": 0, "shape": "sphere", "center": [0.55, 0.5, 0.5], "radius": 0.2}]}))
+handed.GetFieldData().AddArray(listed)
+producer = TrivialProducer()  # noqa: F405
+producer.GetClientSideObject().SetOutput(handed)
+overlapping = RVEVoxelize(Input=producer, Resolution=[16, 16, 16])
+overlapping.UpdatePipeline()
+check(servermanager.Fetch(overlapping).GetNumberOfPoints() == 0,
+      "an overlapping inclusion list was voxelized")
 
 # Panel properties reach the scene: aligned fibres, coated spheres (interphase phase, their
 # surfaces meshed, no level set: their shells are exact), a coating with a deformation on the
@@ -267,15 +308,20 @@ props.UpdatePropertyInformation()
 check(props.GetProperty("Status").GetElement(0) == "invalid", "coating + deformation accepted")
 Delete(props)
 
-# Enumerated properties are clamped, and PrintSelf prints every property of the panel (the
-# module is not Python-wrapped: str() of the server object calls its PrintSelf).
+# Enumerated properties are kept as given (and refused when the source runs, above), and
+# PrintSelf prints every property of the panel (the module is not Python-wrapped: str() of the
+# server object calls its PrintSelf).
 source = gen.GetClientSideObject()
 gen.GetProperty("Method").SetElement(0, 7)
 gen.GetProperty("FibreOrientation").SetElement(0, -2)
 gen.UpdateVTKObjects()
 printed = str(source)
-check("Method: 1 (rsa)" in printed, "Method 7 not clamped to 1 (rsa)")
-check("FibreOrientation: 0" in printed, "FibreOrientation -2 not clamped to 0")
+check("Method: 7 (not a method)" in printed, "Method 7 not printed as given")
+check("FibreOrientation: -2" in printed, "FibreOrientation -2 not printed as given")
+# The pictures below (and their baseline) are of RSA with isotropic fibres.
+gen.GetProperty("Method").SetElement(0, 1)
+gen.GetProperty("FibreOrientation").SetElement(0, 0)
+gen.UpdateVTKObjects()
 missing = [n for n in gen.ListProperties() if n + ":" not in printed]
 check(not missing, "PrintSelf leaves out %s" % missing)
 gen.Method = 0

@@ -138,6 +138,11 @@ check(servermanager.Fetch(huge).GetNumberOfCells() == 0, "a mesh beyond the memo
 mesh.ChordError = 0.5
 mesh.UpdatePipeline()
 check(servermanager.Fetch(mesh).GetNumberOfCells() == 0, "a chord error of 0.5 was meshed")
+mesh.ChordError = 0.03
+mesh.Order = 5
+mesh.UpdatePipeline()
+check(servermanager.Fetch(mesh).GetNumberOfCells() == 0, "Order 5 was meshed")
+mesh.Order = 1
 
 # 4. The command line's mesh_tet.vtu in ParaView's reader.
 os.makedirs(work, exist_ok=True)

@@ -184,7 +184,16 @@ InclusionSet read_inclusions_json(const std::string& text) {
     // (bounding diameter / box)^3, and coordinates must keep their precision.
     const Box& b = set.box;
     const double reach = envelope(inc).bounding_radius(), small = inc.shape.min_size();
-    if (b.periodic && reach > 2.0 * b.size.minCoeff()) {
+    // A continuous fibre meets no image of its own along its axis: its section is what must
+    // fit across the other two.
+    double across = b.size.minCoeff(), section = reach;
+    if (inc.mod.through) {
+      int k = 0;
+      inc.shape.half_axis.cwiseAbs().maxCoeff(&k);
+      across = std::min(b.size[(k + 1) % 3], b.size[(k + 2) % 3]);
+      section = inc.shape.radius + inc.mod.coating;
+    }
+    if (b.periodic && section > 2.0 * across) {
       fail(p, "larger than twice the periodic box (bounding radius " + std::to_string(reach) +
                   "); such an inclusion overlaps its own images");
     }

@@ -169,6 +169,7 @@ rvegen::Scene SceneFromProperties(const vtkRVEGenerator* g) {
     const double* t = self->GetFibreOrientationTensor();
     fib.orientation.kind = rvegen::OrientationLaw::Kind::kTensor;
     fib.orientation.a2 << t[0], t[3], t[4], t[3], t[1], t[5], t[4], t[5], t[2];
+    fib.orientation.a2 = rvegen::OrientationLaw::as_typed(fib.orientation.a2);
   }
   for (int a = 0; a < 3; ++a) ell.semi_axes[a] = self->GetEllipsoidSemiAxes()[a];
   amount(ell, self->GetEllipsoidAmount(), self->GetEllipsoidVolumeFraction(),

@@ -978,9 +978,30 @@ rm "$WORK/study_edited/realizations/size_1_1.json"
 ln -s "$WORK/study_a/realizations/size_1_1.json" "$WORK/study_edited/realizations/size_1_1.json"
 expect_rc 2 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_edited" --sizes 1,1.5 --realizations 3 -q
 grep -q "size_1_1.json is not a realization record: a link" "$WORK/last.err" || fail "study: linked record: $(cat "$WORK/last.err")"
+# Continuous fibres in a box thin along them: what generate wrote, check and homogenize read.
+echo '{"box":{"size":[1,1,0.02]},"seed":1,"families":[{"shape":"cylinder","radius":0.05,"length":"through","volume_fraction":0.5}],"voxels":{"resolution":[32,32,1]}}' >"$WORK/thin_through.json"
+expect_rc 0 "$RVEGEN" generate -q "$WORK/thin_through.json" -o "$WORK/thin_through"
+expect_rc 0 "$RVEGEN" check "$WORK/thin_through/inclusions.json"
+# Shells that may touch, counted whole where three meet: the matrix's share is a lower bound,
+# never below 0, the interphase's an upper one (it was -0.018).
+echo '{"box":{"size":[1,1,1]},"seed":1,"families":[{"name":"s","shape":"sphere","radius":0.1,"volume_fraction":0.3,"coating":{"thickness":0.05,"shells_may_touch":true}}],"voxels":{"resolution":16}}' >"$WORK/merged_shells.json"
+expect_rc 0 "$RVEGEN" generate -q "$WORK/merged_shells.json" -o "$WORK/merged_shells"
+$py - "$WORK/merged_shells/report.json" <<'PY' || fail "merged shells: the phases' shares"
+import json, sys
+ph = {p["kind"]: p for p in json.load(open(sys.argv[1]))["phases"]}
+assert ph["matrix"]["volume_fraction"] >= 0 and ph["matrix"]["bound"] == "lower", ph["matrix"]
+assert ph["interphase"]["bound"] == "upper", ph["interphase"]
+PY
+# min_gap named when it is what keeps an inclusion out of the box.
+echo '{"box":{"size":[1,1,1]},"min_gap":0.9,"families":[{"shape":"sphere","radius":0.1,"count":2}]}' >"$WORK/big_gap.json"
+expect_rc 2 "$RVEGEN" generate -q "$WORK/big_gap.json" -o "$WORK/big_gap"
+grep -q "plus twice min_gap" "$WORK/last.err" || fail "min_gap not named: $(cat "$WORK/last.err")"
 echo '{"box":{"size":[1,1,1]}} trailing' >"$WORK/trailing.json"
 expect_rc 2 "$RVEGEN" generate -q "$WORK/trailing.json" -o "$WORK/trailing"
 grep -q "not valid JSON" "$WORK/last.err" && ! grep -q "json.exception" "$WORK/last.err" || fail "scene with trailing text: $(cat "$WORK/last.err")"
+rm -rf "$WORK/study_file" && mkdir -p "$WORK/study_file" && cp "$WORK/study_a/study_scene.json" "$WORK/study_file/" && touch "$WORK/study_file/realizations"
+expect_rc 1 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_file" --sizes 1,1.5 -q
+grep -q "realizations is not a directory" "$WORK/last.err" || fail "study: realizations a file: $(cat "$WORK/last.err")"
 # Memory before any work: a size whose realization cannot fit is refused, naming the size; a
 # limit that holds one realization but not two runs one at a time.
 expect_rc 2 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_mem" --sizes 1,8 --max-memory 300M -q

@@ -1,5 +1,6 @@
 #include "rvegen/io/report.hpp"
 
+#include <algorithm>
 #include <nlohmann/json.hpp>
 
 #include "rvegen/model/body.hpp"
@@ -141,6 +142,13 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
     j["kind"] = phase_kind_name(p.kind);
     if (p.family >= 0) j["family"] = p.family;
     j["volume_fraction"] = exact[p.label];
+    // Shells counted whole where they merge: the interphases' shares are upper bounds, the
+    // matrix's a lower one (never below 0).
+    if (merged_shells && !overlaps.exact && p.kind == PhaseKind::kInterphase) j["bound"] = "upper";
+    if (merged_shells && !overlaps.exact && p.kind == PhaseKind::kMatrix) {
+      j["volume_fraction"] = std::max(0.0, exact[p.label]);
+      j["bound"] = "lower";
+    }
     if (image) j["voxel_volume_fraction"] = label_vf[p.label];
     ph.push_back(j);
   }

@@ -45,6 +45,7 @@ OrientationLaw parse_orientation(const Json& j, const std::string& p) {
         law.a2(r, c) = number(a[r][c], qr + "[" + std::to_string(c) + "]");
       }
     }
+    law.a2 = OrientationLaw::as_typed(law.a2);
   } else {
     fail(p + ".law", "unknown orientation law \"" + name +
                          "\" (isotropic, aligned, von_mises_fisher, planar, tensor)");
@@ -394,8 +395,14 @@ Scene parse_scene(const std::string& text) {
       s.seed = v.get<uint64_t>();
     } else {
       const double seed = number(v, "seed");
-      if (!(seed >= 0 && seed == std::floor(seed) && seed <= 9007199254740992.0)) {
+      if (!(seed >= 0 && seed == std::floor(seed))) {
         fail("seed", "must be an integer in [0, 18446744073709551615] (got " + v.dump() + ")");
+      }
+      // 2^53 and above, a double holds one integer in several: 9007199254740993.0 reads as
+      // ...992.
+      if (seed >= 9007199254740992.0) {
+        fail("seed", "from 2^53 (9007199254740992) up, give the seed as digits only (got " +
+                         v.dump() + ", which is read through a double)");
       }
       s.seed = static_cast<uint64_t>(seed);
     }

@@ -184,4 +184,12 @@ Mat3 OrientationLaw::tensor() const {
   return Mat3::Identity() / 3.0;
 }
 
+Mat3 OrientationLaw::as_typed(const Mat3& a) {
+  if ((a - a.transpose()).cwiseAbs().maxCoeff() > kTypedTolerance ||
+      std::abs(a.trace() - 1.0) > kTypedTolerance)
+    return a;
+  const Mat3 sym = 0.5 * (a + a.transpose());
+  return sym / sym.trace();
+}
+
 }  // namespace rvegen

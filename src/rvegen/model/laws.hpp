@@ -56,6 +56,12 @@ struct OrientationLaw {
   };
   NullSpace null_space() const;
   static constexpr double kNullEigenvalue = 1e-12;
+  /// Tensors typed by users are symmetric and of trace 1 to this (the validation says so).
+  static constexpr double kTypedTolerance = 1e-6;
+  /// A tensor as typed, as the law takes it: within kTypedTolerance of symmetric and of trace
+  /// 1, its symmetric part over its trace (the law then reaches what the user meant, not a
+  /// tensor 5e-7 off trace 1); any other unchanged, for the validation to name.
+  static Mat3 as_typed(const Mat3& a);
 };
 
 }  // namespace rvegen

@@ -12,7 +12,7 @@ namespace rvegen {
 namespace {
 
 // Orientation tensors typed by users: symmetric and of trace 1 to this (their messages say so).
-constexpr double kTensorInputTolerance = 1e-6;
+constexpr double kTensorInputTolerance = OrientationLaw::kTypedTolerance;
 // Unit vectors given by users have norm 1 to this, and a tensor's eigenvalues may fall this far
 // below 0 (rounding of a tensor computed elsewhere).
 constexpr double kUnitInputTolerance = 1e-9;
@@ -480,13 +480,15 @@ void validate_scene(const Scene& s) {
       const double width = 2.0 * (f.radius.upper() + m.coating);
       if (width + 2.0 * s.min_gap >= across) {
         fail(p, "continuous fibre does not fit across the box (diameter with coating " +
-                    std::to_string(width) + " >= box size across the fibres " +
-                    std::to_string(across) + ")");
+                    std::to_string(width) +
+                    (s.min_gap > 0.0 ? " plus twice min_gap " + std::to_string(s.min_gap) : "") +
+                    " >= box size across the fibres " + std::to_string(across) + ")");
       }
     } else if (f.max_min_width() + 2.0 * s.min_gap >= box_min) {
       fail(p, "inclusion does not fit in the box (smallest width " +
-                  std::to_string(f.max_min_width()) + " >= smallest box size " +
-                  std::to_string(box_min) + ")");
+                  std::to_string(f.max_min_width()) +
+                  (s.min_gap > 0.0 ? " plus twice min_gap " + std::to_string(s.min_gap) : "") +
+                  " >= smallest box size " + std::to_string(box_min) + ")");
     }
     if (!s.box.periodic && 2.0 * f.max_bounding_radius() >= box_min) {
       // A non-periodic box must hold every inclusion whatever its orientation.

@@ -741,11 +741,12 @@ void prepare_study_directory(const StudyPlan& plan) {
     throw OutputError(plan.dir.string() + " is not empty and holds no study: give a new or " +
                       "empty directory");
   }
-  try {
-    fs::create_directories(plan.rdir);
-  } catch (const std::exception& e) {
-    throw OutputError("cannot write the study in " + plan.dir.string() + ": " + e.what());
+  for (const fs::path& d : {plan.dir, plan.rdir}) {
+    if (fs::exists(fs::symlink_status(d, ec)) && !fs::is_directory(fs::status(d, ec)))
+      throw OutputError(d.string() + " is not a directory: the study cannot write there");
   }
+  fs::create_directories(plan.rdir, ec);
+  if (ec) throw OutputError("cannot write the study in " + plan.dir.string() + ": " + ec.message());
   write_whole(held, plan.signature);
 }
 

@@ -84,4 +84,29 @@ bool on_void_cone(const Inclusion& in, const Vec3& shift, const Vec3& p0, const 
                   const Vec3& p2);
 bool on_void_cone(const Inclusion& in, const Vec3& shift, const Vec3& x);
 
+// solids.cpp (through Gmsh's OpenCASCADE kernel; tags of the solids made): the solid of shape
+// s grown by `offset` (a shell's outer surface), built in the frame that keeps its seam and
+// poles off the faces of `box` it crosses, or in `given`, or in the frame of rank `rank` by
+// that measure; the piece inside the box of an image cut by its faces; the frame of a debonded
+// sphere's void and core; the solid of that void.
+int add_solid(const Shape& s, const Box& box, double offset = 0.0, const Mat3* given = nullptr,
+              int rank = 0);
+int add_inside_solid(const Shape& s, const Box& box, int rank);
+Mat3 void_frame(const Inclusion& in, const Box& box);
+int add_void_solid(const Inclusion& in, const Box& box);
+
+// slivers.cpp: the elements marked in `gone` dropped (the rest keep their order); the elements
+// whose least dihedral angle is under `angle` degrees, in order (*least: every element's);
+// the elements around each node n, (*around)[(*start)[n]] to (*around)[(*start)[n + 1] - 1];
+// the element other than `except` on face (a, b, c), -1 if none; the centre of a
+// tetrahedron's circumscribed sphere (its centroid when flat to rounding).
+void drop_elements(TetMesh* mesh, const std::vector<uint8_t>& gone);
+std::vector<int32_t> elements_under(const TetMesh& mesh, double angle, std::vector<double>* least);
+void elements_around(const TetMesh& mesh, std::vector<int32_t>* start,
+                     std::vector<int32_t>* around);
+int32_t element_on(const TetMesh& mesh, const std::vector<int32_t>& start,
+                   const std::vector<int32_t>& around, int32_t a, int32_t b, int32_t c,
+                   int32_t except);
+Vec3 circumcentre(const Vec3 (&p)[4]);
+
 }  // namespace rvegen::mesh_parts

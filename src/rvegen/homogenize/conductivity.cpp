@@ -78,6 +78,35 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
   return effective_conductivity(dims, box_size, m, opt);
 }
 
+namespace {
+
+// Checks the medium (finite, positive semi-definite tensors; an index for every voxel) and
+// gives the extreme eigenvalues over the tensors in use (the fixed-point reference; every
+// rank's).
+void checked_extremes(const ConductivityMedium& medium, const ConductivityOptions& opt,
+                      double* kmin, double* kmax) {
+  *kmin = INFINITY;
+  *kmax = 0.0;
+  for (const Mat3& t : medium.tensors) {
+    if (!t.allFinite()) throw InputError("homogenization: conductivities must be finite");
+    const Vec3 ev = Eigen::SelfAdjointEigenSolver<Mat3>(t).eigenvalues();
+    if (ev.minCoeff() < -kTensorRounding * std::max(1.0, ev.maxCoeff())) {
+      throw InputError("homogenization: conductivities must be positive semi-definite");
+    }
+    *kmin = std::min(*kmin, ev.minCoeff());
+    *kmax = std::max(*kmax, ev.maxCoeff());
+  }
+  for (uint32_t i : medium.index) {
+    if (i >= medium.tensors.size()) throw InputError("homogenization: a voxel has no tensor");
+  }
+  if (opt.solver == LinearSolver::kFixedPoint && opt.comm.set) {
+    *kmin = -max_over_ranks(-*kmin, opt.comm);
+    *kmax = max_over_ranks(*kmax, opt.comm);
+  }
+}
+
+}  // namespace
+
 ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const Vec3& box_size,
                                           const ConductivityMedium& medium,
                                           const ConductivityOptions& opt) {
@@ -88,24 +117,8 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
     throw InputError("homogenization: a medium of " + std::to_string(medium.index.size()) +
                      " voxels for " + std::to_string(n));
   }
-  // The extreme eigenvalues over the tensors in use (the fixed-point reference; every rank's).
-  double kmin = INFINITY, kmax = 0.0;
-  for (const Mat3& t : medium.tensors) {
-    if (!t.allFinite()) throw InputError("homogenization: conductivities must be finite");
-    const Vec3 ev = Eigen::SelfAdjointEigenSolver<Mat3>(t).eigenvalues();
-    if (ev.minCoeff() < -kTensorRounding * std::max(1.0, ev.maxCoeff())) {
-      throw InputError("homogenization: conductivities must be positive semi-definite");
-    }
-    kmin = std::min(kmin, ev.minCoeff());
-    kmax = std::max(kmax, ev.maxCoeff());
-  }
-  for (uint32_t i : medium.index) {
-    if (i >= medium.tensors.size()) throw InputError("homogenization: a voxel has no tensor");
-  }
-  if (opt.solver == LinearSolver::kFixedPoint && opt.comm.set) {
-    kmin = -max_over_ranks(-kmin, opt.comm);
-    kmax = max_over_ranks(kmax, opt.comm);
-  }
+  double kmin = 0.0, kmax = 0.0;
+  checked_extremes(medium, opt, &kmin, &kmax);
   GradientProjection project(dims, box_size, opt.scheme, opt.threads, opt.comm);
   const spectral::Grid& grid = project.grid();
   ConductivityResult res;

@@ -92,6 +92,154 @@ void strings(hid_t parent, const char* name, const std::vector<std::string>& v) 
 
 }  // namespace
 
+namespace {
+
+// /voxels: the labels, the inclusion ids and the partial volumes, with the grid.
+void write_voxels(hid_t file, const VoxelImage& im) {
+  const hid_t vox = H5Gcreate2(file, "voxels", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  const std::vector<hsize_t> dims = {static_cast<hsize_t>(im.size(2)),
+                                     static_cast<hsize_t>(im.size(1)),
+                                     static_cast<hsize_t>(im.size(0))};
+  dataset(vox, "phase", H5T_NATIVE_UINT8, dims, im.phase.data(), true);
+  dataset(vox, "inclusion_id", H5T_NATIVE_INT32, dims, im.inclusion_id.data(), true);
+  if (!im.fraction.empty()) {
+    dataset(vox, "fraction", H5T_NATIVE_FLOAT, dims, im.fraction.data(), true);
+  }
+  attribute(
+      vox, "origin",
+      {im.origin[0] + im.extent[0] * im.spacing[0], im.origin[1] + im.extent[2] * im.spacing[1],
+       im.origin[2] + im.extent[4] * im.spacing[2]});
+  attribute(vox, "spacing", {im.spacing[0], im.spacing[1], im.spacing[2]});
+  attribute(vox, "resolution",
+            {static_cast<double>(im.dims[0]), static_cast<double>(im.dims[1]),
+             static_cast<double>(im.dims[2])});
+  H5Gclose(vox);
+}
+
+// /phases: the phase table.
+void write_phases(hid_t file, const VoxelImage& im) {
+  const hid_t ph = H5Gcreate2(file, "phases", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  std::vector<int32_t> label, family;
+  std::vector<std::string> name, kind;
+  for (const auto& p : im.phases) {
+    label.push_back(p.label);
+    family.push_back(p.family);
+    name.push_back(p.name);
+    kind.push_back(phase_kind_name(p.kind));
+  }
+  dataset(ph, "label", H5T_NATIVE_INT32, {label.size()}, label.data());
+  dataset(ph, "family", H5T_NATIVE_INT32, {family.size()}, family.data());
+  strings(ph, "name", name);
+  strings(ph, "kind", kind);
+  H5Gclose(ph);
+}
+
+// /inclusions: one row per inclusion.
+void write_inclusion_table(hid_t file, const InclusionSet& set) {
+  const hid_t tab = H5Gcreate2(file, "inclusions", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  const size_t n = set.inclusions.size();
+  std::vector<int32_t> id(n), fam(n), shape(n);
+  std::vector<double> center(3 * n), radius(n), half(3 * n), semi(3 * n), rot(9 * n);
+  for (size_t i = 0; i < n; ++i) {
+    const Inclusion& inc = set.inclusions[i];
+    id[i] = inc.id;
+    fam[i] = inc.family;
+    shape[i] = static_cast<int32_t>(inc.shape.kind);
+    radius[i] = inc.shape.radius;
+    for (int a = 0; a < 3; ++a) {
+      center[3 * i + a] = inc.shape.center[a];
+      half[3 * i + a] = inc.shape.half_axis[a];
+      semi[3 * i + a] = inc.shape.semi_axes[a];
+      for (int b = 0; b < 3; ++b) rot[9 * i + 3 * a + b] = inc.shape.rotation(a, b);
+    }
+  }
+  dataset(tab, "id", H5T_NATIVE_INT32, {n}, id.data());
+  dataset(tab, "family", H5T_NATIVE_INT32, {n}, fam.data());
+  dataset(tab, "shape", H5T_NATIVE_INT32, {n}, shape.data());
+  dataset(tab, "center", H5T_NATIVE_DOUBLE, {n, 3}, center.data());
+  dataset(tab, "radius", H5T_NATIVE_DOUBLE, {n}, radius.data());
+  dataset(tab, "half_axis", H5T_NATIVE_DOUBLE, {n, 3}, half.data());
+  dataset(tab, "semi_axes", H5T_NATIVE_DOUBLE, {n, 3}, semi.data());
+  dataset(tab, "rotation", H5T_NATIVE_DOUBLE, {n, 3, 3}, rot.data());
+  text_attribute(tab, "shape_codes", std::string("0 sphere, 1 cylinder, 2 ellipsoid"));
+  H5Gclose(tab);
+}
+
+void write_composite_voxels(hid_t file, const VoxelImage& im, const InclusionSet& set) {
+  // Voxels cut by the surfaces of one inclusion, for solvers that take composite (laminate)
+  // voxels.
+  const CutVoxels cut = cut_voxels(set, im);
+  const hid_t cv = H5Gcreate2(file, "composite_voxels", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  const size_t m = cut.voxels.size();
+  std::vector<uint64_t> voxel(m);
+  std::vector<int32_t> owner(m);
+  std::vector<uint8_t> inside(m), outside(m), middle(m);
+  std::vector<double> share(m), middle_share(m), normal(3 * m);
+  for (size_t i = 0; i < m; ++i) {
+    const CutVoxel& c = cut.voxels[i];
+    voxel[i] = c.voxel;
+    owner[i] = set.inclusions[c.inclusion].id;
+    inside[i] = c.inside;
+    outside[i] = c.outside;
+    share[i] = c.fraction;
+    middle[i] = c.middle;
+    middle_share[i] = c.middle_fraction;
+    for (int a = 0; a < 3; ++a) normal[3 * i + a] = c.normal[a];
+  }
+  dataset(cv, "voxel", H5T_NATIVE_UINT64, {m}, voxel.data());
+  dataset(cv, "inclusion_id", H5T_NATIVE_INT32, {m}, owner.data());
+  dataset(cv, "inside_phase", H5T_NATIVE_UINT8, {m}, inside.data());
+  dataset(cv, "outside_phase", H5T_NATIVE_UINT8, {m}, outside.data());
+  dataset(cv, "fraction", H5T_NATIVE_DOUBLE, {m}, share.data());
+  dataset(cv, "middle_phase", H5T_NATIVE_UINT8, {m}, middle.data());
+  dataset(cv, "middle_fraction", H5T_NATIVE_DOUBLE, {m}, middle_share.data());
+  dataset(cv, "normal", H5T_NATIVE_DOUBLE, {m, 3}, normal.data());
+  text_attribute(
+      cv, "description",
+      std::string("voxels cut by the surfaces of one inclusion: voxel = index x fastest (i + "
+                  "nx (j + ny k)), the share of the voxel inside the core (fraction), for a "
+                  "coated inclusion the shell's label and share (middle_phase, "
+                  "middle_fraction; 0 otherwise), the outside phase the rest, the core's "
+                  "outward unit normal (the shell's surfaces are parallel to it)"));
+  attribute(cv, "voxels_cut_by_two_cores", {static_cast<double>(cut.shared)});
+  H5Gclose(cv);
+}
+
+void write_fields(hid_t file, const VoxelImage& im, const std::vector<LocalField>& fields) {
+  // Local fields, components last (what XDMF and ParaView read as a vector per cell).
+  if (fields.empty()) return;
+  {
+    const hid_t lcpl = H5Pcreate(H5P_LINK_CREATE);
+    H5Pset_create_intermediate_group(lcpl, 1);
+    const size_t n = im.count();
+    std::vector<float> interleaved;
+    for (const LocalField& f : fields) {
+      if (!f.values || f.values->size() != n * f.count) {
+        throw std::runtime_error("HDF5: local field " + f.name + " has the wrong size");
+      }
+      interleaved.resize(n * f.count);
+      for (int c = 0; c < f.count; ++c) {
+        for (size_t i = 0; i < n; ++i) interleaved[i * f.count + c] = (*f.values)[c * n + i];
+      }
+      const std::string path_in = "fields/" + f.name;
+      const hsize_t dims[4] = {static_cast<hsize_t>(im.size(2)), static_cast<hsize_t>(im.size(1)),
+                               static_cast<hsize_t>(im.size(0)), static_cast<hsize_t>(f.count)};
+      const hid_t space = H5Screate_simple(4, dims, nullptr);
+      const hid_t ds = H5Dcreate2(file, path_in.c_str(), H5T_NATIVE_FLOAT, space, lcpl, H5P_DEFAULT,
+                                  H5P_DEFAULT);
+      if (ds < 0) throw std::runtime_error("HDF5: cannot create " + path_in);
+      check(H5Dwrite(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, interleaved.data()),
+            path_in.c_str());
+      text_attribute(ds, "components", f.components);
+      H5Dclose(ds);
+      H5Sclose(space);
+    }
+    H5Pclose(lcpl);
+  }
+}
+
+}  // namespace
+
 void write_hdf5(const std::string& path, const VoxelImage& im, const InclusionSet& set,
                 const std::string& scene_json, const std::string& report_json,
                 const std::vector<LocalField>& fields) {
@@ -112,136 +260,11 @@ void write_hdf5(const std::string& path, const VoxelImage& im, const InclusionSe
       if (text.size() < kMaxTextAttribute) text_attribute(file, name, text);
     }
 
-    const hid_t vox = H5Gcreate2(file, "voxels", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-    const std::vector<hsize_t> dims = {static_cast<hsize_t>(im.size(2)),
-                                       static_cast<hsize_t>(im.size(1)),
-                                       static_cast<hsize_t>(im.size(0))};
-    dataset(vox, "phase", H5T_NATIVE_UINT8, dims, im.phase.data(), true);
-    dataset(vox, "inclusion_id", H5T_NATIVE_INT32, dims, im.inclusion_id.data(), true);
-    if (!im.fraction.empty()) {
-      dataset(vox, "fraction", H5T_NATIVE_FLOAT, dims, im.fraction.data(), true);
-    }
-    attribute(
-        vox, "origin",
-        {im.origin[0] + im.extent[0] * im.spacing[0], im.origin[1] + im.extent[2] * im.spacing[1],
-         im.origin[2] + im.extent[4] * im.spacing[2]});
-    attribute(vox, "spacing", {im.spacing[0], im.spacing[1], im.spacing[2]});
-    attribute(vox, "resolution",
-              {static_cast<double>(im.dims[0]), static_cast<double>(im.dims[1]),
-               static_cast<double>(im.dims[2])});
-    H5Gclose(vox);
-
-    const hid_t ph = H5Gcreate2(file, "phases", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-    std::vector<int32_t> label, family;
-    std::vector<std::string> name, kind;
-    for (const auto& p : im.phases) {
-      label.push_back(p.label);
-      family.push_back(p.family);
-      name.push_back(p.name);
-      kind.push_back(phase_kind_name(p.kind));
-    }
-    dataset(ph, "label", H5T_NATIVE_INT32, {label.size()}, label.data());
-    dataset(ph, "family", H5T_NATIVE_INT32, {family.size()}, family.data());
-    strings(ph, "name", name);
-    strings(ph, "kind", kind);
-    H5Gclose(ph);
-
-    const hid_t tab = H5Gcreate2(file, "inclusions", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-    const size_t n = set.inclusions.size();
-    std::vector<int32_t> id(n), fam(n), shape(n);
-    std::vector<double> center(3 * n), radius(n), half(3 * n), semi(3 * n), rot(9 * n);
-    for (size_t i = 0; i < n; ++i) {
-      const Inclusion& inc = set.inclusions[i];
-      id[i] = inc.id;
-      fam[i] = inc.family;
-      shape[i] = static_cast<int32_t>(inc.shape.kind);
-      radius[i] = inc.shape.radius;
-      for (int a = 0; a < 3; ++a) {
-        center[3 * i + a] = inc.shape.center[a];
-        half[3 * i + a] = inc.shape.half_axis[a];
-        semi[3 * i + a] = inc.shape.semi_axes[a];
-        for (int b = 0; b < 3; ++b) rot[9 * i + 3 * a + b] = inc.shape.rotation(a, b);
-      }
-    }
-    dataset(tab, "id", H5T_NATIVE_INT32, {n}, id.data());
-    dataset(tab, "family", H5T_NATIVE_INT32, {n}, fam.data());
-    dataset(tab, "shape", H5T_NATIVE_INT32, {n}, shape.data());
-    dataset(tab, "center", H5T_NATIVE_DOUBLE, {n, 3}, center.data());
-    dataset(tab, "radius", H5T_NATIVE_DOUBLE, {n}, radius.data());
-    dataset(tab, "half_axis", H5T_NATIVE_DOUBLE, {n, 3}, half.data());
-    dataset(tab, "semi_axes", H5T_NATIVE_DOUBLE, {n, 3}, semi.data());
-    dataset(tab, "rotation", H5T_NATIVE_DOUBLE, {n, 3, 3}, rot.data());
-    text_attribute(tab, "shape_codes", std::string("0 sphere, 1 cylinder, 2 ellipsoid"));
-    H5Gclose(tab);
-
-    // Voxels cut by the surfaces of one inclusion, for solvers that take composite (laminate)
-    // voxels.
-    const CutVoxels cut = cut_voxels(set, im);
-    const hid_t cv = H5Gcreate2(file, "composite_voxels", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-    const size_t m = cut.voxels.size();
-    std::vector<uint64_t> voxel(m);
-    std::vector<int32_t> owner(m);
-    std::vector<uint8_t> inside(m), outside(m), middle(m);
-    std::vector<double> share(m), middle_share(m), normal(3 * m);
-    for (size_t i = 0; i < m; ++i) {
-      const CutVoxel& c = cut.voxels[i];
-      voxel[i] = c.voxel;
-      owner[i] = set.inclusions[c.inclusion].id;
-      inside[i] = c.inside;
-      outside[i] = c.outside;
-      share[i] = c.fraction;
-      middle[i] = c.middle;
-      middle_share[i] = c.middle_fraction;
-      for (int a = 0; a < 3; ++a) normal[3 * i + a] = c.normal[a];
-    }
-    dataset(cv, "voxel", H5T_NATIVE_UINT64, {m}, voxel.data());
-    dataset(cv, "inclusion_id", H5T_NATIVE_INT32, {m}, owner.data());
-    dataset(cv, "inside_phase", H5T_NATIVE_UINT8, {m}, inside.data());
-    dataset(cv, "outside_phase", H5T_NATIVE_UINT8, {m}, outside.data());
-    dataset(cv, "fraction", H5T_NATIVE_DOUBLE, {m}, share.data());
-    dataset(cv, "middle_phase", H5T_NATIVE_UINT8, {m}, middle.data());
-    dataset(cv, "middle_fraction", H5T_NATIVE_DOUBLE, {m}, middle_share.data());
-    dataset(cv, "normal", H5T_NATIVE_DOUBLE, {m, 3}, normal.data());
-    text_attribute(
-        cv, "description",
-        std::string("voxels cut by the surfaces of one inclusion: voxel = index x fastest (i + "
-                    "nx (j + ny k)), the share of the voxel inside the core (fraction), for a "
-                    "coated inclusion the shell's label and share (middle_phase, "
-                    "middle_fraction; 0 otherwise), the outside phase the rest, the core's "
-                    "outward unit normal (the shell's surfaces are parallel to it)"));
-    attribute(cv, "voxels_cut_by_two_cores", {static_cast<double>(cut.shared)});
-    H5Gclose(cv);
-
-    // Local fields, components last (what XDMF and ParaView read as a vector per cell).
-    if (!fields.empty()) {
-      const hid_t lcpl = H5Pcreate(H5P_LINK_CREATE);
-      H5Pset_create_intermediate_group(lcpl, 1);
-      const size_t n = im.count();
-      std::vector<float> interleaved;
-      for (const LocalField& f : fields) {
-        if (!f.values || f.values->size() != n * f.count) {
-          throw std::runtime_error("HDF5: local field " + f.name + " has the wrong size");
-        }
-        interleaved.resize(n * f.count);
-        for (int c = 0; c < f.count; ++c) {
-          for (size_t i = 0; i < n; ++i) interleaved[i * f.count + c] = (*f.values)[c * n + i];
-        }
-        const std::string path_in = "fields/" + f.name;
-        const hsize_t dims[4] = {static_cast<hsize_t>(im.size(2)), static_cast<hsize_t>(im.size(1)),
-                                 static_cast<hsize_t>(im.size(0)), static_cast<hsize_t>(f.count)};
-        const hid_t space = H5Screate_simple(4, dims, nullptr);
-        const hid_t ds = H5Dcreate2(file, path_in.c_str(), H5T_NATIVE_FLOAT, space, lcpl,
-                                    H5P_DEFAULT, H5P_DEFAULT);
-        if (ds < 0) throw std::runtime_error("HDF5: cannot create " + path_in);
-        check(H5Dwrite(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, interleaved.data()),
-              path_in.c_str());
-        text_attribute(ds, "components", f.components);
-        H5Dclose(ds);
-        H5Sclose(space);
-      }
-      H5Pclose(lcpl);
-    }
-
+    write_voxels(file, im);
+    write_phases(file, im);
+    write_inclusion_table(file, set);
+    write_composite_voxels(file, im, set);
+    write_fields(file, im, fields);
   } catch (...) {
     H5Fclose(file);
     throw;

@@ -109,6 +109,7 @@ class MdPacker {
   /// Puts every body back where the best configuration had it, at rest.
   void restore_best();
   void report_progress(bool force);
+  void next_scale(double s_in);
   /// The best configuration, each body moved and turned at random by up to md.shake of its size.
   void shake();
   void report_fraction() const;
@@ -269,6 +270,43 @@ void MdPacker::report_progress(bool force) {
   progress_(buf);
 }
 
+// The scale the contacts act at next, from this step's valid scale s_in (0: none).
+void MdPacker::next_scale(double s_in) {
+  if (bodies_.chains) {
+    // Chains: the contacts act at a scale never above 1, where the chains are placed (a chain
+    // is not convex, and valid at a scale above 1 need not mean valid at 1). It follows the
+    // valid scale, but drops by at most kChainDrop m a step: a chain pair's certificate may
+    // lie far below s_out (shrunk, its pieces move across each other's waves), and following
+    // it dragged the scale of all down and undid the compression (Figure 5 scene: jammed at
+    // 0.19 of 0.35). With no valid scale, it is held: the contacts part the overlaps at that
+    // scale until one is certified there (the skin makes them part the pieces a little more
+    // than needed, so the pass certifies the force scale itself); held kChainHold steps (a
+    // pair caught across another's wave), it drops by kChainUnjam.
+    if (s_in > 0.0) {
+      hold_ = 0;
+      deep_holds_ = 0;
+      const double s = std::max(s_in, s_out_ * (1.0 - kChainDrop * m_));
+      s_out_ = std::min(1.0, std::max(s_start_, s * (1.0 + m_)));
+    } else if (++hold_ >= kChainHold) {
+      hold_ = 0;
+      deep_holds_ = sums_.max_overlap > kChainDeep ? deep_holds_ + 1 : 0;
+      if (deep_holds_ >= kChainDeepHolds && best_scale_ > 0.0) {
+        // Intertwined beyond what the contacts undo: from the best configuration again, more
+        // gently.
+        deep_holds_ = 0;
+        restore_best();
+        m_ *= 0.5;
+        s_out_ = std::min(1.0, best_scale_ * (1.0 + m_));
+      } else {
+        s_out_ *= 1.0 - kChainUnjam;
+      }
+    }
+  } else if (s_in > 0.0) {
+    // (No valid scale this step: the contacts keep acting at the same scale, never at 0.)
+    s_out_ = std::max(s_start_, s_in * (1.0 + m_));
+  }
+}
+
 PackingResult MdPacker::run() {
   t0_ = last_progress_ = std::chrono::steady_clock::now();
   deadline_ = t0_ + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
@@ -347,39 +385,7 @@ PackingResult MdPacker::run() {
         break;
       }
     }
-    if (bodies_.chains) {
-      // Chains: the contacts act at a scale never above 1, where the chains are placed (a chain
-      // is not convex, and valid at a scale above 1 need not mean valid at 1). It follows the
-      // valid scale, but drops by at most kChainDrop m a step: a chain pair's certificate may
-      // lie far below s_out (shrunk, its pieces move across each other's waves), and following
-      // it dragged the scale of all down and undid the compression (Figure 5 scene: jammed at
-      // 0.19 of 0.35). With no valid scale, it is held: the contacts part the overlaps at that
-      // scale until one is certified there (the skin makes them part the pieces a little more
-      // than needed, so the pass certifies the force scale itself); held kChainHold steps (a
-      // pair caught across another's wave), it drops by kChainUnjam.
-      if (s_in > 0.0) {
-        hold_ = 0;
-        deep_holds_ = 0;
-        const double s = std::max(s_in, s_out_ * (1.0 - kChainDrop * m_));
-        s_out_ = std::min(1.0, std::max(s_start_, s * (1.0 + m_)));
-      } else if (++hold_ >= kChainHold) {
-        hold_ = 0;
-        deep_holds_ = sums_.max_overlap > kChainDeep ? deep_holds_ + 1 : 0;
-        if (deep_holds_ >= kChainDeepHolds && best_scale_ > 0.0) {
-          // Intertwined beyond what the contacts undo: from the best configuration again, more
-          // gently.
-          deep_holds_ = 0;
-          restore_best();
-          m_ *= 0.5;
-          s_out_ = std::min(1.0, best_scale_ * (1.0 + m_));
-        } else {
-          s_out_ *= 1.0 - kChainUnjam;
-        }
-      }
-    } else if (s_in > 0.0) {
-      // (No valid scale this step: the contacts keep acting at the same scale, never at 0.)
-      s_out_ = std::max(s_start_, s_in * (1.0 + m_));
-    }
+    next_scale(s_in);
     if (steps_ >= scene_.md.max_steps) {
       why = StopReason::kStepBudget;
       break;

@@ -332,6 +332,94 @@ void parse_materials(const Json& m, Scene* s) {
     s->materials.emplace_back(it.key(), mat);
   }
 }
+// The scene's "md" object (the molecular dynamics' budgets and settings).
+void parse_md(const Json& m, Scene* scene) {
+  using namespace json_util;
+  Scene& s = *scene;
+  only_keys(m, {"max_steps", "max_seconds", "pressure", "patience", "rotation", "shake"}, "md");
+  if (m.contains("rotation")) {
+    const std::string r = string(m["rotation"], "md.rotation");
+    if (r == "keep_tensor") {
+      s.md.rotation = MdSettings::Rotation::kKeepTensor;
+    } else if (r == "fixed") {
+      s.md.rotation = MdSettings::Rotation::kFixed;
+    } else if (r == "free") {
+      s.md.rotation = MdSettings::Rotation::kFree;
+    } else {
+      fail("md.rotation", "unknown rotation mode \"" + r + "\" (keep_tensor, fixed, free)");
+    }
+  }
+  if (m.contains("pressure")) {
+    s.md.pressure = positive(m["pressure"], "md.pressure");
+  }
+  if (m.contains("patience")) {
+    const double n = number(m["patience"], "md.patience");
+    if (n != std::floor(n) || n < 1 || n > 1e7)
+      fail("md.patience", "must be an integer in [1, 1e7]");
+    s.md.patience = static_cast<int>(n);
+  }
+  if (m.contains("max_steps")) {
+    const double n = number(m["max_steps"], "md.max_steps");
+    if (n != std::floor(n) || n < 1 || n > 1e12) fail("md.max_steps", "must be an integer >= 1");
+    s.md.max_steps = static_cast<long long>(n);
+  }
+  if (m.contains("max_seconds")) s.md.max_seconds = positive(m["max_seconds"], "md.max_seconds");
+  if (m.contains("shake")) s.md.shake = number(m["shake"], "md.shake");
+}
+
+// The scene's "rsa" object (random sequential addition's budgets).
+void parse_rsa(const Json& r, Scene* scene) {
+  using namespace json_util;
+  Scene& s = *scene;
+  only_keys(r, {"max_attempts", "max_seconds"}, "rsa");
+  if (r.contains("max_attempts")) {
+    const double n = number(r["max_attempts"], "rsa.max_attempts");
+    if (n != std::floor(n) || n < 1 || n > 1e9)
+      fail("rsa.max_attempts", "must be an integer in [1, 1e9]");
+    s.rsa_max_attempts = static_cast<int>(n);
+  }
+  if (r.contains("max_seconds")) s.rsa_max_seconds = positive(r["max_seconds"], "rsa.max_seconds");
+}
+
+// The scene's "voxels" object (the image's resolution and partial volumes).
+void parse_voxels(const Json& v, Scene* scene) {
+  using namespace json_util;
+  Scene& s = *scene;
+  only_keys(v, {"resolution", "partial_volume", "subsamples"}, "voxels");
+  if (v.contains("partial_volume"))
+    s.partial_volume = boolean(v["partial_volume"], "voxels.partial_volume");
+  if (v.contains("subsamples")) {
+    const double n = number(v["subsamples"], "voxels.subsamples");
+    if (n != std::floor(n) || n < 1 || n > 16)
+      fail("voxels.subsamples", "must be an integer in [1, 16]");
+    s.subsamples = static_cast<int>(n);
+  }
+  const Json& r = require(v, "resolution", "voxels");
+  if (r.is_number()) {
+    const double n = number(r, "voxels.resolution");
+    if (n != std::floor(n)) fail("voxels.resolution", "must be an integer");
+    s.resolution = {static_cast<int>(n), static_cast<int>(n), static_cast<int>(n)};
+  } else {
+    const Vec3 n = vec3(r, "voxels.resolution");
+    for (int k = 0; k < 3; ++k) {
+      if (n[k] != std::floor(n[k]) || n[k] < 1 || n[k] > 4096) {
+        fail("voxels.resolution[" + std::to_string(k) + "]", "must be an integer in [1, 4096]");
+      }
+      s.resolution[k] = static_cast<int>(n[k]);
+    }
+  }
+}
+
+// The scene's "levelsets" object (the grids' voxel size and narrow band).
+void parse_levelsets(const Json& l, Scene* scene) {
+  using namespace json_util;
+  only_keys(l, {"voxel_size", "half_width"}, "levelsets");
+  if (l.contains("voxel_size"))
+    scene->levelset_voxel_size = positive(l["voxel_size"], "levelsets.voxel_size");
+  if (l.contains("half_width"))
+    scene->levelset_half_width = positive(l["half_width"], "levelsets.half_width");
+}
+
 }  // namespace
 
 void read_materials_json(const std::string& text, Scene* scene) {
@@ -420,91 +508,16 @@ Scene parse_scene(const std::string& text) {
   if (root.contains("min_gap")) {
     s.min_gap = number(root["min_gap"], "min_gap");
   }
-  if (root.contains("md")) {
-    const Json& m = root["md"];
-    only_keys(m, {"max_steps", "max_seconds", "pressure", "patience", "rotation", "shake"}, "md");
-    if (m.contains("rotation")) {
-      const std::string r = string(m["rotation"], "md.rotation");
-      if (r == "keep_tensor") {
-        s.md.rotation = MdSettings::Rotation::kKeepTensor;
-      } else if (r == "fixed") {
-        s.md.rotation = MdSettings::Rotation::kFixed;
-      } else if (r == "free") {
-        s.md.rotation = MdSettings::Rotation::kFree;
-      } else {
-        fail("md.rotation", "unknown rotation mode \"" + r + "\" (keep_tensor, fixed, free)");
-      }
-    }
-    if (m.contains("pressure")) {
-      s.md.pressure = positive(m["pressure"], "md.pressure");
-    }
-    if (m.contains("patience")) {
-      const double n = number(m["patience"], "md.patience");
-      if (n != std::floor(n) || n < 1 || n > 1e7)
-        fail("md.patience", "must be an integer in [1, 1e7]");
-      s.md.patience = static_cast<int>(n);
-    }
-    if (m.contains("max_steps")) {
-      const double n = number(m["max_steps"], "md.max_steps");
-      if (n != std::floor(n) || n < 1 || n > 1e12) fail("md.max_steps", "must be an integer >= 1");
-      s.md.max_steps = static_cast<long long>(n);
-    }
-    if (m.contains("max_seconds")) s.md.max_seconds = positive(m["max_seconds"], "md.max_seconds");
-    if (m.contains("shake")) s.md.shake = number(m["shake"], "md.shake");
-  }
-  if (root.contains("rsa")) {
-    const Json& r = root["rsa"];
-    only_keys(r, {"max_attempts", "max_seconds"}, "rsa");
-    if (r.contains("max_attempts")) {
-      const double n = number(r["max_attempts"], "rsa.max_attempts");
-      if (n != std::floor(n) || n < 1 || n > 1e9)
-        fail("rsa.max_attempts", "must be an integer in [1, 1e9]");
-      s.rsa_max_attempts = static_cast<int>(n);
-    }
-    if (r.contains("max_seconds"))
-      s.rsa_max_seconds = positive(r["max_seconds"], "rsa.max_seconds");
-  }
+  if (root.contains("md")) parse_md(root["md"], &s);
+  if (root.contains("rsa")) parse_rsa(root["rsa"], &s);
   const Json& fams = require(root, "families", "");
   if (!fams.is_array()) fail("families", "expected an array");
   for (size_t i = 0; i < fams.size(); ++i) {
     s.families.push_back(parse_family(fams[i], "families[" + std::to_string(i) + "]", s.box));
   }
   make_fibres_continuous(&s);
-  if (root.contains("voxels")) {
-    const Json& v = root["voxels"];
-    only_keys(v, {"resolution", "partial_volume", "subsamples"}, "voxels");
-    if (v.contains("partial_volume"))
-      s.partial_volume = boolean(v["partial_volume"], "voxels.partial_volume");
-    if (v.contains("subsamples")) {
-      const double n = number(v["subsamples"], "voxels.subsamples");
-      if (n != std::floor(n) || n < 1 || n > 16)
-        fail("voxels.subsamples", "must be an integer in [1, 16]");
-      s.subsamples = static_cast<int>(n);
-    }
-    const Json& r = require(v, "resolution", "voxels");
-    if (r.is_number()) {
-      const double n = number(r, "voxels.resolution");
-      if (n != std::floor(n)) fail("voxels.resolution", "must be an integer");
-      s.resolution = {static_cast<int>(n), static_cast<int>(n), static_cast<int>(n)};
-    } else {
-      const Vec3 n = vec3(r, "voxels.resolution");
-      for (int k = 0; k < 3; ++k) {
-        if (n[k] != std::floor(n[k]) || n[k] < 1 || n[k] > 4096) {
-          fail("voxels.resolution[" + std::to_string(k) + "]", "must be an integer in [1, 4096]");
-        }
-        s.resolution[k] = static_cast<int>(n[k]);
-      }
-    }
-  }
-  if (root.contains("levelsets")) {
-    const Json& l = root["levelsets"];
-    only_keys(l, {"voxel_size", "half_width"}, "levelsets");
-    if (l.contains("voxel_size"))
-      s.levelset_voxel_size = positive(l["voxel_size"], "levelsets.voxel_size");
-    if (l.contains("half_width")) {
-      s.levelset_half_width = positive(l["half_width"], "levelsets.half_width");
-    }
-  }
+  if (root.contains("voxels")) parse_voxels(root["voxels"], &s);
+  if (root.contains("levelsets")) parse_levelsets(root["levelsets"], &s);
   if (root.contains("surfaces")) {
     const Json& m = root["surfaces"];
     only_keys(m, {"clip", "mesh", "chord_error"}, "surfaces");

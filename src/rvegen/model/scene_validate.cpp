@@ -296,6 +296,179 @@ void validate_tet_mesh_spec(const Scene& s) {
     fail("mesh_tet.optimize_threshold", "must be in [0, 1) (an element quality)");
 }
 
+namespace {
+
+// What the meshes refuse, refused before the packing rather than after it: the tetrahedral
+// mesher's shapes and box, and phase names the finite-element decks would merge.
+void check_mesh_outputs(const Scene& s) {
+  if (s.outputs.mesh_tet) {
+    // What the tetrahedral mesher refuses, refused before the packing rather than after it.
+    if (!s.box.periodic) fail("outputs", "mesh_tet needs a periodic box (box.periodic false)");
+    for (size_t i = 0; i < s.families.size(); ++i) {
+      const FamilyModifiers& m = s.families[i].modifiers;
+      if (m.wave_amplitude > 0.0 || m.bend_radius > 0.0 || m.deform_amplitude > 0.0) {
+        fail("outputs",
+             "mesh_tet meshes spheres, cylinders and ellipsoids, plain, coated or (spheres) "
+             "debonded; family \"" +
+                 s.families[i].name + "\" (families[" + std::to_string(i) +
+                 "]) is wavy, bent or deformed (use mesh_voxel for it)");
+      }
+    }
+  }
+  if (s.outputs.mesh_voxel || s.outputs.mesh_tet) {
+    // Finite-element decks name each phase's element set and material by deck_name ("a b" and
+    // "a_b" are both a_b): two phases of one name would share a set and a material, and the
+    // solver runs them without a word.
+    std::vector<std::pair<std::string, size_t>> seen = {{"matrix", s.families.size()}};
+    for (size_t i = 0; i < s.families.size(); ++i) {
+      const Family& f = s.families[i];
+      std::vector<std::string> names = {f.name};
+      if (f.modifiers.coating > 0.0) names.push_back(f.name + " interphase");
+      if (f.modifiers.debond_gap > 0.0) names.push_back(f.name + " void");
+      for (const std::string& n : names) {
+        for (const auto& [other, j] : seen) {
+          if (deck_name(n) != deck_name(other)) continue;
+          fail("families[" + std::to_string(i) + "].name",
+               "the phase \"" + n + "\" and " +
+                   (j == s.families.size()
+                        ? std::string("the matrix")
+                        : "families[" + std::to_string(j) + "]'s \"" + other + "\"") +
+                   " would both be " + deck_name(n) +
+                   " in the finite-element decks (letters and digits kept, the rest '_'): give "
+                   "the families names that differ there");
+        }
+        seen.push_back({n, i});
+      }
+    }
+  }
+}
+
+// Families[i]'s modifiers (which shapes take them, ranges, combinations) and whether it fits
+// the box; returns the inclusions it asks for.
+double check_family_modifiers(const Scene& s, size_t i, double box_min) {
+  const Family& f = s.families[i];
+  const std::string p = "families[" + std::to_string(i) + "]";
+  // Modifiers: which shapes take them, ranges, combinations.
+  const FamilyModifiers& m = f.modifiers;
+  auto finite_at_least_0 = [](double v) { return std::isfinite(v) && v >= 0.0; };
+  if (!finite_at_least_0(m.coating)) fail(p + ".coating.thickness", "must be >= 0");
+  if (!finite_at_least_0(m.wave_amplitude)) fail(p + ".waviness.amplitude", "must be >= 0");
+  if (m.wave_amplitude > 0.0) {
+    if (f.shape != ShapeKind::Cylinder) fail(p + ".waviness", "waviness applies to cylinders only");
+    if (!(m.wave_length > 0.0) || !std::isfinite(m.wave_length))
+      fail(p + ".waviness.wavelength", "must be positive");
+  }
+  if (!finite_at_least_0(m.bend_radius)) fail(p + ".curvature.radius", "must be positive");
+  if (m.bend_radius > 0.0) {
+    if (f.shape != ShapeKind::Cylinder)
+      fail(p + ".curvature", "curvature applies to cylinders only");
+    // The arc of the longest fibre (with its shell) turns by at most about a radian.
+    const double longest = 2.0 * (f.longest_half() + m.coating);
+    if (!(m.bend_radius >= longest)) {
+      char buf[200];
+      std::snprintf(buf, sizeof buf,
+                    "must be at least the longest fibre's length with its coating (%.4g)", longest);
+      fail(p + ".curvature.radius", buf);
+    }
+  }
+  if (f.shape == ShapeKind::Cylinder && (m.wave_amplitude > 0.0 || m.bend_radius > 0.0)) {
+    // A wave far shorter than the fibre's radius (or a bend far tighter) folds the fibre into
+    // itself and makes chains of thousands of pieces: refused here, not stuck in the packer.
+    const double shell = m.shells_may_touch ? 0.0 : m.coating;
+    // The longest, thinnest fibre, counted as chain_plan counts it (CentreLine's bound).
+    const double H = f.longest_half() + shell, R = f.radius.lower() + shell;
+    const double k = m.wave_amplitude > 0.0 ? 2.0 * M_PI / m.wave_length : 0.0;
+    const double K =
+        centre_line_curvature(m.wave_amplitude, k, m.bend_radius, f.longest_half() + m.coating);
+    const double pieces = chain_piece_count(H, R, K);
+    if (!(pieces <= kMaxChainPieces)) {
+      char buf[400];
+      if (m.wave_amplitude > 0.0) {
+        std::snprintf(buf, sizeof buf,
+                      "a wave of amplitude %.3g and wavelength %.3g on fibres of radius %.3g "
+                      "and length %.3g bends too sharply to pack (%.3g chain pieces per fibre, "
+                      "at most %.0f): give a wavelength of at least %.3g or a smaller amplitude",
+                      m.wave_amplitude, m.wave_length, f.radius.lower(), 2.0 * f.longest_half(),
+                      pieces, kMaxChainPieces, m.wave_length * pieces / kMaxChainPieces);
+        fail(p + ".waviness.wavelength", buf);
+      }
+      std::snprintf(buf, sizeof buf,
+                    "bends fibres of radius %.3g too sharply to pack (%.3g chain pieces per "
+                    "fibre, at most %.0f)",
+                    f.radius.lower(), pieces, kMaxChainPieces);
+      fail(p + ".curvature.radius", buf);
+    }
+  }
+  if (f.through()) {
+    // Continuous fibres: straight, along a box axis, as long as the periodic box along it.
+    if (f.shape != ShapeKind::Cylinder)
+      fail(p + ".length", "\"through\" applies to cylinders only");
+    if (!s.box.periodic) fail(p + ".length", "continuous fibres need a periodic box");
+    const Vec3& a = f.orientation.axis;
+    int k = 0;
+    a.cwiseAbs().maxCoeff(&k);
+    if (f.orientation.kind != OrientationLaw::Kind::kAligned || std::abs(a[k]) != 1.0 ||
+        a[(k + 1) % 3] != 0.0 || a[(k + 2) % 3] != 0.0)
+      fail(p + ".orientation", "continuous fibres are aligned along a box axis");
+    if (f.through_length != s.box.size[k])
+      fail(p + ".length", "continuous fibres are as long as the box along their axis");
+    if (m.wave_amplitude > 0.0 || m.bend_radius > 0.0)
+      fail(p + ".length", "continuous fibres are straight (no waviness or curvature)");
+  }
+  if (!(m.deform_amplitude >= 0.0 && m.deform_amplitude <= 0.5))
+    fail(p + ".deformation.amplitude", "must be in (0, 0.5]");
+  if (m.deform_amplitude > 0.0) {
+    if (f.shape == ShapeKind::Cylinder)
+      fail(p + ".deformation", "deformation applies to spheres and ellipsoids only");
+    if (!(m.smoothness >= 0.1 && m.smoothness <= 10.0))
+      fail(p + ".deformation.smoothness", "must be in [0.1, 10]");
+  }
+  if (!finite_at_least_0(m.debond_gap)) fail(p + ".debonding.gap", "must be positive");
+  if (!(m.debond_fraction >= 0.0 && m.debond_fraction <= 1.0))
+    fail(p + ".debonding.fraction", "must be in (0, 1]");
+  if ((m.debond_gap > 0.0) != (m.debond_fraction > 0.0))
+    fail(p + ".debonding", "give both a fraction and a gap");
+  if (m.debond_gap > 0.0 && f.shape != ShapeKind::Sphere)
+    fail(p + ".debonding", "debonding applies to spheres only");
+  if (m.coating > 0.0 && m.deform_amplitude > 0.0)
+    fail(p, "coating and deformation together are not supported");
+  if (m.coating > 0.0 && m.debond_gap > 0.0)
+    fail(p, "coating and debonding together are not supported");
+  if (m.deform_amplitude > 0.0 && m.debond_gap > 0.0)
+    fail(p, "deformation and debonding together are not supported");
+  if (f.through()) {
+    // A continuous fibre is as long as the box: its section must fit across it.
+    int k = 0;
+    f.orientation.axis.cwiseAbs().maxCoeff(&k);
+    const double across = std::min(s.box.size[(k + 1) % 3], s.box.size[(k + 2) % 3]);
+    const double width = 2.0 * (f.radius.upper() + m.coating);
+    if (width + 2.0 * s.min_gap >= across) {
+      fail(p, "continuous fibre does not fit across the box (diameter with coating " +
+                  std::to_string(width) +
+                  (s.min_gap > 0.0 ? " plus twice min_gap " + std::to_string(s.min_gap) : "") +
+                  " >= box size across the fibres " + std::to_string(across) + ")");
+    }
+  } else if (f.max_min_width() + 2.0 * s.min_gap >= box_min) {
+    fail(p, "inclusion does not fit in the box (smallest width " +
+                std::to_string(f.max_min_width()) +
+                (s.min_gap > 0.0 ? " plus twice min_gap " + std::to_string(s.min_gap) : "") +
+                " >= smallest box size " + std::to_string(box_min) + ")");
+  }
+  if (!s.box.periodic && 2.0 * f.max_bounding_radius() >= box_min) {
+    // A non-periodic box must hold every inclusion whatever its orientation.
+    fail(p, "inclusion does not fit in the non-periodic box (largest length " +
+                std::to_string(2.0 * f.max_bounding_radius()) + " >= smallest box size " +
+                std::to_string(box_min) + ")");
+  }
+  const double n = s.expected_count(static_cast<int>(i));
+  if (f.volume_fraction >= 0.0 && f.count < 0 && n < 0.5) {
+    fail(p + ".volume_fraction", "too small for a single inclusion in this box");
+  }
+  return n;
+}
+
+}  // namespace
+
 void validate_scene(const Scene& s) {
   check_box(s.box, "box");
   if (s.families.empty()) fail("families", "at least one family is needed");
@@ -379,129 +552,7 @@ void validate_scene(const Scene& s) {
     }
   }
   double count = 0.0;
-  for (size_t i = 0; i < s.families.size(); ++i) {
-    const Family& f = s.families[i];
-    const std::string p = "families[" + std::to_string(i) + "]";
-    // Modifiers: which shapes take them, ranges, combinations.
-    const FamilyModifiers& m = f.modifiers;
-    auto finite_at_least_0 = [](double v) { return std::isfinite(v) && v >= 0.0; };
-    if (!finite_at_least_0(m.coating)) fail(p + ".coating.thickness", "must be >= 0");
-    if (!finite_at_least_0(m.wave_amplitude)) fail(p + ".waviness.amplitude", "must be >= 0");
-    if (m.wave_amplitude > 0.0) {
-      if (f.shape != ShapeKind::Cylinder)
-        fail(p + ".waviness", "waviness applies to cylinders only");
-      if (!(m.wave_length > 0.0) || !std::isfinite(m.wave_length))
-        fail(p + ".waviness.wavelength", "must be positive");
-    }
-    if (!finite_at_least_0(m.bend_radius)) fail(p + ".curvature.radius", "must be positive");
-    if (m.bend_radius > 0.0) {
-      if (f.shape != ShapeKind::Cylinder)
-        fail(p + ".curvature", "curvature applies to cylinders only");
-      // The arc of the longest fibre (with its shell) turns by at most about a radian.
-      const double longest = 2.0 * (f.longest_half() + m.coating);
-      if (!(m.bend_radius >= longest)) {
-        char buf[200];
-        std::snprintf(buf, sizeof buf,
-                      "must be at least the longest fibre's length with its coating (%.4g)",
-                      longest);
-        fail(p + ".curvature.radius", buf);
-      }
-    }
-    if (f.shape == ShapeKind::Cylinder && (m.wave_amplitude > 0.0 || m.bend_radius > 0.0)) {
-      // A wave far shorter than the fibre's radius (or a bend far tighter) folds the fibre into
-      // itself and makes chains of thousands of pieces: refused here, not stuck in the packer.
-      const double shell = m.shells_may_touch ? 0.0 : m.coating;
-      // The longest, thinnest fibre, counted as chain_plan counts it (CentreLine's bound).
-      const double H = f.longest_half() + shell, R = f.radius.lower() + shell;
-      const double k = m.wave_amplitude > 0.0 ? 2.0 * M_PI / m.wave_length : 0.0;
-      const double K =
-          centre_line_curvature(m.wave_amplitude, k, m.bend_radius, f.longest_half() + m.coating);
-      const double pieces = chain_piece_count(H, R, K);
-      if (!(pieces <= kMaxChainPieces)) {
-        char buf[400];
-        if (m.wave_amplitude > 0.0) {
-          std::snprintf(buf, sizeof buf,
-                        "a wave of amplitude %.3g and wavelength %.3g on fibres of radius %.3g "
-                        "and length %.3g bends too sharply to pack (%.3g chain pieces per fibre, "
-                        "at most %.0f): give a wavelength of at least %.3g or a smaller amplitude",
-                        m.wave_amplitude, m.wave_length, f.radius.lower(), 2.0 * f.longest_half(),
-                        pieces, kMaxChainPieces, m.wave_length * pieces / kMaxChainPieces);
-          fail(p + ".waviness.wavelength", buf);
-        }
-        std::snprintf(buf, sizeof buf,
-                      "bends fibres of radius %.3g too sharply to pack (%.3g chain pieces per "
-                      "fibre, at most %.0f)",
-                      f.radius.lower(), pieces, kMaxChainPieces);
-        fail(p + ".curvature.radius", buf);
-      }
-    }
-    if (f.through()) {
-      // Continuous fibres: straight, along a box axis, as long as the periodic box along it.
-      if (f.shape != ShapeKind::Cylinder)
-        fail(p + ".length", "\"through\" applies to cylinders only");
-      if (!s.box.periodic) fail(p + ".length", "continuous fibres need a periodic box");
-      const Vec3& a = f.orientation.axis;
-      int k = 0;
-      a.cwiseAbs().maxCoeff(&k);
-      if (f.orientation.kind != OrientationLaw::Kind::kAligned || std::abs(a[k]) != 1.0 ||
-          a[(k + 1) % 3] != 0.0 || a[(k + 2) % 3] != 0.0)
-        fail(p + ".orientation", "continuous fibres are aligned along a box axis");
-      if (f.through_length != s.box.size[k])
-        fail(p + ".length", "continuous fibres are as long as the box along their axis");
-      if (m.wave_amplitude > 0.0 || m.bend_radius > 0.0)
-        fail(p + ".length", "continuous fibres are straight (no waviness or curvature)");
-    }
-    if (!(m.deform_amplitude >= 0.0 && m.deform_amplitude <= 0.5))
-      fail(p + ".deformation.amplitude", "must be in (0, 0.5]");
-    if (m.deform_amplitude > 0.0) {
-      if (f.shape == ShapeKind::Cylinder)
-        fail(p + ".deformation", "deformation applies to spheres and ellipsoids only");
-      if (!(m.smoothness >= 0.1 && m.smoothness <= 10.0))
-        fail(p + ".deformation.smoothness", "must be in [0.1, 10]");
-    }
-    if (!finite_at_least_0(m.debond_gap)) fail(p + ".debonding.gap", "must be positive");
-    if (!(m.debond_fraction >= 0.0 && m.debond_fraction <= 1.0))
-      fail(p + ".debonding.fraction", "must be in (0, 1]");
-    if ((m.debond_gap > 0.0) != (m.debond_fraction > 0.0))
-      fail(p + ".debonding", "give both a fraction and a gap");
-    if (m.debond_gap > 0.0 && f.shape != ShapeKind::Sphere)
-      fail(p + ".debonding", "debonding applies to spheres only");
-    if (m.coating > 0.0 && m.deform_amplitude > 0.0)
-      fail(p, "coating and deformation together are not supported");
-    if (m.coating > 0.0 && m.debond_gap > 0.0)
-      fail(p, "coating and debonding together are not supported");
-    if (m.deform_amplitude > 0.0 && m.debond_gap > 0.0)
-      fail(p, "deformation and debonding together are not supported");
-    if (f.through()) {
-      // A continuous fibre is as long as the box: its section must fit across it.
-      int k = 0;
-      f.orientation.axis.cwiseAbs().maxCoeff(&k);
-      const double across = std::min(s.box.size[(k + 1) % 3], s.box.size[(k + 2) % 3]);
-      const double width = 2.0 * (f.radius.upper() + m.coating);
-      if (width + 2.0 * s.min_gap >= across) {
-        fail(p, "continuous fibre does not fit across the box (diameter with coating " +
-                    std::to_string(width) +
-                    (s.min_gap > 0.0 ? " plus twice min_gap " + std::to_string(s.min_gap) : "") +
-                    " >= box size across the fibres " + std::to_string(across) + ")");
-      }
-    } else if (f.max_min_width() + 2.0 * s.min_gap >= box_min) {
-      fail(p, "inclusion does not fit in the box (smallest width " +
-                  std::to_string(f.max_min_width()) +
-                  (s.min_gap > 0.0 ? " plus twice min_gap " + std::to_string(s.min_gap) : "") +
-                  " >= smallest box size " + std::to_string(box_min) + ")");
-    }
-    if (!s.box.periodic && 2.0 * f.max_bounding_radius() >= box_min) {
-      // A non-periodic box must hold every inclusion whatever its orientation.
-      fail(p, "inclusion does not fit in the non-periodic box (largest length " +
-                  std::to_string(2.0 * f.max_bounding_radius()) + " >= smallest box size " +
-                  std::to_string(box_min) + ")");
-    }
-    const double n = s.expected_count(static_cast<int>(i));
-    if (f.volume_fraction >= 0.0 && f.count < 0 && n < 0.5) {
-      fail(p + ".volume_fraction", "too small for a single inclusion in this box");
-    }
-    count += n;
-  }
+  for (size_t i = 0; i < s.families.size(); ++i) count += check_family_modifiers(s, i, box_min);
   if (count > 2e7) fail("families", "more than 2e7 inclusions asked for");
   // Continuous fibres pack with continuous fibres along their axis only: against other bodies
   // their pair tests see the ends of the cylinder one period long that stands for each, where
@@ -521,46 +572,7 @@ void validate_scene(const Scene& s) {
                "inclusions, or with continuous fibres along another axis, is not supported");
     }
   }
-  if (s.outputs.mesh_tet) {
-    // What the tetrahedral mesher refuses, refused before the packing rather than after it.
-    if (!s.box.periodic) fail("outputs", "mesh_tet needs a periodic box (box.periodic false)");
-    for (size_t i = 0; i < s.families.size(); ++i) {
-      const FamilyModifiers& m = s.families[i].modifiers;
-      if (m.wave_amplitude > 0.0 || m.bend_radius > 0.0 || m.deform_amplitude > 0.0) {
-        fail("outputs",
-             "mesh_tet meshes spheres, cylinders and ellipsoids, plain, coated or (spheres) "
-             "debonded; family \"" +
-                 s.families[i].name + "\" (families[" + std::to_string(i) +
-                 "]) is wavy, bent or deformed (use mesh_voxel for it)");
-      }
-    }
-  }
-  if (s.outputs.mesh_voxel || s.outputs.mesh_tet) {
-    // Finite-element decks name each phase's element set and material by deck_name ("a b" and
-    // "a_b" are both a_b): two phases of one name would share a set and a material, and the
-    // solver runs them without a word.
-    std::vector<std::pair<std::string, size_t>> seen = {{"matrix", s.families.size()}};
-    for (size_t i = 0; i < s.families.size(); ++i) {
-      const Family& f = s.families[i];
-      std::vector<std::string> names = {f.name};
-      if (f.modifiers.coating > 0.0) names.push_back(f.name + " interphase");
-      if (f.modifiers.debond_gap > 0.0) names.push_back(f.name + " void");
-      for (const std::string& n : names) {
-        for (const auto& [other, j] : seen) {
-          if (deck_name(n) != deck_name(other)) continue;
-          fail("families[" + std::to_string(i) + "].name",
-               "the phase \"" + n + "\" and " +
-                   (j == s.families.size()
-                        ? std::string("the matrix")
-                        : "families[" + std::to_string(j) + "]'s \"" + other + "\"") +
-                   " would both be " + deck_name(n) +
-                   " in the finite-element decks (letters and digits kept, the rest '_'): give "
-                   "the families names that differ there");
-        }
-        seen.push_back({n, i});
-      }
-    }
-  }
+  check_mesh_outputs(s);
   const double total = s.expected_volume_fraction(), limit = max_packable_fraction(s);
   if (total > limit) {
     char buf[160];

@@ -21,6 +21,100 @@ struct Footprint {
   int lo[3], hi[3];
 };
 
+// Each inclusion's footprint on the grid (the voxels that meet its outer bound with partial
+// volumes, else those whose centre lies in it), and for each z plane of the image's extent the
+// (inclusion, unwrapped k) that reach it.
+std::vector<Footprint> footprints(const InclusionSet& set, const VoxelImage& img, bool partial,
+                                  std::vector<std::vector<std::pair<int, int>>>* planes) {
+  const auto& incs = set.inclusions;
+  const bool periodic = set.box.periodic;
+  const std::array<int, 3>& dims = img.dims;
+  std::vector<Footprint> fp(incs.size());
+  planes->assign(img.size(2), {});
+  for (size_t m = 0; m < incs.size(); ++m) {
+    Vec3 lo, hi;
+    outer_bound(incs[m]).aabb(&lo, &hi);
+    Footprint& f = fp[m];
+    for (int a = 0; a < 3; ++a) {
+      const double h = img.spacing[a];
+      if (partial) {
+        // Every voxel [i h, (i + 1) h] that meets [lo, hi].
+        f.lo[a] = static_cast<int>(std::floor((lo[a] - img.origin[a]) / h));
+        f.hi[a] = static_cast<int>(std::ceil((hi[a] - img.origin[a]) / h)) - 1;
+      } else {
+        // Every voxel whose centre lies in [lo, hi].
+        f.lo[a] = static_cast<int>(std::ceil((lo[a] - img.origin[a]) / h - 0.5));
+        f.hi[a] = static_cast<int>(std::floor((hi[a] - img.origin[a]) / h - 0.5));
+      }
+      if (!periodic) {
+        f.lo[a] = std::max(f.lo[a], 0);
+        f.hi[a] = std::min(f.hi[a], dims[a] - 1);
+      }
+    }
+    // An inclusion wholly outside a non-periodic box (an inclusion list can hold one) reaches
+    // no voxel: an empty footprint, which must not be walked.
+    if (f.lo[0] > f.hi[0] || f.lo[1] > f.hi[1] || f.lo[2] > f.hi[2]) continue;
+    for (int k = f.lo[2]; k <= f.hi[2]; ++k) {
+      const int kk = periodic ? wrap(k, dims[2]) : k;
+      if (kk >= img.extent[4] && kk < img.extent[5]) {
+        (*planes)[kk - img.extent[4]].emplace_back(static_cast<int>(m), k);
+      }
+    }
+  }
+  return fp;
+}
+
+// The partial volumes of a row of voxels (y, z; its index jj, kk) cut by a straight core:
+// ss^2 lines across the row, each exact along x, the coverage accumulated as a difference
+// array (+1 where a line enters whole voxels, -1 after) plus the partly covered end voxels.
+void add_row_coverage(const BodyQuery& body, const Footprint& f, const VoxelImage& img, double y,
+                      double z, int jj, int kk, int ss, bool periodic, float* frac_out,
+                      std::vector<double>* row, std::vector<double>* diff) {
+  const std::array<int, 3>& dims = img.dims;
+  const double ox = img.origin[0], hx = img.spacing[0];
+  double t0, t1;
+  // Coverage of the row's voxels, accumulated as a difference array (+1 where a line
+  // enters whole voxels, -1 after) plus the partly covered end voxels.
+  const int span = f.hi[0] - f.lo[0] + 1;
+  row->assign(span + 1, 0.0);
+  diff->assign(span + 1, 0.0);
+  bool any = false;
+  for (int c = 0; c < ss; ++c) {
+    const double zs = z + ((c + 0.5) / ss - 0.5) * img.spacing[2];
+    for (int b = 0; b < ss; ++b) {
+      const double ys = y + ((b + 0.5) / ss - 0.5) * img.spacing[1];
+      if (!body.x_interval(Vec3(0.0, ys, zs), &t0, &t1)) continue;
+      // In voxel units from the footprint's first voxel, clipped to the footprint.
+      const double u0 = std::max((t0 - ox) / hx - f.lo[0], 0.0);
+      const double u1 = std::min((t1 - ox) / hx - f.lo[0], static_cast<double>(span));
+      if (u1 <= u0) continue;
+      any = true;
+      const int i0 = static_cast<int>(std::floor(u0));
+      const int i1 = std::min(static_cast<int>(std::floor(u1)), span - 1);
+      if (i0 == i1) {
+        (*row)[i0] += u1 - u0;
+        continue;
+      }
+      (*row)[i0] += i0 + 1.0 - u0;
+      (*row)[i1] += u1 - i1;
+      (*diff)[i0 + 1] += 1.0;
+      (*diff)[i1] -= 1.0;
+    }
+  }
+  if (!any) return;
+  const double w = 1.0 / (ss * ss);
+  double run = 0.0;
+  int ii = periodic ? wrap(f.lo[0], dims[0]) : f.lo[0];
+  for (int q = 0; q < span; ++q, ++ii) {
+    if (ii == dims[0]) ii = 0;
+    run += (*diff)[q];
+    const double cover = (run + (*row)[q]) * w;
+    if (cover > 0.0 && ii >= img.extent[0] && ii < img.extent[1]) {
+      frac_out[img.index(ii, jj, kk)] += static_cast<float>(cover);
+    }
+  }
+}
+
 }  // namespace
 
 VoxelImage voxel_layout(const InclusionSet& set, const std::array<int, 3>& dims,
@@ -78,38 +172,8 @@ long long voxelize_into(const InclusionSet& set, const VoxelImage& img, const Vo
   // Footprints and, for each z plane of the extent, the (inclusion, unwrapped k) that reach it.
   const auto& incs = set.inclusions;
   const bool periodic = set.box.periodic;
-  std::vector<Footprint> fp(incs.size());
-  std::vector<std::vector<std::pair<int, int>>> planes(img.size(2));
-  for (size_t m = 0; m < incs.size(); ++m) {
-    Vec3 lo, hi;
-    outer_bound(incs[m]).aabb(&lo, &hi);
-    Footprint& f = fp[m];
-    for (int a = 0; a < 3; ++a) {
-      const double h = img.spacing[a];
-      if (frac_out) {
-        // Every voxel [i h, (i + 1) h] that meets [lo, hi].
-        f.lo[a] = static_cast<int>(std::floor((lo[a] - img.origin[a]) / h));
-        f.hi[a] = static_cast<int>(std::ceil((hi[a] - img.origin[a]) / h)) - 1;
-      } else {
-        // Every voxel whose centre lies in [lo, hi].
-        f.lo[a] = static_cast<int>(std::ceil((lo[a] - img.origin[a]) / h - 0.5));
-        f.hi[a] = static_cast<int>(std::floor((hi[a] - img.origin[a]) / h - 0.5));
-      }
-      if (!periodic) {
-        f.lo[a] = std::max(f.lo[a], 0);
-        f.hi[a] = std::min(f.hi[a], dims[a] - 1);
-      }
-    }
-    // An inclusion wholly outside a non-periodic box (an inclusion list can hold one) reaches
-    // no voxel: an empty footprint, which must not be walked.
-    if (f.lo[0] > f.hi[0] || f.lo[1] > f.hi[1] || f.lo[2] > f.hi[2]) continue;
-    for (int k = f.lo[2]; k <= f.hi[2]; ++k) {
-      const int kk = periodic ? wrap(k, dims[2]) : k;
-      if (kk >= img.extent[4] && kk < img.extent[5]) {
-        planes[kk - img.extent[4]].emplace_back(static_cast<int>(m), k);
-      }
-    }
-  }
+  std::vector<std::vector<std::pair<int, int>>> planes;
+  const std::vector<Footprint> fp = footprints(set, img, frac_out != nullptr, &planes);
 
   const double half_diagonal = 0.5 * img.spacing.norm();
   const int ss = std::max(1, opt.subsamples);
@@ -170,46 +234,7 @@ long long voxelize_into(const InclusionSet& set, const VoxelImage& img, const Vo
           }
           if (!body.plain()) label_outer_regions(jj, y);
           if (!frac_out) continue;
-          // Coverage of the row's voxels, accumulated as a difference array (+1 where a line
-          // enters whole voxels, -1 after) plus the partly covered end voxels.
-          const int span = f.hi[0] - f.lo[0] + 1;
-          row.assign(span + 1, 0.0);
-          diff.assign(span + 1, 0.0);
-          bool any = false;
-          for (int c = 0; c < ss; ++c) {
-            const double zs = z + ((c + 0.5) / ss - 0.5) * img.spacing[2];
-            for (int b = 0; b < ss; ++b) {
-              const double ys = y + ((b + 0.5) / ss - 0.5) * img.spacing[1];
-              if (!body.x_interval(Vec3(0.0, ys, zs), &t0, &t1)) continue;
-              // In voxel units from the footprint's first voxel, clipped to the footprint.
-              const double u0 = std::max((t0 - ox) / hx - f.lo[0], 0.0);
-              const double u1 = std::min((t1 - ox) / hx - f.lo[0], static_cast<double>(span));
-              if (u1 <= u0) continue;
-              any = true;
-              const int i0 = static_cast<int>(std::floor(u0));
-              const int i1 = std::min(static_cast<int>(std::floor(u1)), span - 1);
-              if (i0 == i1) {
-                row[i0] += u1 - u0;
-                continue;
-              }
-              row[i0] += i0 + 1.0 - u0;
-              row[i1] += u1 - i1;
-              diff[i0 + 1] += 1.0;
-              diff[i1] -= 1.0;
-            }
-          }
-          if (!any) continue;
-          const double w = 1.0 / (ss * ss);
-          double run = 0.0;
-          int ii = periodic ? wrap(f.lo[0], dims[0]) : f.lo[0];
-          for (int q = 0; q < span; ++q, ++ii) {
-            if (ii == dims[0]) ii = 0;
-            run += diff[q];
-            const double cover = (run + row[q]) * w;
-            if (cover > 0.0 && ii >= img.extent[0] && ii < img.extent[1]) {
-              frac_out[img.index(ii, jj, kk)] += static_cast<float>(cover);
-            }
-          }
+          add_row_coverage(body, f, img, y, z, jj, kk, ss, periodic, frac_out, &row, &diff);
           continue;
         }
         for (int i = f.lo[0]; i <= f.hi[0]; ++i) {

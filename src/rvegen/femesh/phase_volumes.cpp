@@ -165,27 +165,25 @@ bool on_void_cone(const Inclusion& in, const Vec3& shift, const Vec3& x) {
 
 using namespace mesh_parts;
 
-// Each interface of the mesh (a face between the matrix and an inclusion's core or shell, or
-// between a core and its shell) belongs to one exact surface. Its triangles are chords of that
-// surface, and cut off the gap between them and it: for a triangle, its area times the mean gap,
-// which the mean of the gaps at its edge midpoints gives exactly for a surface of constant
-// curvature (the gap is then quadratic over the triangle and nought at its corners). Each node
-// inside a curved surface (not on a box face, on another surface or on a flat end's plane) moves
-// along the surface's normal by the area-weighted mean gap of its triangles: a move d of a node
-// adds d times a third of its triangles' area to the volume inside, so the moves give back what
-// the chords cut off, to second order. A move is undone where it would invert an element, or
-// leave one with a least dihedral angle under 5 degrees that had a larger one before.
-long long keep_phase_volumes(TetMesh* mesh, const InclusionSet& set) {
-  const size_t nn = mesh->nodes.size(), ne = mesh->tets.size();
-  const std::unordered_map<int32_t, int> by_id = index_by_id(set);
-  auto region = [&](size_t e) { return region_of(*mesh, e); };
+namespace {
+
+// A face of an element, its nodes sorted.
+struct Face {
+  std::array<int32_t, 3> n;
+  int32_t tet;
+};
+
+// The faces of elements whose three nodes elements of two regions share (the candidates for
+// interface triangles), sorted by nodes and element.
+std::vector<Face> interface_faces(const TetMesh& mesh) {
+  const size_t nn = mesh.nodes.size(), ne = mesh.tets.size();
   // Nodes that elements of two regions share; faces with three such nodes are the candidates.
   constexpr uint64_t kNone = std::numeric_limits<uint64_t>::max();  // no phase label is -1
   std::vector<uint64_t> first(nn, kNone);
   std::vector<uint8_t> shared(nn, 0);
   for (size_t e = 0; e < ne; ++e) {
-    const uint64_t r = region(e);
-    for (int32_t n : mesh->tets[e]) {
+    const uint64_t r = region_of(mesh, e);
+    for (int32_t n : mesh.tets[e]) {
       if (first[n] == kNone) {
         first[n] = r;
       } else if (first[n] != r) {
@@ -193,13 +191,9 @@ long long keep_phase_volumes(TetMesh* mesh, const InclusionSet& set) {
       }
     }
   }
-  struct Face {
-    std::array<int32_t, 3> n;
-    int32_t tet;
-  };
   std::vector<Face> faces;
   for (size_t e = 0; e < ne; ++e) {
-    const auto& t = mesh->tets[e];
+    const auto& t = mesh.tets[e];
     for (int skip = 0; skip < 4; ++skip) {
       Face f;
       int k = 0;
@@ -215,34 +209,35 @@ long long keep_phase_volumes(TetMesh* mesh, const InclusionSet& set) {
   parallel_sort(faces.begin(), faces.end(), [](const Face& a, const Face& b) {
     return a.n != b.n ? a.n < b.n : a.tet < b.tet;
   });
-  // Per node: its surface (2 k for inclusion k's core, 2 k + 1 for its shell's outer surface;
-  // -1 none yet, -2 on two surfaces or on an interface of no single surface), the image shift of
-  // the inclusion, and its triangles' area and area times gap.
-  std::vector<int> surface(nn, -1);
-  std::vector<Vec3> shift(nn, Vec3::Zero());
-  std::vector<double> area(nn, 0.0), gap(nn, 0.0);
-  std::vector<double> deficit(2 * set.inclusions.size(), 0.0);  // per surface
-  const Box& box = mesh->box;
-  // The interface triangles (faces that elements of two regions share), and for each, on both
-  // cores, its surface (-1: of no single surface, or straight along a void's cone), the image it
-  // lies on, its area and its mean gap; then their sums per node and surface, in order.
-  struct Triangle {
-    size_t face;
-    int which = -1;
-    Vec3 shift = Vec3::Zero();
-    double area = 0.0, gap = 0.0;
-  };
+  return faces;
+}
+
+// An interface triangle: its face, its surface (-1: of no single surface, or straight along a
+// void's cone), the image it lies on, its area and its mean gap to the surface.
+struct Triangle {
+  size_t face;
+  int which = -1;
+  Vec3 shift = Vec3::Zero();
+  double area = 0.0, gap = 0.0;
+};
+
+// The interface triangles (faces that elements of two regions share), and for each, on both
+// cores, its surface, image, area and mean gap.
+std::vector<Triangle> interface_triangles(const TetMesh& mesh, const InclusionSet& set,
+                                          const std::vector<Face>& faces) {
+  const std::unordered_map<int32_t, int> by_id = index_by_id(set);
+  const Box& box = mesh.box;
   std::vector<Triangle> triangles;
   for (size_t k = 0; k + 1 < faces.size(); ++k) {
     if (faces[k].n != faces[k + 1].n) continue;
     const size_t e1 = faces[k].tet, e2 = faces[k + 1].tet;
     ++k;
-    if (region(e1) == region(e2)) continue;
+    if (region_of(mesh, e1) == region_of(mesh, e2)) continue;
     // Which surface: a core against the matrix or its own shell; a shell against the matrix.
     Triangle t;
     t.face = k;
-    t.which = interface_surface(by_id, mesh->inclusion_id[e1], mesh->phases[mesh->phase[e1]].kind,
-                                mesh->inclusion_id[e2], mesh->phases[mesh->phase[e2]].kind);
+    t.which = interface_surface(by_id, mesh.inclusion_id[e1], mesh.phases[mesh.phase[e1]].kind,
+                                mesh.inclusion_id[e2], mesh.phases[mesh.phase[e2]].kind);
     triangles.push_back(t);
   }
   parallel_for(size_t{0}, triangles.size(), [&](size_t j) {
@@ -251,7 +246,7 @@ long long keep_phase_volumes(TetMesh* mesh, const InclusionSet& set) {
     const std::array<int32_t, 3>& n = faces[t.face].n;
     const Inclusion& in = set.inclusions[t.which / 2];
     const double grown = (t.which & 1) ? outer_offset(in.mod) : 0.0;
-    const Vec3 &p0 = mesh->nodes[n[0]], &p1 = mesh->nodes[n[1]], &p2 = mesh->nodes[n[2]];
+    const Vec3 &p0 = mesh.nodes[n[0]], &p1 = mesh.nodes[n[1]], &p2 = mesh.nodes[n[2]];
     // The inclusion's periodic image the triangle lies on: the one nearest its centre's surface.
     Vec3 nrm;
     bool feature;
@@ -268,6 +263,32 @@ long long keep_phase_volumes(TetMesh* mesh, const InclusionSet& set) {
               surface_distance(s, grown, 0.5 * (p0 + p2), &nrm, &feature)) /
             3.0;
   });
+  return triangles;
+}
+
+}  // namespace
+
+// Each interface of the mesh (a face between the matrix and an inclusion's core or shell, or
+// between a core and its shell) belongs to one exact surface. Its triangles are chords of that
+// surface, and cut off the gap between them and it: for a triangle, its area times the mean gap,
+// which the mean of the gaps at its edge midpoints gives exactly for a surface of constant
+// curvature (the gap is then quadratic over the triangle and nought at its corners). Each node
+// inside a curved surface (not on a box face, on another surface or on a flat end's plane) moves
+// along the surface's normal by the area-weighted mean gap of its triangles: a move d of a node
+// adds d times a third of its triangles' area to the volume inside, so the moves give back what
+// the chords cut off, to second order. A move is undone where it would invert an element, or
+// leave one with a least dihedral angle under 5 degrees that had a larger one before.
+long long keep_phase_volumes(TetMesh* mesh, const InclusionSet& set) {
+  const size_t nn = mesh->nodes.size(), ne = mesh->tets.size();
+  const std::vector<Face> faces = interface_faces(*mesh);
+  // Per node: its surface (2 k for inclusion k's core, 2 k + 1 for its shell's outer surface;
+  // -1 none yet, -2 on two surfaces or on an interface of no single surface), the image shift of
+  // the inclusion, and its triangles' area and area times gap.
+  std::vector<int> surface(nn, -1);
+  std::vector<Vec3> shift(nn, Vec3::Zero());
+  std::vector<double> area(nn, 0.0), gap(nn, 0.0);
+  std::vector<double> deficit(2 * set.inclusions.size(), 0.0);  // per surface
+  const std::vector<Triangle> triangles = interface_triangles(*mesh, set, faces);
   for (const Triangle& t : triangles) {
     const std::array<int32_t, 3>& n = faces[t.face].n;
     const int which = t.which;

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "rvegen/femesh/mesh_parts.hpp"
+#include "rvegen/femesh/mesh_tolerances.hpp"
 #include "rvegen/femesh/tet_mesh.hpp"
 #include "rvegen/geometry/pair.hpp"
 #include "rvegen/model/body.hpp"
@@ -183,13 +184,13 @@ double line_clearance(const Shape& s, int a, int b, int c, double fa, double fb)
       d0[b] = pb;
       double best = 1e300;
       const Vec3 w = e.cross(u);
-      if (w.squaredNorm() > 1e-18) {
+      if (w.squaredNorm() > kParallel2) {
         const double t = (d0.dot(u) - d0.dot(e) * u.dot(e)) / w.squaredNorm();
         if (std::abs(t) <= hl) best = std::abs(std::abs(d0.dot(w)) / w.norm() - r) / r;
       } else {
         best = std::abs(std::hypot(pa, pb) - r) / r;
       }
-      if (std::abs(u[c]) > 1e-9) {
+      if (std::abs(u[c]) > kParallelComponent) {
         for (const double sign : {-1.0, 1.0}) {
           const Vec3 end = sign * s.half_axis;  // from the centre
           const Vec3 at = d0 + ((end - d0).dot(u) / u[c]) * e;
@@ -491,7 +492,8 @@ Nudged nudge_off_cell(InclusionSet* set, const Vec3& origin, double min_gap) {
           if (!c.overlap) continue;
           settled = false;
           // A little past the depth, which is an upper bound or exact.
-          const Vec3 p = (c.depth + 1e-3 * min_gap + 1e-9 * size_of(set->inclusions[b])) * c.normal;
+          const Vec3 p =
+              (c.depth + kPastGap * min_gap + kPastSize * size_of(set->inclusions[b])) * c.normal;
           const bool ok = a == i   ? push(b, p)
                           : b == i ? push(a, -p)
                                    : push(a, -0.5 * p) && push(b, 0.5 * p);

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "rvegen/femesh/mesh_parts.hpp"
+#include "rvegen/femesh/mesh_tolerances.hpp"
 #include "rvegen/femesh/tet_mesh.hpp"
 #include "rvegen/geometry/pair.hpp"
 #include "rvegen/model/body.hpp"
@@ -122,9 +123,9 @@ std::vector<std::pair<int32_t, int32_t>> lower_images(const TetMesh& mesh, doubl
 using namespace mesh_parts;
 
 long long snap_periodic_nodes(TetMesh* mesh) {
-  const double side = mesh->box.size.minCoeff(), on = 1e-9 * side;
+  const double side = mesh->box.size.minCoeff(), on = kOnFace * side;
   long long moved = 0;
-  for (const auto& [i, master] : lower_images(*mesh, on, 1e-6 * side)) {
+  for (const auto& [i, master] : lower_images(*mesh, on, kSnapReach * side)) {
     if (master < 0) continue;
     // The master's position, moved along the axes whose upper face i lies on.
     Vec3 exact = mesh->nodes[master];
@@ -210,7 +211,7 @@ void check_conforming(const TetMesh& mesh) {
     total += v;
     least = std::min(least, v);
   }
-  if (!(least > 0.0) || std::abs(total / mesh.box.volume() - 1.0) > 1e-9) {
+  if (!(least > 0.0) || std::abs(total / mesh.box.volume() - 1.0) > kVolumeRoundoff) {
     throw MeshError("mesh_tet: the elements do not fill the box (their volume " +
                     std::to_string(total) + ", the box " + std::to_string(mesh.box.volume()) +
                     ", least element " + std::to_string(mesh.tets.empty() ? 0.0 : least) + ")");

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "rvegen/femesh/mesh_parts.hpp"
+#include "rvegen/femesh/mesh_tolerances.hpp"
 #include "rvegen/femesh/tet_mesh.hpp"
 
 namespace rvegen::mesh_parts {
@@ -223,7 +224,7 @@ long long flip_chords(std::vector<std::array<std::size_t, 3>>* triangles,
   };
   auto normal = [&](std::size_t a, std::size_t b, std::size_t c) {
     const Vec3 n = (at.at(b) - at.at(a)).cross(at.at(c) - at.at(a));
-    return Vec3(n / std::max(n.norm(), 1e-300));
+    return Vec3(n / std::max(n.norm(), kNoDirection));
   };
   std::map<std::pair<std::size_t, std::size_t>, std::vector<size_t>> edges;
   for (size_t t = 0; t < tris.size(); ++t) {

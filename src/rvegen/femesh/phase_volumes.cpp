@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "rvegen/femesh/mesh_parts.hpp"
+#include "rvegen/femesh/mesh_tolerances.hpp"
 #include "rvegen/femesh/tet_mesh.hpp"
 #include "rvegen/geometry/pair.hpp"
 #include "rvegen/model/body.hpp"
@@ -49,7 +50,7 @@ double surface_distance(const Shape& s, double t, const Vec3& x, Vec3* normal, b
       const Vec3 er = rho > 0.0 ? Vec3(radial / rho) : any_orthogonal(u);
       const Vec3 eu = a >= 0.0 ? u : Vec3(-u);
       const double dr = rho - s.radius, dz = std::abs(a) - h;
-      *feature = t == 0.0 && std::abs(dz) <= 1e-6 * std::max(h, s.radius);
+      *feature = t == 0.0 && std::abs(dz) <= kOnEndPlane * std::max(h, s.radius);
       if (dr > 0.0 && dz > 0.0) {
         const double n = std::hypot(dr, dz);
         *normal = (dr * er + dz * eu) / n;
@@ -73,7 +74,7 @@ double surface_distance(const Shape& s, double t, const Vec3& x, Vec3* normal, b
       const Vec3 y = s.rotation.transpose() * d;
       const Vec3 q = y.cwiseQuotient(s.semi_axes);
       const double f = q.norm();
-      const Vec3 g = s.rotation * (q.cwiseQuotient(s.semi_axes) / std::max(f, 1e-300));
+      const Vec3 g = s.rotation * (q.cwiseQuotient(s.semi_axes) / std::max(f, kNoDirection));
       const double gn = g.norm();
       *normal = gn > 0.0 ? Vec3(g / gn) : Vec3::UnitZ();
       return (gn > 0.0 ? (f - 1.0) / gn : -s.semi_axes.minCoeff()) - t;
@@ -153,12 +154,14 @@ bool on_void_cone(const Inclusion& in, const Vec3& shift, const Vec3& p0, const 
   return std::abs(n.dot(ray)) < 0.5 * n.norm() * ray.norm();
 }
 
-// Whether x lies on a debonded sphere's void cone (its angle from the axis the cap's, to 1e-7).
+// Whether x lies on a debonded sphere's void cone (its angle from the axis the cap's, to
+// kOnVoidCone).
 bool on_void_cone(const Inclusion& in, const Vec3& shift, const Vec3& x) {
   if (!in.mod.debonded()) return false;
   const Vec3 d = x - in.shape.center - shift;
   const double rho = d.norm();
-  return rho > 0.0 && std::abs(d.dot(in.mod.debond_axis) / rho - in.mod.debond_cos_cap()) < 1e-7;
+  return rho > 0.0 &&
+         std::abs(d.dot(in.mod.debond_axis) / rho - in.mod.debond_cos_cap()) < kOnVoidCone;
 }
 
 }  // namespace mesh_parts

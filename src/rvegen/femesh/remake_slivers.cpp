@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "rvegen/femesh/mesh_parts.hpp"
+#include "rvegen/femesh/mesh_tolerances.hpp"
 #include "rvegen/femesh/tet_mesh.hpp"
 #include "rvegen/geometry/pair.hpp"
 #include "rvegen/model/body.hpp"
@@ -40,7 +41,7 @@ struct Remake {
 // distances when they are parallel).
 double line_distance(const Vec3& p0, const Vec3& p1, const Vec3& q0, const Vec3& q1) {
   const Vec3 n = (p1 - p0).cross(q1 - q0);
-  if (n.norm() > 1e-12 * (p1 - p0).norm() * (q1 - q0).norm()) {
+  if (n.norm() > kParallelSine * (p1 - p0).norm() * (q1 - q0).norm()) {
     return std::abs((q0 - p0).dot(n.normalized()));
   }
   const Vec3 d = (p1 - p0).normalized();

@@ -10,6 +10,7 @@
 #include <thread>
 #include <vector>
 
+#include "rvegen/femesh/mesh_tolerances.hpp"
 #include "rvegen/model/neighbours.hpp"
 #include "rvegen/model/parallel.hpp"
 #include "rvegen/model/resources.hpp"
@@ -241,7 +242,7 @@ double least_size(const InclusionSet& set, const TetMeshSpec& spec) {
 // The integral of 1 / h^3 over a cell of the box (lower corner lo, sides len), h the size field
 // at the centre of each leaf of an octree refined while a leaf's longest side exceeds
 // kEstimateLeaf times the size at its centre (and the least size). Each leaf's share is also
-// added to `running` (in units of 1e-3), and the recursion stops once that passes `stop`.
+// added to `running` (in units of kEstimateUnit), and the recursion stops once that passes `stop`.
 constexpr double kEstimateLeaf = 1.0;
 // Elements per unit of that integral: 5.5 for two across the gaps (the default), 9 for one
 // (3.5 + 4 / gap_elements, plus 1.5 (2 / gap_elements - 1) under two). With two, Gmsh's HXT made
@@ -306,7 +307,7 @@ double tet_elements_estimate(const InclusionSet& set, const TetMeshSpec& spec, d
     const Vec3 lo = set.box.origin + Vec3(i * len[0], j * len[1], k * len[2]);
     part[c] = inverse_cube_integral(size, lo, len, least, &running, stop);
   });
-  if (running.load() > stop) return std::max(cap, 1e-3 * per_unit * running.load());
+  if (running.load() > stop) return std::max(cap, kEstimateUnit * per_unit * running.load());
   double sum = 0.0;
   for (double v : part) sum += v;
   return per_unit * sum;

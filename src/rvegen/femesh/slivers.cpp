@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "rvegen/femesh/mesh_parts.hpp"
+#include "rvegen/femesh/mesh_tolerances.hpp"
 #include "rvegen/femesh/tet_mesh.hpp"
 #include "rvegen/geometry/pair.hpp"
 #include "rvegen/model/body.hpp"
@@ -47,11 +48,11 @@ void drop_elements(TetMesh* mesh, const std::vector<uint8_t>& gone) {
 namespace {
 
 // For each node on a box face of axis a (ends: node_ends), the node on the opposite face of that
-// axis with the same other coordinates (within 1e-9 of the box's smallest side, the rounding of
+// axis with the same other coordinates (within kOnFace of the box's smallest side, the rounding of
 // the key taken into account); -1 for the others.
 std::vector<int32_t> images_across(const TetMesh& mesh,
                                    const std::vector<std::array<int8_t, 3>>& ends, int a) {
-  const double tol = 1e-9 * mesh.box.size.minCoeff();
+  const double tol = kOnFace * mesh.box.size.minCoeff();
   auto key = [&](size_t n, int end) {
     const Vec3& x = mesh.nodes[n];
     return std::array<long long, 3>{end, std::llround(x[(a + 1) % 3] / tol),
@@ -162,7 +163,7 @@ long long remove_flat_face_elements(TetMesh* mesh) {
     const double before =
         tet_volume(mesh->nodes, mesh->tets[f1[0]]) + tet_volume(mesh->nodes, mesh->tets[f2[0]]);
     const double v1 = tet_volume(mesh->nodes, n1), v2 = tet_volume(mesh->nodes, n2);
-    if (!(v1 > 0.0 && v2 > 0.0) || std::abs(v1 + v2 - before) > 1e-9 * before) continue;
+    if (!(v1 > 0.0 && v2 > 0.0) || std::abs(v1 + v2 - before) > kVolumeRoundoff * before) continue;
     mesh->tets[f1[0]] = n1;
     mesh->tets[f2[0]] = n2;
     // (A node's list may keep an element that no longer has it: each search checks the nodes.)
@@ -338,24 +339,24 @@ long long lift_slivers(TetMesh* mesh, const InclusionSet& set, double angle) {
           if (slides) {
             surface_distance(surface, grown, p, &nrm, &feature);
             const Vec3 along = Vec3::Unit(a).cross(nrm);
-            if (!(along.norm() > 1e-3)) return false;  // the face nearly tangent to it
+            if (!(along.norm() > kShallowTangent)) return false;  // the face nearly tangent to it
             t = along.normalized() * (along.normalized().dot(t) >= 0.0 ? 1.0 : -1.0);
           }
-          if (!(t.norm() > 1e-6)) return false;
+          if (!(t.norm() > kShortDirection)) return false;
           Vec3 q = p + h * t.normalized();
           if (slides) {
             // Newton's steps in the face, along the normal's part in it.
             double off = 1.0;
-            for (int k = 0; k < 8 && std::abs(off) > 1e-12 * h; ++k) {
+            for (int k = 0; k < 8 && std::abs(off) > kNewtonStop * h; ++k) {
               off = surface_distance(surface, grown, q, &nrm, &feature) - offset;
               if (feature) return false;
               Vec3 m = nrm;
               m[a] = 0.0;
-              if (!(m.squaredNorm() > 1e-6)) return false;
+              if (!(m.squaredNorm() > kShortDirection)) return false;
               q -= (off / m.squaredNorm()) * m;
               q[a] = p[a];
             }
-            if (!(std::abs(off) <= 1e-9 * h)) return false;
+            if (!(std::abs(off) <= kNewtonReach * h)) return false;
           }
           q[a] = p[a];
           *y = q;
@@ -369,7 +370,7 @@ long long lift_slivers(TetMesh* mesh, const InclusionSet& set, double angle) {
         bool feature;
         surface_distance(surface, grown, p, &nrm, &feature);
         const Vec3 t = d - d.dot(nrm) * nrm;
-        if (!(t.norm() > 1e-6)) return false;
+        if (!(t.norm() > kShortDirection)) return false;
         Vec3 q = p + h * t.normalized();
         const double off = surface_distance(surface, grown, q, &nrm, &feature) - offset;
         if (feature) return false;
@@ -398,7 +399,7 @@ long long lift_slivers(TetMesh* mesh, const InclusionSet& set, double angle) {
       const Vec3 dirs[8] = {to_centroid,   -to_centroid,   Vec3::UnitX(), -Vec3::UnitX(),
                             Vec3::UnitY(), -Vec3::UnitY(), Vec3::UnitZ(), -Vec3::UnitZ()};
       int tries = 0;
-      for (double h = 0.25 * shortest; h > 1e-3 * shortest && tries < 400;) {
+      for (double h = 0.25 * shortest; h > kLeastStep * shortest && tries < 400;) {
         bool better = false;
         for (const Vec3& d : dirs) {
           Vec3 y;
@@ -477,7 +478,7 @@ Vec3 circumcentre(const Vec3 (&p)[4]) {
   const Vec3 a = p[1] - p[0], b = p[2] - p[0], c = p[3] - p[0];
   const double det = 2.0 * a.dot(b.cross(c));
   const double scale = a.norm() * b.norm() * c.norm();
-  if (!(std::abs(det) > 1e-12 * scale)) return 0.25 * (p[0] + p[1] + p[2] + p[3]);
+  if (!(std::abs(det) > kParallelSine * scale)) return 0.25 * (p[0] + p[1] + p[2] + p[3]);
   return p[0] + (a.squaredNorm() * b.cross(c) + b.squaredNorm() * c.cross(a) +
                  c.squaredNorm() * a.cross(b)) /
                     det;
@@ -547,7 +548,7 @@ long long insert_nodes_in_slivers(TetMesh* mesh, double angle) {
             Vec3 pf[4];
             tet_points(mesh->tets[f], pf);
             const Vec3 cc = circumcentre(pf);
-            if ((p - cc).squaredNorm() < (pf[0] - cc).squaredNorm() * (1.0 - 1e-12)) {
+            if ((p - cc).squaredNorm() < (pf[0] - cc).squaredNorm() * (1.0 - kRoundoff)) {
               cavity.push_back(f);
               in.insert(f);
             }
@@ -600,7 +601,7 @@ long long insert_nodes_in_slivers(TetMesh* mesh, double angle) {
               cavity.end());
         }
         mesh->nodes.pop_back();
-        ok = ok && std::abs(volume_new - volume_old) <= 1e-9 * volume_old;
+        ok = ok && std::abs(volume_new - volume_old) <= kVolumeRoundoff * volume_old;
         if (!ok) continue;
         if (best.worst < 0.0 || worst > best.worst) {
           best = {worst, below, cavity, made, p};

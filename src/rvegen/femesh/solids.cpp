@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "rvegen/femesh/mesh_parts.hpp"
+#include "rvegen/femesh/mesh_tolerances.hpp"
 #include "rvegen/femesh/offset_solid.hpp"
 
 namespace rvegen::mesh_parts {
@@ -263,7 +264,7 @@ int add_void_solid(const Inclusion& in, const Box& box) {
   const Shape& s = in.shape;
   const Modifiers& m = in.mod;
   const double r = s.radius, g = m.debond_gap, cos_cap = m.debond_cos_cap();
-  if (cos_cap <= -1.0 + 1e-9) return add_solid(s, box, g);
+  if (cos_cap <= -1.0 + kWholeCap) return add_solid(s, box, g);
   const double sin_cap = std::sqrt(std::max(0.0, 1.0 - cos_cap * cos_cap));
   const Mat3 P = void_frame(in, box);
   namespace occ = gmsh::model::occ;

@@ -18,6 +18,7 @@
 #include <unordered_map>
 
 #include "rvegen/femesh/mesh_parts.hpp"
+#include "rvegen/femesh/mesh_tolerances.hpp"
 #include "rvegen/femesh/offset_solid.hpp"
 #include "rvegen/femesh/periodic_faces.hpp"
 #include "rvegen/femesh/size_field.hpp"
@@ -468,7 +469,7 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
     // box face are the planes whose normal is the axis and whose centre of mass lies in the face
     // (OpenCASCADE's bounding boxes of patches bounded by spline curves stand out of the plane by
     // the curves' tolerance).
-    const double tol = 1e-6 * side;
+    const double tol = kPatchTolerance * side;
     gmsh::vectorpair surfaces;
     gmsh::model::getEntities(surfaces, 2);
     std::vector<FacePair> face_pairs;
@@ -486,7 +487,7 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
           std::vector<double> lo, hi, normal;
           gmsh::model::getParametrizationBounds(2, s.second, lo, hi);
           gmsh::model::getNormal(s.second, {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])}, normal);
-          if (normal.size() < 3 || std::abs(std::abs(normal[a]) - 1.0) > 1e-9) continue;
+          if (normal.size() < 3 || std::abs(std::abs(normal[a]) - 1.0) > kOnFace) continue;
           double b[6];
           gmsh::model::getBoundingBox(2, s.second, b[0], b[1], b[2], b[3], b[4], b[5]);
           std::array<double, 7> key;
@@ -512,13 +513,14 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
           for (int k = 0; k < 6; ++k) {
             d = std::max(d, std::abs(key[k] - (k % 3 == a ? len[a] : 0.0) - lkey[k]) / side);
           }
-          d = std::max(d, std::abs(key[6] - lkey[6]) / std::max(key[6], 1e-6 * side * side));
+          d = std::max(
+              d, std::abs(key[6] - lkey[6]) / std::max(key[6], kPatchTolerance * side * side));
           if (d < best) {
             best = d;
             match = ltag;
           }
         }
-        if (best > 1e-3 || !used.insert(match).second) match = -1;
+        if (best > kPatchKeyMatch || !used.insert(match).second) match = -1;
         if (match < 0) {
           throw MeshError("mesh_tet: a patch of the upper box face normal to " +
                           std::string(1, "xyz"[a]) + " has no image on the lower face");
@@ -560,7 +562,7 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
     // until two estimates agree within this precision (in elements; Gmsh's default 1e-9). At
     // the default the curves of 2,484 fibres took 21 s, nearly all of it in the size callback;
     // at 1e-5, 2.4 s, with 983,491 surface nodes against 983,863.
-    gmsh::option::setNumber("Mesh.LcIntegrationPrecision", 1e-5);
+    gmsh::option::setNumber("Mesh.LcIntegrationPrecision", kSizeIntegrationPrecision);
     gmsh::option::setNumber("Mesh.MeshSizeMax", max_size);
     gmsh::option::setNumber("Mesh.MeshSizeMin", min_size);
     gmsh::option::setNumber("Mesh.Algorithm", surface_algorithm);
@@ -727,7 +729,7 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
   // Periodic pairs by coordinates: every node with a coordinate at an upper end, and the node
   // at its coordinates brought to the lower ends, within 3e-9 of the side (the reach of the
   // rounded keys that found it before; snap_periodic_nodes has put the corners exactly).
-  for (const auto& [i, master] : lower_images(mesh, 1e-9 * side, 3e-9 * side)) {
+  for (const auto& [i, master] : lower_images(mesh, kOnFace * side, kImageReach * side)) {
     if (master < 0) {
       const Vec3& y = mesh.nodes[i];
       throw MeshError("mesh_tet: the node at (" + std::to_string(y[0]) + ", " +

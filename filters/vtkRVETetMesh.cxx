@@ -75,6 +75,12 @@ int vtkRVETetMesh::RequestData(vtkInformation*, vtkInformationVector** in,
         input->GetFieldData() ? input->GetFieldData()->GetArray("rvegen_min_gap") : nullptr);
     min_gap = given && given->GetNumberOfValues() > 0 ? given->GetValue(0) : 0.0;
   }
+  if (!(min_gap >= 0.0 && min_gap < set.box.size.minCoeff())) {
+    vtkErrorMacro(<< "the least gap (MinGap, or the input's field data rvegen_min_gap) must lie in "
+                     "[0, the box's least side), got "
+                  << min_gap);
+    return 0;
+  }
   rvegen::TetMesh mesh;
   rvegen::Nudged nudged;
   try {

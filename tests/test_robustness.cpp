@@ -592,6 +592,16 @@ TEST_F(OutputSetTest, AReportThatDoesNotListTheFilesBesideItIsTheUsers) {
   fs::remove_all(other);
 }
 
+TEST_F(OutputSetTest, AReportWithoutTheFilesListIsNotTakenForASet) {
+  // The report's keys alone, beside the user's voxels.vti: not a set rvegen wrote.
+  fs::create_directories(dir_);
+  std::ofstream(fs::path(dir_) / "report.json")
+      << "{\"status\": \"ok\", \"seed\": 1, \"timings\": {}}";
+  std::ofstream(fs::path(dir_) / "voxels.vti") << "mine";
+  EXPECT_THROW(OutputSet{dir_}, OutputError);
+  EXPECT_EQ(read("voxels.vti"), "mine");
+}
+
 TEST_F(OutputSetTest, FoldersThatLookLikeStagingButHoldTheUsersFilesStay) {
   const fs::path a = root_ / ".rve.rvegen-4194305-abcdef", b = root_ / ".rve.rvegen-backup";
   fs::create_directories(a);
@@ -744,6 +754,30 @@ TEST(TypedTensors, ATraceOffOneWithinTheToleranceIsTakenOverItsTrace) {
   const PackingResult r = generate(s);
   EXPECT_LT((orientation_tensor(r.set, 0) - s.families[0].orientation.a2).cwiseAbs().maxCoeff(),
             1e-6);
+  // An eigenvalue within the tolerance of 0 is 0: diag(0.5, 0.5, 1e-12) is the planar law,
+  // held exactly (the fibres came out 0.58 / 0.42); a negative one beyond it is left for the
+  // validation to refuse.
+  for (const double tiny : {1e-12, -5e-10, 1e-6}) {
+    Mat3 near_planar = Mat3::Zero();
+    near_planar(0, 0) = near_planar(1, 1) = 0.5 * (1.0 - tiny);
+    near_planar(2, 2) = tiny;
+    const Mat3 planar = OrientationLaw::as_typed(near_planar);
+    EXPECT_EQ(planar(2, 2), 0.0) << tiny;
+    EXPECT_NEAR(planar(0, 0), 0.5, 1e-15) << tiny;
+  }
+  Mat3 negative = Mat3::Zero();
+  negative(0, 0) = 0.8, negative(1, 1) = 0.5, negative(2, 2) = -0.3;
+  EXPECT_EQ(OrientationLaw::as_typed(negative), negative);
+  Scene planar_scene = s;
+  planar_scene.families[0].orientation.a2 << 0.4999999999995, 0, 0, 0, 0.4999999999995, 0, 0, 0,
+      1e-12;
+  planar_scene.families[0].orientation.a2 =
+      OrientationLaw::as_typed(planar_scene.families[0].orientation.a2);
+  const PackingResult rp = generate(planar_scene);
+  EXPECT_LT((orientation_tensor(rp.set, 0) - planar_scene.families[0].orientation.a2)
+                .cwiseAbs()
+                .maxCoeff(),
+            1e-6);
 }
 
 // --- Seeds --------------------------------------------------------------------------------
@@ -763,8 +797,9 @@ TEST(Seeds, TheWholeUnsignedRangeIsReadExactly) {
   EXPECT_EQ(seed_of("12.0"), 12ULL);
   // Written with a fraction or an exponent from 2^53 up, a seed is read through a double
   // (9007199254740993.0 read as ...992): refused, the seed to be given as digits.
-  for (const char* bad : {"18446744073709551616", "-1", "1.5", "1e300", "\"7\"",
-                          "9007199254740993.0", "9.007199254740992e15"}) {
+  for (const char* bad :
+       {"18446744073709551616", "-1", "1.5", "1e300", "\"7\"", "9007199254740993.0",
+        "9.007199254740992e15", "5000000000000000.3", "4503599627370496.5"}) {
     const std::string e = scene_error(
         std::string(R"({"box": {"size": [1,1,1]}, "seed": )") + bad +
         R"(, "families": [{"shape": "sphere", "radius": 0.05, "volume_fraction": 0.1}]})");

@@ -143,6 +143,11 @@ mesh.Order = 5
 mesh.UpdatePipeline()
 check(servermanager.Fetch(mesh).GetNumberOfCells() == 0, "Order 5 was meshed")
 mesh.Order = 1
+for gap in (float("nan"), float("inf")):
+    mesh.MinGap = gap
+    mesh.UpdatePipeline()
+    check(servermanager.Fetch(mesh).GetNumberOfCells() == 0, "MinGap %s was taken" % gap)
+mesh.MinGap = -1.0
 
 # 4. The command line's mesh_tet.vtu in ParaView's reader.
 os.makedirs(work, exist_ok=True)

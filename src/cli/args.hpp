@@ -49,7 +49,9 @@ inline double number_in(const std::string& text, double lo, double hi, bool whol
                         const std::string& name, const std::string& what) {
   char* end = nullptr;
   const double v = std::strtod(text.c_str(), &end);
-  if (text.empty() || *end != '\0' || !(v >= lo && v <= hi) || (whole && v != std::floor(v)))
+  // A whole number is digits only (no "2.0", "0x10", "1e1" or "+2").
+  const bool digits = text.find_first_not_of("0123456789") == std::string::npos;
+  if (text.empty() || *end != '\0' || !(v >= lo && v <= hi) || (whole && !digits))
     throw UsageError(name + " needs " + what + " (got \"" + text + "\")");
   return v;
 }

@@ -857,6 +857,9 @@ cat >"$WORK/threads.json" <<'JSON'
   "waviness":{"amplitude":0.02,"wavelength":0.2}}],"outputs":["inclusions"]}
 JSON
 expect_rc 0 "$RVEGEN" generate -q "$WORK/threads.json" -o "$WORK/threads1" --threads 1
+for bad in 2.0 0x10 1e1 +2; do
+  expect_rc 2 "$RVEGEN" generate -q "$WORK/threads.json" -o "$WORK/threads_bad" --threads "$bad"
+done
 expect_rc 0 "$RVEGEN" generate -q "$WORK/threads.json" -o "$WORK/threads2" --threads 2
 cmp -s "$WORK/threads1/inclusions.json" "$WORK/threads2/inclusions.json" ||
   fail "--threads 1 and 2 give different inclusions.json"
@@ -999,6 +1002,13 @@ grep -q "plus twice min_gap" "$WORK/last.err" || fail "min_gap not named: $(cat 
 echo '{"box":{"size":[1,1,1]}} trailing' >"$WORK/trailing.json"
 expect_rc 2 "$RVEGEN" generate -q "$WORK/trailing.json" -o "$WORK/trailing"
 grep -q "not valid JSON" "$WORK/last.err" && ! grep -q "json.exception" "$WORK/last.err" || fail "scene with trailing text: $(cat "$WORK/last.err")"
+# A link planted where the study writes its statistics' temporary file is replaced, never
+# followed (it overwrote the file it pointed to).
+rm -rf "$WORK/study_link" && cp -r "$WORK/study_a" "$WORK/study_link" && echo precious >"$WORK/precious.txt"
+ln -s "$WORK/precious.txt" "$WORK/study_link/study.json.part"
+expect_rc 0 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_link" --sizes 1,1.5 --realizations 3 -q
+[ "$(cat "$WORK/precious.txt")" = precious ] || fail "study: a planted link was followed"
+[ -L "$WORK/study_link/study.json" ] && fail "study: study.json left a link"
 rm -rf "$WORK/study_file" && mkdir -p "$WORK/study_file" && cp "$WORK/study_a/study_scene.json" "$WORK/study_file/" && touch "$WORK/study_file/realizations"
 expect_rc 1 "$RVEGEN" study "$WORK/study.json" -o "$WORK/study_file" --sizes 1,1.5 -q
 grep -q "realizations is not a directory" "$WORK/last.err" || fail "study: realizations a file: $(cat "$WORK/last.err")"

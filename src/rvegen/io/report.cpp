@@ -144,7 +144,15 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
     j["volume_fraction"] = exact[p.label];
     // Shells counted whole where they merge: the interphases' shares are upper bounds, the
     // matrix's a lower one (never below 0).
-    if (merged_shells && !overlaps.exact && p.kind == PhaseKind::kInterphase) j["bound"] = "upper";
+    if (merged_shells && !overlaps.exact && p.kind == PhaseKind::kInterphase) {
+      // At most what the cores and voids leave.
+      double others = 0.0;
+      for (const auto& q : phases) {
+        if (q.kind == PhaseKind::kCore || q.kind == PhaseKind::kVoid) others += exact[q.label];
+      }
+      j["volume_fraction"] = std::min(exact[p.label], std::max(0.0, 1.0 - others));
+      j["bound"] = "upper";
+    }
     if (merged_shells && !overlaps.exact && p.kind == PhaseKind::kMatrix) {
       j["volume_fraction"] = std::max(0.0, exact[p.label]);
       j["bound"] = "lower";

@@ -486,10 +486,10 @@ Scene parse_scene(const std::string& text) {
       if (!(seed >= 0 && seed == std::floor(seed))) {
         fail("seed", "must be an integer in [0, 18446744073709551615] (got " + v.dump() + ")");
       }
-      // 2^53 and above, a double holds one integer in several: 9007199254740993.0 reads as
-      // ...992.
-      if (seed >= 9007199254740992.0) {
-        fail("seed", "from 2^53 (9007199254740992) up, give the seed as digits only (got " +
+      // From 2^52 up, a double holds no fraction (4503599627370496.5 reads as ...496) and from
+      // 2^53 not every integer (9007199254740993.0 reads as ...992).
+      if (seed >= 4503599627370496.0) {
+        fail("seed", "from 2^52 (4503599627370496) up, give the seed as digits only (got " +
                          v.dump() + ", which is read through a double)");
       }
       s.seed = static_cast<uint64_t>(seed);

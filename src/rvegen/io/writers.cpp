@@ -535,7 +535,6 @@ void remove_orphans(const fs::path& target) {
 
 // Whether report.json in `target` is one rvegen wrote for the files beside it: a JSON object
 // with the report's keys, whose "files" (name and bytes) holds each of `named` with its size.
-// Reports of runs that listed no files are taken on their keys alone.
 bool own_report(const fs::path& target, const std::vector<std::string>& named) {
   std::string text;
   try {
@@ -547,7 +546,7 @@ bool own_report(const fs::path& target, const std::vector<std::string>& named) {
   if (r.is_discarded() || !r.is_object() || !r.contains("status") || !r.contains("seed") ||
       !r.contains("timings"))
     return false;
-  if (!r.contains("files")) return true;
+  if (!r.contains("files")) return false;  // every set lists its files
   const nlohmann::json& files = r["files"];
   if (!files.is_object()) return false;
   for (const std::string& name : named) {

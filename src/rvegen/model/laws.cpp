@@ -188,8 +188,19 @@ Mat3 OrientationLaw::as_typed(const Mat3& a) {
   if ((a - a.transpose()).cwiseAbs().maxCoeff() > kTypedTolerance ||
       std::abs(a.trace() - 1.0) > kTypedTolerance)
     return a;
-  const Mat3 sym = 0.5 * (a + a.transpose());
-  return sym / sym.trace();
+  Mat3 sym = 0.5 * (a + a.transpose());
+  // Eigenvalues within the tolerance of 0 are 0: a tensor typed as diag(0.5, 0.5, 1e-12) means
+  // the planar law, which the packing holds exactly (a tiny third eigenvalue it held to 0.08).
+  // A tensor without such an eigenvalue keeps its typed values (over its trace).
+  const Eigen::SelfAdjointEigenSolver<Mat3> es(sym);
+  Vec3 ev = es.eigenvalues();
+  bool snapped = false;
+  for (int k = 0; k < 3; ++k) {
+    if (ev[k] != 0.0 && std::abs(ev[k]) <= kTypedTolerance) ev[k] = 0.0, snapped = true;
+  }
+  if (snapped) sym = es.eigenvectors() * ev.asDiagonal() * es.eigenvectors().transpose();
+  const double trace = sym.trace();
+  return trace == 1.0 ? sym : Mat3(sym / trace);
 }
 
 }  // namespace rvegen

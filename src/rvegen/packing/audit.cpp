@@ -184,8 +184,10 @@ void check_rve_for_scene(const InclusionSet& set, const PackingSpec& scene,
       throw InputError(p + ": a " + shape_name(inc.shape.kind) + ", but family \"" + f.name +
                        "\" holds " + shape_name(f.shape) + "s");
     }
+    // A run stopped short of its target shrinks spheres, cylinders and ellipsoids with their
+    // coating (not the coating of aligned fibres): a thinner coating, never a thicker one.
     const double t = f.modifiers.coating, tol = 1e-9 * std::max(t, inc.mod.coating);
-    if (std::abs(inc.mod.coating - t) > tol ||
+    if (inc.mod.coating > t + tol || (t > 0.0) != (inc.mod.coating > 0.0) ||
         (t > 0.0 && inc.mod.shells_may_touch != f.modifiers.shells_may_touch)) {
       char buf[200];
       std::snprintf(buf, sizeof buf, ": coating %g%s, but family \"%s\" has %g%s", inc.mod.coating,

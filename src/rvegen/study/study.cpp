@@ -1,12 +1,16 @@
 #include "rvegen/study/study.hpp"
 
+#include <fcntl.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <map>
 #include <mutex>
@@ -33,7 +37,9 @@ using json = nlohmann::ordered_json;
 
 namespace {
 
-constexpr size_t kMaxRecordBytes = size_t(16) << 20;
+// A record is a few kilobytes (tens of properties): far larger ones are not the study's.
+constexpr size_t kMaxRecordBytes = size_t(1) << 20;
+constexpr size_t kMaxRecordProperties = 1000;
 
 // A realization's seed from the scene's, the size and the realization's number: the same
 // realization always gets the same seed, however many are asked for.
@@ -198,13 +204,26 @@ json realization_properties(const Scene& scene, const PackingResult& r, json* wi
 }  // namespace
 
 void write_whole(const fs::path& path, const std::string& text) {
+  // A ".part" left there (a file, or a link planted in its place) is removed, never followed:
+  // the text goes into a new regular file, which then replaces `path` itself (a link there
+  // included, not what it points to).
   const fs::path tmp = path.string() + ".part";
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    f << text;
-    f.flush();
-    if (!f) throw OutputError("cannot write " + tmp.string());
+  ::unlink(tmp.c_str());
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0666);
+  if (fd < 0) throw OutputError("cannot write " + tmp.string() + ": " + std::strerror(errno));
+  size_t done = 0;
+  while (done < text.size()) {
+    const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const int err = errno;
+      ::close(fd);
+      throw OutputError("cannot write " + tmp.string() + ": " + std::strerror(err));
+    }
+    done += static_cast<size_t>(n);
   }
+  if (::close(fd) != 0)
+    throw OutputError("cannot write " + tmp.string() + ": " + std::strerror(errno));
   std::error_code ec;
   fs::rename(tmp, path, ec);
   if (ec) throw OutputError("cannot write " + path.string() + ": " + ec.message());
@@ -331,6 +350,9 @@ void check_record(const json& rec, const StudyPlan& plan, size_t i, int k, const
   }
   if (!rec.contains("properties") || !rec["properties"].is_object())
     throw bad("properties: not an object");
+  if (rec["properties"].size() > kMaxRecordProperties)
+    throw bad("properties: " + std::to_string(rec["properties"].size()) +
+              ", more than a study records (" + std::to_string(kMaxRecordProperties) + ")");
   for (auto it = rec["properties"].begin(); it != rec["properties"].end(); ++it) {
     const std::string& name = it.key();
     const std::string where = "properties." + name;

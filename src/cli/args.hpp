@@ -1,7 +1,5 @@
-// What the subcommands share: one reader of their arguments (each option from a table, a
-// flag or one value taken by its own reader; an unknown option named with the nearest known
-// one; the rest positional; errors are one line, UsageError, the caller adds where the usage
-// is), the size limit of a scene file and the peak memory of the whole command.
+// What the subcommands share: one reader of their arguments (options from a table, "did you
+// mean" for an unknown one, errors in one line) and the size limit of a scene file.
 #pragma once
 
 #include <cmath>

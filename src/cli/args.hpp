@@ -90,14 +90,8 @@ inline std::vector<std::string> read_args(const std::vector<std::string>& args,
       }
     }
     if (!found && !a.empty() && a[0] == '-' && a != "-") {
-      std::string nearest;
-      size_t best = a.size() / 3 + 1;
-      for (const std::string& k : known) {
-        const size_t d = json_util::edit_distance(a, k);
-        if (d < best) best = d, nearest = k;
-      }
       throw UsageError("unknown option " + a + " of " + command +
-                       (nearest.empty() ? "" : " (did you mean \"" + nearest + "\"?)"));
+                       json_util::did_you_mean(a, known));
     }
     if (!found) {
       positional.push_back(a);

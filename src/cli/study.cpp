@@ -1,16 +1,12 @@
 #include "study.hpp"
 
 #include <tbb/global_control.h>
-#include <tbb/parallel_for.h>
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
-#include <mutex>
-#include <nlohmann/json.hpp>
 #include <thread>
 
 #include "args.hpp"
@@ -23,7 +19,6 @@
 namespace rvegen::cli {
 
 namespace fs = std::filesystem;
-using json = nlohmann::ordered_json;
 
 namespace {
 

@@ -48,14 +48,17 @@ inline size_t edit_distance(const std::string& a, const std::string& b) {
 
 /// ` (did you mean "x"?)` with the nearest of `known` to `word` when one is close (at most a
 /// third of its letters differ), else "": for unknown keys, outputs, commands and options.
-inline std::string did_you_mean(const std::string& word, std::initializer_list<const char*> known) {
+inline std::string did_you_mean(const std::string& word, const std::vector<std::string>& known) {
   std::string nearest;
   size_t best = word.size() / 3 + 1;
-  for (const char* k : known) {
+  for (const std::string& k : known) {
     const size_t d = edit_distance(word, k);
     if (d < best) best = d, nearest = k;
   }
   return nearest.empty() ? "" : " (did you mean \"" + nearest + "\"?)";
+}
+inline std::string did_you_mean(const std::string& word, std::initializer_list<const char*> known) {
+  return did_you_mean(word, std::vector<std::string>(known.begin(), known.end()));
 }
 
 /// Fails on the first key of `obj` not in `allowed`, naming it, suggesting the nearest allowed

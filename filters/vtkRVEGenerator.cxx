@@ -374,66 +374,10 @@ int vtkRVEGenerator::RequestData(vtkInformation* request, vtkInformationVector**
   this->SetAbortExecute(0);
   const bool packed = !this->Cached || this->Cached->key != key;
   if (packed) {
-    // generate() audits the packed RVE exactly; an RVE that fails is never shown. Where every
-    // rank runs the pipeline in step (pvbatch --symmetric), rank 0 packs and broadcasts the
-    // inclusion list. Otherwise (pvbatch driven from rank 0, a ParaView server) a collective
-    // here would wait for ranks that are not executing, so each rank packs the same RVE itself
-    // (same seed, same result).
     this->Cached.reset();
-    std::string error;
     std::unique_ptr<Cache> cache(new Cache{key, {}});
-    vtkMultiProcessController* mpc = vtkMultiProcessController::GetGlobalController();
-    const bool in_step =
-        vtkProcessModule::GetProcessModule() && vtkProcessModule::GetSymmetricMPIMode();
-    const int ranks = mpc && in_step ? mpc->GetNumberOfProcesses() : 1;
-    const int rank = ranks > 1 ? mpc->GetLocalProcessId() : 0;
-    int packed_here = 0;
     bool aborted = false;
-    if (rank == 0) {
-      // Progress: the packing takes the first kPackingShare of the bar, the outputs the rest.
-      // An abort (SetAbortExecute, the ParaView progress bar's abort) stops the packing at its
-      // next check, within a step.
-      rvegen::Monitor monitor;
-      monitor.fraction = [this](double f) { this->UpdateProgress(kPackingShare * f); };
-      monitor.cancelled = [this] { return this->GetAbortExecute() != 0; };
-      try {
-        // The packing on this->Threads cores (the same RVE for any number).
-        tbb::task_arena packing(this->Threads > 0 ? this->Threads : tbb::task_arena::automatic);
-        packing.execute([&] { cache->result = rvegen::pack_scene(scene, monitor).result; });
-        packed_here = 1;
-      } catch (const rvegen::Cancelled&) {
-        aborted = true;
-        error = kAbortedMessage;
-      } catch (const std::exception& e) {
-        error = e.what();
-      }
-    }
-    if (ranks > 1) {
-      // ok flag and status, then the inclusion list (or the error) as JSON text.
-      int head[2] = {error.empty() ? 1 : 0, static_cast<int>(cache->result.status)};
-      mpc->Broadcast(head, 2, 0);
-      std::string text = rank != 0        ? std::string()
-                         : !error.empty() ? error
-                                          : rvegen::write_inclusions_json(cache->result.set);
-      long long length = static_cast<long long>(text.size());
-      mpc->Broadcast(&length, 1, 0);
-      text.resize(static_cast<size_t>(length));
-      if (length > 0) mpc->Broadcast(&text[0], length, 0);
-      if (rank != 0) {
-        if (head[0]) {
-          cache->result.set = rvegen::read_inclusions_json(text);
-          cache->result.status = static_cast<rvegen::PackingStatus>(head[1]);
-        } else {
-          error = text;
-          aborted = error == kAbortedMessage;
-        }
-      }
-      int total = 0;
-      mpc->AllReduce(&packed_here, &total, 1, vtkCommunicator::SUM_OP);
-      this->PackingRuns += total;
-    } else {
-      this->PackingRuns += packed_here;
-    }
+    const std::string error = this->PackShared(scene, cache.get(), &aborted);
     if (aborted) {
       vtkWarningMacro(<< "packing aborted; nothing was kept");
       return this->EndAborted(outVec, key, port);
@@ -477,86 +421,167 @@ int vtkRVEGenerator::RequestData(vtkInformation* request, vtkInformationVector**
   };
 
   if (wanted(0)) {
-    // One vertex per inclusion (and periodic image) with glyph attributes, for the inclusions
-    // of this piece; the whole inclusion list in field data for the RVE filters.
-    vtkPolyData* points = vtkPolyData::GetData(outVec, 0);
-    RVEPolyDataFromGlyphs(
-        rvegen::glyph_points(PieceOf(result.set, outVec->GetInformationObject(0))), points);
-    points->GetFieldData()->AddArray(status);
-    vtkNew<vtkStringArray> inclusions;
-    inclusions->SetName("rvegen_inclusions");
-    inclusions->InsertNextValue(rvegen::write_inclusions_json(result.set));
-    points->GetFieldData()->AddArray(inclusions);
-    // The scene's least gap, which the RVE Tetrahedral Mesh keeps when it nudges inclusions.
-    vtkNew<vtkDoubleArray> min_gap;
-    min_gap->SetName("rvegen_min_gap");
-    min_gap->InsertNextValue(scene.min_gap);
-    points->GetFieldData()->AddArray(min_gap);
-    ++this->PortExecutions[0];
+    this->FillPoints(scene, result.set, outVec, status);
     output_done();
   }
-
   if (wanted(3)) {
     if (this->GetAbortExecute()) return abort_rest();
-    // The tessellated surfaces of this piece's inclusions: of every inclusion with Mesh or
-    // when the RVE holds at most MeshUpTo inclusions, otherwise of the modified ones.
-    const rvegen::MeshOptions mopt = rvegen::mesh_options(scene, scene.box);
-    vtkPolyData* surfaces = vtkPolyData::GetData(outVec, 3);
-    const rvegen::InclusionSet piece = PieceOf(result.set, outVec->GetInformationObject(3));
-    const bool every =
-        scene.outputs.mesh || result.set.inclusions.size() <= static_cast<size_t>(this->MeshUpTo);
-    RVEPolyDataFromMesh(rvegen::tessellate(rvegen::meshed_inclusions(piece, every), mopt),
-                        surfaces);
-    surfaces->GetFieldData()->AddArray(status);
-    ++this->PortExecutions[3];
+    this->FillSurfaces(scene, result.set, outVec, status);
     output_done();
   }
-
   if (wanted(1)) {
     if (this->GetAbortExecute()) return abort_rest();
-    rvegen::VoxelOptions vopt;
-    vopt.partial_volume = scene.partial_volume;
-    vopt.subsamples = scene.subsamples;
-    // The update extent (point extent: cells lo..hi-1); the whole image when none is set.
-    vtkInformation* imageInfo = outVec->GetInformationObject(1);
-    int ext[6] = {0, scene.resolution[0], 0, scene.resolution[1], 0, scene.resolution[2]};
-    if (imageInfo->Has(vtkStreamingDemandDrivenPipeline::UPDATE_EXTENT())) {
-      imageInfo->Get(vtkStreamingDemandDrivenPipeline::UPDATE_EXTENT(), ext);
-    }
-    vopt.extent = {ext[0], ext[1], ext[2], ext[3], ext[4], ext[5]};
-    tbb::task_arena arena(this->Threads > 0 ? this->Threads : tbb::task_arena::automatic);
     const double start = done;
-    const long long conflicts =
-        RVEVoxelizeInto(result.set, rvegen::voxel_layout(result.set, scene.resolution, vopt), vopt,
-                        image, arena, [&](double f) {
-                          this->UpdateProgress(start + share * f);
-                          return !this->GetAbortExecute();
-                        });
-    if (conflicts < 0) return abort_rest();
-    ++this->PortExecutions[1];
+    if (!this->FillVoxels(scene, result.set, outVec, image,
+                          [&](double f) { this->UpdateProgress(start + share * f); })) {
+      return abort_rest();
+    }
     output_done();
   }
-
   if (wanted(2)) {
     if (this->GetAbortExecute()) return abort_rest();
-    // Zero iso-surfaces of the level sets (wavy, deformed, coated inclusions); empty otherwise.
-    rvegen::LevelSetOptions lopt;
-    lopt.voxel_size = scene.levelset_voxel_size;
-    lopt.half_width = scene.levelset_half_width;
-    // Straight coated shells are exact: grids only where a scene file names "levelsets" in
-    // its outputs (the Surfaces port meshes them; a level set of a thin box's many fibres
-    // needed gigabytes).
-    lopt.exact_shapes = scene.outputs.levelsets_asked;
-    // Shells of neighbours may merge, so the level sets are not split by inclusion: piece 0
-    // computes them all, the other pieces are empty.
-    if (RequestedPiece(outVec->GetInformationObject(2)).first == 0) {
-      const rvegen::LevelSets ls = rvegen::build_level_sets(result.set, lopt);
-      RVEPolyDataFromMesh(rvegen::level_set_surfaces(ls), vtkPolyData::GetData(outVec, 2));
-    }
-    ++this->PortExecutions[2];
+    this->FillLevelSets(scene, result.set, outVec);
     output_done();
   }
   return 1;
+}
+
+std::string vtkRVEGenerator::PackShared(const rvegen::Scene& scene, Cache* cache, bool* aborted) {
+  // generate() audits the packed RVE exactly; an RVE that fails is never shown. Where every
+  // rank runs the pipeline in step (pvbatch --symmetric), rank 0 packs and broadcasts the
+  // inclusion list. Otherwise (pvbatch driven from rank 0, a ParaView server) a collective
+  // here would wait for ranks that are not executing, so each rank packs the same RVE itself
+  // (same seed, same result).
+  std::string error;
+  vtkMultiProcessController* mpc = vtkMultiProcessController::GetGlobalController();
+  const bool in_step =
+      vtkProcessModule::GetProcessModule() && vtkProcessModule::GetSymmetricMPIMode();
+  const int ranks = mpc && in_step ? mpc->GetNumberOfProcesses() : 1;
+  const int rank = ranks > 1 ? mpc->GetLocalProcessId() : 0;
+  int packed_here = 0;
+  if (rank == 0) {
+    // Progress: the packing takes the first kPackingShare of the bar, the outputs the rest.
+    // An abort (SetAbortExecute, the ParaView progress bar's abort) stops the packing at its
+    // next check, within a step.
+    rvegen::Monitor monitor;
+    monitor.fraction = [this](double f) { this->UpdateProgress(kPackingShare * f); };
+    monitor.cancelled = [this] { return this->GetAbortExecute() != 0; };
+    try {
+      // The packing on this->Threads cores (the same RVE for any number).
+      tbb::task_arena packing(this->Threads > 0 ? this->Threads : tbb::task_arena::automatic);
+      packing.execute([&] { cache->result = rvegen::pack_scene(scene, monitor).result; });
+      packed_here = 1;
+    } catch (const rvegen::Cancelled&) {
+      *aborted = true;
+      error = kAbortedMessage;
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+  }
+  if (ranks <= 1) {
+    this->PackingRuns += packed_here;
+    return error;
+  }
+  // ok flag and status, then the inclusion list (or the error) as JSON text.
+  int head[2] = {error.empty() ? 1 : 0, static_cast<int>(cache->result.status)};
+  mpc->Broadcast(head, 2, 0);
+  std::string text = rank != 0        ? std::string()
+                     : !error.empty() ? error
+                                      : rvegen::write_inclusions_json(cache->result.set);
+  long long length = static_cast<long long>(text.size());
+  mpc->Broadcast(&length, 1, 0);
+  text.resize(static_cast<size_t>(length));
+  if (length > 0) mpc->Broadcast(&text[0], length, 0);
+  if (rank != 0) {
+    if (head[0]) {
+      cache->result.set = rvegen::read_inclusions_json(text);
+      cache->result.status = static_cast<rvegen::PackingStatus>(head[1]);
+    } else {
+      error = text;
+      *aborted = error == kAbortedMessage;
+    }
+  }
+  int total = 0;
+  mpc->AllReduce(&packed_here, &total, 1, vtkCommunicator::SUM_OP);
+  this->PackingRuns += total;
+  return error;
+}
+
+void vtkRVEGenerator::FillPoints(const rvegen::Scene& scene, const rvegen::InclusionSet& set,
+                                 vtkInformationVector* outVec, vtkStringArray* status) {
+  // One vertex per inclusion (and periodic image) with glyph attributes, for the inclusions
+  // of this piece; the whole inclusion list in field data for the RVE filters.
+  vtkPolyData* points = vtkPolyData::GetData(outVec, 0);
+  RVEPolyDataFromGlyphs(rvegen::glyph_points(PieceOf(set, outVec->GetInformationObject(0))),
+                        points);
+  points->GetFieldData()->AddArray(status);
+  vtkNew<vtkStringArray> inclusions;
+  inclusions->SetName("rvegen_inclusions");
+  inclusions->InsertNextValue(rvegen::write_inclusions_json(set));
+  points->GetFieldData()->AddArray(inclusions);
+  // The scene's least gap, which the RVE Tetrahedral Mesh keeps when it nudges inclusions.
+  vtkNew<vtkDoubleArray> min_gap;
+  min_gap->SetName("rvegen_min_gap");
+  min_gap->InsertNextValue(scene.min_gap);
+  points->GetFieldData()->AddArray(min_gap);
+  ++this->PortExecutions[0];
+}
+
+void vtkRVEGenerator::FillSurfaces(const rvegen::Scene& scene, const rvegen::InclusionSet& set,
+                                   vtkInformationVector* outVec, vtkStringArray* status) {
+  // The tessellated surfaces of this piece's inclusions: of every inclusion with Mesh or
+  // when the RVE holds at most MeshUpTo inclusions, otherwise of the modified ones.
+  const rvegen::MeshOptions mopt = rvegen::mesh_options(scene, scene.box);
+  vtkPolyData* surfaces = vtkPolyData::GetData(outVec, 3);
+  const rvegen::InclusionSet piece = PieceOf(set, outVec->GetInformationObject(3));
+  const bool every =
+      scene.outputs.mesh || set.inclusions.size() <= static_cast<size_t>(this->MeshUpTo);
+  RVEPolyDataFromMesh(rvegen::tessellate(rvegen::meshed_inclusions(piece, every), mopt), surfaces);
+  surfaces->GetFieldData()->AddArray(status);
+  ++this->PortExecutions[3];
+}
+
+bool vtkRVEGenerator::FillVoxels(const rvegen::Scene& scene, const rvegen::InclusionSet& set,
+                                 vtkInformationVector* outVec, vtkImageData* image,
+                                 const std::function<void(double)>& progress) {
+  rvegen::VoxelOptions vopt;
+  vopt.partial_volume = scene.partial_volume;
+  vopt.subsamples = scene.subsamples;
+  // The update extent (point extent: cells lo..hi-1); the whole image when none is set.
+  vtkInformation* imageInfo = outVec->GetInformationObject(1);
+  int ext[6] = {0, scene.resolution[0], 0, scene.resolution[1], 0, scene.resolution[2]};
+  if (imageInfo->Has(vtkStreamingDemandDrivenPipeline::UPDATE_EXTENT())) {
+    imageInfo->Get(vtkStreamingDemandDrivenPipeline::UPDATE_EXTENT(), ext);
+  }
+  vopt.extent = {ext[0], ext[1], ext[2], ext[3], ext[4], ext[5]};
+  tbb::task_arena arena(this->Threads > 0 ? this->Threads : tbb::task_arena::automatic);
+  const long long conflicts = RVEVoxelizeInto(
+      set, rvegen::voxel_layout(set, scene.resolution, vopt), vopt, image, arena, [&](double f) {
+        progress(f);
+        return !this->GetAbortExecute();
+      });
+  if (conflicts < 0) return false;
+  ++this->PortExecutions[1];
+  return true;
+}
+
+void vtkRVEGenerator::FillLevelSets(const rvegen::Scene& scene, const rvegen::InclusionSet& set,
+                                    vtkInformationVector* outVec) {
+  // Zero iso-surfaces of the level sets (wavy, deformed, coated inclusions); empty otherwise.
+  rvegen::LevelSetOptions lopt;
+  lopt.voxel_size = scene.levelset_voxel_size;
+  lopt.half_width = scene.levelset_half_width;
+  // Straight coated shells are exact: grids only where a scene file names "levelsets" in
+  // its outputs (the Surfaces port meshes them; a level set of a thin box's many fibres
+  // needs gigabytes).
+  lopt.exact_shapes = scene.outputs.levelsets_asked;
+  // Shells of neighbours may merge, so the level sets are not split by inclusion: piece 0
+  // computes them all, the other pieces are empty.
+  if (RequestedPiece(outVec->GetInformationObject(2)).first == 0) {
+    const rvegen::LevelSets ls = rvegen::build_level_sets(set, lopt);
+    RVEPolyDataFromMesh(rvegen::level_set_surfaces(ls), vtkPolyData::GetData(outVec, 2));
+  }
+  ++this->PortExecutions[2];
 }
 
 int vtkRVEGenerator::EndAborted(vtkInformationVector* outVec, const std::string& key, int port) {

@@ -20,12 +20,20 @@
 #ifndef vtkRVEGenerator_h
 #define vtkRVEGenerator_h
 
+#include <functional>
 #include <memory>
 #include <string>
 
 #include "RVEGenFiltersModule.h"
 #include "vtkPolyDataAlgorithm.h"
 #include "vtkTimeStamp.h"
+
+class vtkImageData;
+class vtkStringArray;
+namespace rvegen {
+struct InclusionSet;
+struct Scene;
+}  // namespace rvegen
 
 class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
  public:
@@ -258,6 +266,21 @@ class RVEGENFILTERS_EXPORT vtkRVEGenerator : public vtkPolyDataAlgorithm {
   int EndAborted(vtkInformationVector* outVec, const std::string& key, int port);
 
   struct Cache;
+  // Packs the scene into `cache` (rank 0 packs and broadcasts where the ranks run in step);
+  // returns the error ("" when packed), *aborted when an abort stopped it.
+  std::string PackShared(const rvegen::Scene& scene, Cache* cache, bool* aborted);
+  // The outputs of ports 0 (points), 3 (surfaces), 1 (voxels: false when aborted) and 2 (level
+  // sets), of `set` packed for `scene`.
+  void FillPoints(const rvegen::Scene& scene, const rvegen::InclusionSet& set,
+                  vtkInformationVector* outVec, vtkStringArray* status);
+  void FillSurfaces(const rvegen::Scene& scene, const rvegen::InclusionSet& set,
+                    vtkInformationVector* outVec, vtkStringArray* status);
+  bool FillVoxels(const rvegen::Scene& scene, const rvegen::InclusionSet& set,
+                  vtkInformationVector* outVec, vtkImageData* image,
+                  const std::function<void(double)>& progress);
+  void FillLevelSets(const rvegen::Scene& scene, const rvegen::InclusionSet& set,
+                     vtkInformationVector* outVec);
+
   std::unique_ptr<Cache> Cached;
   std::string Status;
   // The packing key and the port of the last aborted execution (-1: none pending).

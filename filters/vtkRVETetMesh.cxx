@@ -158,6 +158,8 @@ int vtkRVETetMesh::RequestData(vtkInformation*, vtkInformationVector** in,
   origin->SetNumberOfComponents(3);
   origin->InsertNextTuple(mesh.box.origin.data());
   grid->GetFieldData()->AddArray(origin);
+  for (int a = 0; a < 3; ++a) this->CellOrigin[a] = mesh.box.origin[a];
+  this->NudgedInclusions = nudged.moved;
   vtkNew<vtkIntArray> nudge_counts;
   nudge_counts->SetName("nudged_inclusions");
   nudge_counts->InsertNextValue(nudged.moved);

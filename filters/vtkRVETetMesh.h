@@ -64,6 +64,11 @@ class RVEGENFILTERS_EXPORT vtkRVETetMesh : public vtkUnstructuredGridAlgorithm {
   /// The mesher's optimiser improves the elements of quality (0 to 1) under this (0: none).
   vtkSetMacro(OptimizeThreshold, double);
   vtkGetMacro(OptimizeThreshold, double);
+  /// The lower corner of the cell the last mesh fills (the box's origin without ShiftCell, or
+  /// before any mesh): shown in the panel, read-only; field data cell_origin too.
+  vtkGetVector3Macro(CellOrigin, double);
+  /// Inclusions the last mesh's nudge moved (field data nudged_inclusions too).
+  vtkGetMacro(NudgedInclusions, int);
 
  protected:
   vtkRVETetMesh();
@@ -82,6 +87,8 @@ class RVEGENFILTERS_EXPORT vtkRVETetMesh : public vtkUnstructuredGridAlgorithm {
   bool KeepVolumes;
   int Order;
   double OptimizeThreshold;
+  double CellOrigin[3] = {0.0, 0.0, 0.0};
+  int NudgedInclusions = 0;
 
  private:
   vtkRVETetMesh(const vtkRVETetMesh&) = delete;

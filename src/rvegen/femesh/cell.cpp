@@ -30,10 +30,9 @@ namespace {
 // cuts a wedge that thin); and the span along the axis of the two lines of every cylinder's
 // mantle furthest along a, where its axis is tilted by less than kShallowMantle from the face:
 // a face within such a span is tangent to the mantle where it crosses the line, and cuts a
-// wedge as thin as the tilt (a fibre 4.3 degrees off the face left six elements of 3.2-3.9
-// degrees there). A face crossing a disk at 22 degrees, 0.2 radius from its centre, cut off a
-// chip of the end a fifth of the radius thick, which left four elements of 2.1-4.7 degrees at
-// chord error 0.1 (2,484 fibres): hence 30 degrees for kSteepDisk.
+// wedge as thin as the tilt (a fibre slightly off the face left slivers there). A face crossing
+// a disk at a moderate angle, near its centre, cut off a thin chip of the end, which left
+// slivers too: hence 30 degrees for kSteepDisk.
 struct Extremes {
   std::vector<double> at, half, size;  // centre and half width of each span, its length unit
 };
@@ -62,10 +61,10 @@ Extremes extremes(const InclusionSet& set, int a, bool disks = true,
       }
       // A debonded sphere's void ends on a cone whose apex is the centre: a face through the
       // apex at the cone's angle would lie along it (a face nearly so, through the centre of a
-      // sphere debonded over 0.3 of its surface, left 78 elements under 5 degrees, least 1.4,
-      // along the cut); a face kept off the centre cuts the cone at an angle.
+      // debonded sphere, left slivers along the cut); a face kept off the centre cuts the cone
+      // at an angle.
       // Its two rims (the cone's circles at r and r + gap) too: a face grazing a rim leaves a
-      // sliver of surface between them (0.001 r from the inner rim, elements of 1.5 degrees).
+      // sliver of surface between them (a face just off the inner rim left slivers).
       if (inc.mod.debonded() && inc.mod.debond_fraction < 1.0) {
         add(s.center[a], 0.0, s.radius);
         const Vec3& u = inc.mod.debond_axis;
@@ -345,131 +344,188 @@ Vec3 cell_origin(const InclusionSet& set) {
   return origin;
 }
 
-Nudged nudge_off_cell(InclusionSet* set, const Vec3& origin, double min_gap) {
-  Nudged out;
-  const Box& box = set->box;
-  auto own_clearance = [&](const Inclusion& inc) {
-    InclusionSet one;
-    one.box = box;
-    one.inclusions = {inc};
-    return std::min(face_clearance(one, origin), edge_clearance(one, origin));
-  };
-  const size_t n = set->inclusions.size();
-  std::vector<Shape> env(n);
-  std::vector<double> reach(n);
-  double largest = 0.0;
-  for (size_t i = 0; i < n; ++i) {
-    env[i] = envelope(set->inclusions[i]);
-    reach[i] = env[i].bounding_radius();
-    largest = std::max(largest, size_of(set->inclusions[i]));
+namespace {
+
+// The moves of nudge_off_cell, on one set and cell.
+class Nudger {
+ public:
+  Nudger(InclusionSet* set, const Vec3& origin, double min_gap)
+      : set_(*set), box_(set->box), origin_(origin), min_gap_(min_gap) {
+    const size_t n = set_.inclusions.size();
+    env_.resize(n);
+    reach_.resize(n);
+    moved_.assign(n, 0);
+    for (size_t i = 0; i < n; ++i) {
+      env_[i] = envelope(set_.inclusions[i]);
+      reach_[i] = env_[i].bounding_radius();
+      largest_ = std::max(largest_, size_of(set_.inclusions[i]));
+    }
+    for (int x = -1; x <= 1; ++x)
+      for (int y = -1; y <= 1; ++y)
+        for (int z = -1; z <= 1; ++z)
+          if (x || y || z) dirs_.push_back(Vec3(x, y, z).normalized());
   }
-  // Whether inclusion i's envelope, as `e`, keeps min_gap from every other in `among` (all when
-  // null).
-  auto apart = [&](size_t i, const Shape& e, const std::vector<size_t>* among) {
+
+  // The first stage: each inclusion that grazes the cell moved along one axis, by up to
+  // kSteps sixteenths of its size, where it grazes no more and keeps min_gap from every other.
+  // Returns those it could not move.
+  std::vector<size_t> along_axes() {
+    std::vector<size_t> stuck;
+    for (size_t i = 0; i < set_.inclusions.size(); ++i) {
+      Inclusion& inc = set_.inclusions[i];
+      if (own_clearance(inc) >= kGoodClearance) continue;
+      const double size = size_of(inc);
+      bool done = false;
+      for (int k = 1; k <= kSteps && !done; ++k) {
+        for (int a = 0; a < 3 && !done; ++a) {
+          for (const double sign : {1.0, -1.0}) {
+            Inclusion trial = inc;
+            trial.shape.center[a] += sign * k * size / 16.0;
+            trial.shape.center = box_.wrapped(trial.shape.center);
+            if (own_clearance(trial) < kGoodClearance) continue;
+            const Shape e = envelope(trial);
+            if (!apart(i, e, nullptr)) continue;
+            take(i, trial, e);
+            done = true;
+            break;
+          }
+        }
+      }
+      if (!done) stuck.push_back(i);
+    }
+    return stuck;
+  }
+
+  // The second stage, for those: the least translation in any of 26 directions (to kFarSteps
+  // sixteenths of its size) that clears the cell's faces and keeps min_gap from every other;
+  // else the first of the least (kTries of them) that clear the faces and make room by pushing
+  // others (relax). Returns whether it moved.
+  bool anywhere(size_t i) {
+    Inclusion& inc = set_.inclusions[i];
+    const double size = size_of(inc);
+    near_of_.clear();  // positions have moved since
+    int tries = 0;
+    // Free moves first, then those that push.
+    for (int push = 0; push < 2; ++push) {
+      for (int k = 1; k <= kFarSteps && tries < kTries; ++k) {
+        for (size_t q = 0; q < dirs_.size() && tries < kTries; ++q) {
+          const Vec3 d = dirs_[q] * (k * size / 16.0);
+          const Inclusion trial = moved_by(inc, d);
+          if (own_clearance(trial) < kGoodClearance) continue;
+          if (push) {
+            ++tries;
+            if (relax(i, d)) return true;
+            continue;
+          }
+          const Shape e = envelope(trial);
+          if (!apart(i, e, &near(i))) continue;
+          take(i, trial, e);
+          return true;
+        }
+      }
+    }
+    return false;
+  }
+
+  int moved() const { return static_cast<int>(std::count(moved_.begin(), moved_.end(), 1)); }
+
+ private:
+  static constexpr int kSteps = 24;     // 1.5 sizes in sixteenths
+  static constexpr int kFarSteps = 64;  // 4 sizes in sixteenths
+  static constexpr int kTries = 24;
+  // Pairs are pushed to kPushedGap min_gap: pairs pushed to exactly min_gap made surfaces the
+  // volume mesher refused (the packer itself leaves no pair that close).
+  static constexpr double kPushedGap = 1.2;
+  static constexpr int kSweeps = 200, kMostMoved = 64;
+
+  double own_clearance(const Inclusion& inc) const {
+    InclusionSet one;
+    one.box = box_;
+    one.inclusions = {inc};
+    return std::min(face_clearance(one, origin_), edge_clearance(one, origin_));
+  }
+
+  void take(size_t i, const Inclusion& trial, const Shape& e) {
+    set_.inclusions[i] = trial;
+    env_[i] = e;
+    moved_[i] = 1;
+  }
+
+  Inclusion moved_by(const Inclusion& inc, const Vec3& d) const {
+    Inclusion trial = inc;
+    trial.shape.center = box_.wrapped(trial.shape.center + d);
+    return trial;
+  }
+
+  // Whether inclusion i's envelope, as `e`, keeps min_gap from every other in `among` (all
+  // when null).
+  bool apart(size_t i, const Shape& e, const std::vector<size_t>* among) const {
     const double ri = e.bounding_radius();
     auto clear_of_j = [&](size_t j) {
       if (j == i) return true;
       bool clear = true;
-      for_each_image(box, e.center, ri + min_gap, env[j].center, reach[j], [&](const Vec3& shift) {
-        if (clear && !clear_of(e, env[j].translated(shift), min_gap)) clear = false;
-      });
+      for_each_image(box_, e.center, ri + min_gap_, env_[j].center, reach_[j],
+                     [&](const Vec3& shift) {
+                       if (clear && !clear_of(e, env_[j].translated(shift), min_gap_)) {
+                         clear = false;
+                       }
+                     });
       return clear;
     };
     if (among) return std::all_of(among->begin(), among->end(), clear_of_j);
-    for (size_t j = 0; j < n; ++j)
+    for (size_t j = 0; j < set_.inclusions.size(); ++j)
       if (!clear_of_j(j)) return false;
     return true;
-  };
-  std::vector<char> moved(n, 0);
-  // The first stage: along one axis, clear of every other.
-  constexpr int kSteps = 24;  // 1.5 sizes in sixteenths
-  std::vector<size_t> stuck;
-  for (size_t i = 0; i < n; ++i) {
-    Inclusion& inc = set->inclusions[i];
-    if (own_clearance(inc) >= kGoodClearance) continue;
-    const double size = size_of(inc);
-    bool done = false;
-    for (int k = 1; k <= kSteps && !done; ++k) {
-      for (int a = 0; a < 3 && !done; ++a) {
-        for (const double sign : {1.0, -1.0}) {
-          Inclusion trial = inc;
-          trial.shape.center[a] += sign * k * size / 16.0;
-          trial.shape.center = box.wrapped(trial.shape.center);
-          if (own_clearance(trial) < kGoodClearance) continue;
-          const Shape e = envelope(trial);
-          if (!apart(i, e, nullptr)) continue;
-          inc = trial;
-          env[i] = e;
-          moved[i] = 1;
-          done = true;
-          break;
-        }
-      }
-    }
-    if (!done) stuck.push_back(i);
   }
-  // The second stage, for those: the least translation in any of 26 directions (to 4 sizes) that
-  // clears the cell's faces and keeps min_gap from every other; else the first of the least that
-  // clear the faces and make room by pushing others (relax, below).
-  std::vector<Vec3> dirs;
-  for (int x = -1; x <= 1; ++x)
-    for (int y = -1; y <= 1; ++y)
-      for (int z = -1; z <= 1; ++z)
-        if (x || y || z) dirs.push_back(Vec3(x, y, z).normalized());
+
   // for_each_image, with the nearest image alone where no other can be within reach (the hot
-  // loops below, without the std::function call).
-  auto images = [&](const Vec3& ca, double ra, const Vec3& cb, double rb, const auto& f) {
+  // loops, without the std::function call).
+  template <class F>
+  void images(const Vec3& ca, double ra, const Vec3& cb, double rb, const F& f) const {
     const double r = ra + rb;
-    if (2.0 * r >= box.size.minCoeff()) return for_each_image(box, ca, ra, cb, rb, f);
+    if (2.0 * r >= box_.size.minCoeff()) return for_each_image(box_, ca, ra, cb, rb, f);
     Vec3 d = cb - ca;
-    const std::array<int, 3> k = to_nearest_image(box, &d);
-    if (d.squaredNorm() < r * r) f(box.size.cwiseProduct(Vec3(k[0], k[1], k[2])));
-  };
+    const std::array<int, 3> k = to_nearest_image(box_, &d);
+    if (d.squaredNorm() < r * r) f(box_.size.cwiseProduct(Vec3(k[0], k[1], k[2])));
+  }
+
   // The inclusions within reach of i's moves and of theirs (every periodic image's bounding
   // spheres, grown by the moves).
-  std::map<size_t, std::vector<size_t>> near_of;
-  constexpr int kFarSteps = 64;  // 4 sizes in sixteenths
-  constexpr double kPushedGap = 1.2;
-  const double slack = (kFarSteps / 16.0 + 2.0) * largest + 2.0 * kPushedGap * min_gap;
-  auto near = [&](size_t i) -> const std::vector<size_t>& {
-    auto it = near_of.find(i);
-    if (it != near_of.end()) return it->second;
-    std::vector<size_t>& list = near_of[i];
-    for (size_t j = 0; j < n; ++j) {
+  const std::vector<size_t>& near(size_t i) {
+    auto it = near_of_.find(i);
+    if (it != near_of_.end()) return it->second;
+    const double slack = (kFarSteps / 16.0 + 2.0) * largest_ + 2.0 * kPushedGap * min_gap_;
+    std::vector<size_t>& list = near_of_[i];
+    for (size_t j = 0; j < set_.inclusions.size(); ++j) {
       bool hit = false;
-      if (j != i)
-        images(env[i].center, reach[i] + slack, env[j].center, reach[j],
+      if (j != i) {
+        images(env_[i].center, reach_[i] + slack, env_[j].center, reach_[j],
                [&](const Vec3&) { hit = true; });
+      }
       if (hit) list.push_back(j);
     }
     return list;
-  };
-  auto moved_by = [&](const Inclusion& inc, const Vec3& d) {
-    Inclusion trial = inc;
-    trial.shape.center = box.wrapped(trial.shape.center + d);
-    return trial;
-  };
-  // The relaxation: i moved by d and held there, the inclusions it meets pushed off along their
-  // contact's normal, and those they meet in turn (each pair apart by its depth, half each, all
-  // of it when one is i), in sweeps until no two meet. Accepted when then every moved inclusion
-  // keeps min_gap from every other (exact tests) and grazes the faces no more than before (or
-  // under kGoodClearance), none moved more than 2 of its sizes, and at most kMostMoved moved.
-  // Pairs are pushed to 1.2 min_gap: the volume mesher refused the surfaces of a 2,484-fibre
-  // scene whose pushes had left 350 pairs at min_gap (the packer leaves none within 1.01 of it).
-  constexpr int kSweeps = 200, kMostMoved = 64;
-  auto relax = [&](size_t i, const Vec3& d) {
+  }
+
+  // The relaxation: i moved by d and held there, the inclusions it meets pushed off along
+  // their contact's normal, and those they meet in turn (each pair apart by its depth, half
+  // each, all of it when one is i), in sweeps until no two meet. Accepted (settle) when then
+  // every moved inclusion keeps min_gap from every other (exact tests) and grazes the faces no
+  // more than before (or under kGoodClearance), none moved more than 2 of its sizes, and at
+  // most kMostMoved moved.
+  bool relax(size_t i, const Vec3& d) {
     std::vector<size_t> moving = {i};
     std::map<size_t, Vec3> shift = {{i, d}};
     auto at = [&](size_t j) {
       const auto it = shift.find(j);
-      return it == shift.end() ? env[j] : env[j].translated(it->second);
+      return it == shift.end() ? env_[j] : env_[j].translated(it->second);
     };
     auto push = [&](size_t j, const Vec3& p) {
       if (j == i) return true;
       auto [it, fresh] = shift.emplace(j, Vec3::Zero());
       if (fresh) moving.push_back(j);
       it->second += p;
-      return it->second.norm() <= 2.0 * size_of(set->inclusions[j]) &&
+      return it->second.norm() <= 2.0 * size_of(set_.inclusions[j]) &&
              static_cast<int>(moving.size()) <= kMostMoved;
     };
     // Only the pairs of an inclusion pushed since its last visit can have come to meet.
@@ -481,91 +537,86 @@ Nudged nudge_off_cell(InclusionSet* set, const Vec3& origin, double min_gap) {
         const size_t a = moving[q];
         if (!dirty[a]) continue;
         dirty[a] = false;
-        Shape ea = padded(at(a), kPushedGap * min_gap);
-        double ra = ea.bounding_radius();
+        Shape ea = padded(at(a), kPushedGap * min_gap_);
+        const double ra = ea.bounding_radius();
         for (const size_t b : near(a)) {
           const Shape eb = at(b);
           Contact c;
-          images(ea.center, ra, eb.center, reach[b], [&](const Vec3& t) {
+          images(ea.center, ra, eb.center, reach_[b], [&](const Vec3& t) {
             if (!c.overlap) c = intersect(ea, eb.translated(t));
           });
           if (!c.overlap) continue;
           settled = false;
           // A little past the depth, which is an upper bound or exact.
           const Vec3 p =
-              (c.depth + kPastGap * min_gap + kPastSize * size_of(set->inclusions[b])) * c.normal;
+              (c.depth + kPastGap * min_gap_ + kPastSize * size_of(set_.inclusions[b])) * c.normal;
           const bool ok = a == i   ? push(b, p)
                           : b == i ? push(a, -p)
                                    : push(a, -0.5 * p) && push(b, 0.5 * p);
           if (!ok) return false;
           if (a != i) {
             dirty[a] = true;
-            ea = padded(at(a), kPushedGap * min_gap);
+            ea = padded(at(a), kPushedGap * min_gap_);
           }
           if (b != i) dirty[b] = true;
         }
       }
     }
-    if (!settled) return false;
-    // The exact checks, on the moved inclusions as they would be written.
+    return settled && settle(i, moving, shift);
+  }
+
+  // The exact checks of a relaxation, on the moved inclusions as they would be written; keeps
+  // the moves when they pass.
+  bool settle(size_t i, const std::vector<size_t>& moving, std::map<size_t, Vec3>& shift) {
     std::vector<std::pair<size_t, Inclusion>> trial;
     for (const size_t j : moving) {
-      const Inclusion t = moved_by(set->inclusions[j], shift[j]);
+      const Inclusion t = moved_by(set_.inclusions[j], shift[j]);
       const double need =
-          j == i ? kGoodClearance : std::min(kGoodClearance, own_clearance(set->inclusions[j]));
+          j == i ? kGoodClearance : std::min(kGoodClearance, own_clearance(set_.inclusions[j]));
       if (own_clearance(t) < need) return false;
       trial.push_back({j, t});
     }
     std::vector<Shape> kept;
     for (const auto& [j, t] : trial) {
-      kept.push_back(env[j]);
-      env[j] = envelope(t);
+      kept.push_back(env_[j]);
+      env_[j] = envelope(t);
     }
     bool clear = true;
     for (size_t q = 0; q < trial.size() && clear; ++q) {
-      clear = apart(trial[q].first, env[trial[q].first], &near(trial[q].first));
+      clear = apart(trial[q].first, env_[trial[q].first], &near(trial[q].first));
     }
     if (!clear) {
-      for (size_t q = 0; q < trial.size(); ++q) env[trial[q].first] = kept[q];
+      for (size_t q = 0; q < trial.size(); ++q) env_[trial[q].first] = kept[q];
       return false;
     }
     for (const auto& [j, t] : trial) {
-      set->inclusions[j] = t;
-      moved[j] = 1;
+      set_.inclusions[j] = t;
+      moved_[j] = 1;
     }
     return true;
-  };
-  constexpr int kTries = 24;
-  for (const size_t i : stuck) {
-    Inclusion& inc = set->inclusions[i];
-    const double size = size_of(inc);
-    near_of.clear();  // positions have moved since
-    bool done = false;
-    // Free moves first, then those that push.
-    int tries = 0;
-    for (int push = 0; push < 2 && !done; ++push) {
-      for (int k = 1; k <= kFarSteps && !done && tries < kTries; ++k) {
-        for (size_t q = 0; q < dirs.size() && !done && tries < kTries; ++q) {
-          const Vec3 d = dirs[q] * (k * size / 16.0);
-          const Inclusion trial = moved_by(inc, d);
-          if (own_clearance(trial) < kGoodClearance) continue;
-          if (push) {
-            ++tries;
-            done = relax(i, d);
-            continue;
-          }
-          const Shape e = envelope(trial);
-          if (!apart(i, e, &near(i))) continue;
-          inc = trial;
-          env[i] = e;
-          moved[i] = 1;
-          done = true;
-        }
-      }
-    }
-    if (!done) ++out.stuck;
   }
-  out.moved = static_cast<int>(std::count(moved.begin(), moved.end(), 1));
+
+  InclusionSet& set_;
+  const Box& box_;
+  const Vec3 origin_;
+  const double min_gap_;
+  std::vector<Shape> env_;
+  std::vector<double> reach_;
+  double largest_ = 0.0;
+  std::vector<char> moved_;
+  std::vector<Vec3> dirs_;
+  std::map<size_t, std::vector<size_t>> near_of_;
+};
+
+}  // namespace
+
+Nudged nudge_off_cell(InclusionSet* set, const Vec3& origin, double min_gap) {
+  Nudger nudger(set, origin, min_gap);
+  Nudged out;
+  for (const size_t i : nudger.along_axes()) {
+    if (!nudger.anywhere(i)) ++out.stuck;
+  }
+  out.moved = nudger.moved();
   return out;
 }
 

@@ -47,8 +47,18 @@ constexpr double kLeastStep = 1e-3;
 constexpr double kPastGap = 1e-3;
 constexpr double kPastSize = 1e-9;
 /// Gmsh's integration of the size field along curves stops at this precision in elements
-/// (its own default, 1e-9, took several times longer for the same nodes).
+/// (its own default, 1e-9, costs far more time for the same nodes).
 constexpr double kSizeIntegrationPrecision = 1e-5;
+/// A sliver's remake may move an interface: by flipping its edge where the two lines (the edge
+/// and the new diagonal) lie within kFlipReach of the shorter's length apart, and by
+/// collapsing an edge where the kept node lies within kCollapseReach of the mean edge length
+/// from the plane of each of the other node's interface triangles. At most kRemakeRounds
+/// rounds of remakes.
+constexpr double kFlipReach = 0.1;
+constexpr double kCollapseReach = 0.1;
+constexpr int kRemakeRounds = 4;
+/// At most kLiftRounds rounds of node moves lift slivers (a move can help an element next to it).
+constexpr int kLiftRounds = 4;
 /// The element estimate counts its running sum in thousandths of an element.
 constexpr double kEstimateUnit = 1e-3;
 

@@ -140,7 +140,7 @@ long long snap_periodic_nodes(TetMesh* mesh) {
 }
 
 // The volume mesher rarely leaves two nodes at one position, each used by elements on its own
-// side (a crack in the mesh: seen in 3 runs in 10 of the test scene). Such nodes are merged
+// side (a crack in the mesh: seen on the test scene). Such nodes are merged
 // (the lowest number kept); nodes no element uses are dropped and the rest renumbered in order.
 long long merge_coincident_nodes(TetMesh* mesh) {
   std::vector<int32_t> order(mesh->nodes.size());
@@ -225,7 +225,7 @@ void add_midside_nodes(TetMesh* mesh) {
   if (!mesh->mid.empty()) return;
   // Each edge (a, b), a < b, listed under a: its rank among the edges in (a, b) order is the
   // number of edges listed under the nodes before a, plus its place in a's sorted list. (A
-  // sort of all six edges of every element and a binary search of each took twice as long.)
+  // sort of all six edges of every element and a binary search of each was slower.)
   const size_t nn = mesh->nodes.size(), ne = mesh->tets.size();
   std::vector<int64_t> start(nn + 1, 0);
   for (const auto& t : mesh->tets) {
@@ -305,5 +305,35 @@ double least_dihedral(const TetMesh& mesh, const std::array<int32_t, 4>& t) {
 }
 
 }  // namespace mesh_parts
+
+TetQuality tet_quality(const TetMesh& mesh) {
+  TetQuality q;
+  q.phase_volume.assign(mesh.phases.size(), 0.0);
+  q.dihedral_counts.assign(TetQuality::kBins.size(), 0);
+  q.min_volume = mesh.tets.empty() ? 0.0 : 1e300;
+  std::vector<double> least(mesh.tets.size());
+  for (size_t e = 0; e < mesh.tets.size(); ++e) {
+    Vec3 p[4];
+    for (int c = 0; c < 4; ++c) p[c] = mesh.nodes[mesh.tets[e][c]];
+    const double v = tet_volume(mesh.nodes, mesh.tets[e]);
+    q.min_volume = std::min(q.min_volume, v);
+    const int label = mesh.phase[e];
+    if (label >= 0 && label < static_cast<int>(q.phase_volume.size())) q.phase_volume[label] += v;
+    const double m = least_dihedral(p);
+    least[e] = m;
+    size_t bin = 0;
+    while (bin + 1 < TetQuality::kBins.size() && m >= TetQuality::kBins[bin + 1]) ++bin;
+    ++q.dihedral_counts[bin];
+    q.below_5_degrees += m < 5.0;
+  }
+  if (!least.empty()) {
+    std::sort(least.begin(), least.end());
+    q.min_dihedral = least.front();
+    const double at[3] = {0.01, 0.05, 0.5};
+    for (int k = 0; k < 3; ++k)
+      q.quantiles[k] = least[static_cast<size_t>(at[k] * (least.size() - 1))];
+  }
+  return q;
+}
 
 }  // namespace rvegen

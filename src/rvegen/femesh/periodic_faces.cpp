@@ -62,11 +62,11 @@ std::vector<int> boundary_curves(int face) {
 // where two curves share both, takes the first whose middle or bounding box agrees within 1e-3
 // of the curve's size. The line and the arc that bound the cut of a fibre's end by a box face
 // share both end points, and where the arc is monotone along the face's axes their bounding
-// boxes agree to 1e-4 of that; on a 2,500-fibre scene the copied faces then missed nodes
-// ("Could not find periodic counterpart of triangle nodes", at 6 faces; the scene had 26 such
-// pairs). Here each curve is paired with the image whose end points match and whose curve
-// passes nearest its middle. A curve on two upper faces (a box edge) is tied by the first axis
-// only: its image then has fewer coordinates at an upper end, so the ties make no cycle.
+// boxes agree within that; the copied faces then missed nodes ("Could not find periodic
+// counterpart of triangle nodes", seen with fibres). Here each curve is paired with the image
+// whose end points match and whose curve passes nearest its middle. A curve on two upper faces
+// (a box edge) is tied by the first axis only: its image then has fewer coordinates at an upper
+// end, so the ties make no cycle.
 void tie_face_curves(const std::vector<FacePair>& pairs, const Vec3& len, double tol) {
   std::set<int> tied;
   for (const FacePair& fp : pairs) {
@@ -269,7 +269,7 @@ long long flip_chords(std::vector<std::array<std::size_t, 3>>* triangles,
 // the surface between the face and another curve is thinner than the elements, the surface
 // mesher joins three nodes of that curve). The face's own triangles then lie under it: two
 // facets that overlap, which the volume mesher refuses ("Found two exactly self-intersecting
-// facets", a 2,500-fibre scene). Each such triangle gets a node on the surface, at the point of
+// facets", seen with fibres). Each such triangle gets a node on the surface, at the point of
 // the surface nearest its centre, and is split into three about it (those whose nearest surface
 // point is not inside the box are left); then its edges that are not on a curve are flipped off
 // the face (flip_chords; counted in `flipped`). Returns the triangles split.
@@ -349,6 +349,70 @@ long long raise_flat_triangles(const Box& box, double tol, long long* flipped) {
     gmsh::model::mesh::addElementsByType(s.second, 2, {}, flat_list);
   }
   return raised;
+}
+
+std::vector<FacePair> pair_box_patches(const Box& box, double tol) {
+  const Vec3 o = box.origin, len = box.size;
+  const double side = len.minCoeff();
+  gmsh::vectorpair surfaces;
+  gmsh::model::getEntities(surfaces, 2);
+  std::vector<FacePair> face_pairs;
+  for (int a = 0; a < 3; ++a) {
+    std::vector<std::pair<int, std::array<double, 7>>> lower, upper;
+    for (const auto& s : surfaces) {
+      std::string type;
+      gmsh::model::getType(2, s.second, type);
+      if (type != "Plane") continue;
+      double com[3];
+      gmsh::model::occ::getCenterOfMass(2, s.second, com[0], com[1], com[2]);
+      for (int end = 0; end < 2; ++end) {
+        const double v = o[a] + (end ? len[a] : 0.0);
+        if (std::abs(com[a] - v) > tol) continue;
+        std::vector<double> lo, hi, normal;
+        gmsh::model::getParametrizationBounds(2, s.second, lo, hi);
+        gmsh::model::getNormal(s.second, {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])}, normal);
+        if (normal.size() < 3 || std::abs(std::abs(normal[a]) - 1.0) > kOnFace) continue;
+        double b[6];
+        gmsh::model::getBoundingBox(2, s.second, b[0], b[1], b[2], b[3], b[4], b[5]);
+        std::array<double, 7> key;
+        for (int k = 0; k < 6; ++k) key[k] = b[k];
+        gmsh::model::occ::getMass(2, s.second, key[6]);
+        (end ? upper : lower).push_back({s.second, key});
+      }
+    }
+    if (upper.size() != lower.size()) {
+      throw MeshError("mesh_tet: the box faces normal to " + std::string(1, "xyz"[a]) +
+                      " were cut into " + std::to_string(lower.size()) + " and " +
+                      std::to_string(upper.size()) + " patches");
+    }
+    std::set<int> used;
+    for (const auto& [tag, key] : upper) {
+      // The lower patch nearest to this one's image, each taken once (OpenCASCADE's centres of
+      // mass and areas of small patches differ from their images' by a little more than
+      // rounding: matched within kPatchKeyMatch).
+      int match = -1;
+      double best = std::numeric_limits<double>::infinity();
+      for (const auto& [ltag, lkey] : lower) {
+        double d = 0.0;
+        for (int k = 0; k < 6; ++k) {
+          d = std::max(d, std::abs(key[k] - (k % 3 == a ? len[a] : 0.0) - lkey[k]) / side);
+        }
+        d = std::max(d,
+                     std::abs(key[6] - lkey[6]) / std::max(key[6], kPatchTolerance * side * side));
+        if (d < best) {
+          best = d;
+          match = ltag;
+        }
+      }
+      if (best > kPatchKeyMatch || !used.insert(match).second) match = -1;
+      if (match < 0) {
+        throw MeshError("mesh_tet: a patch of the upper box face normal to " +
+                        std::string(1, "xyz"[a]) + " has no image on the lower face");
+      }
+      face_pairs.push_back({tag, match, a});
+    }
+  }
+  return face_pairs;
 }
 
 }  // namespace rvegen::mesh_parts

@@ -16,6 +16,12 @@ struct FacePair {
   int upper, lower, axis;
 };
 
+/// The patches of the box's faces, paired: each upper patch with the lower one whose translate
+/// it is, matched by bounding box and area. A box face's patches are the planes whose normal is
+/// the axis and whose centre of mass lies within `tol` of the face (OpenCASCADE's bounding boxes
+/// of patches bounded by spline curves stand out of the plane by the curves' tolerance). Throws
+/// MeshError when a face's patches have no images.
+std::vector<FacePair> pair_box_patches(const Box& box, double tol);
 /// Ties every curve of the upper patches to its image on the lower one (Gmsh then meshes it as
 /// a copy): each curve is paired with the image whose end points match and whose curve passes
 /// nearest its middle.

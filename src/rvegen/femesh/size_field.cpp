@@ -23,24 +23,21 @@ namespace {
 
 // How fast elements grow away from a surface (size per distance). Before, the chord bound held
 // at full strength out to the largest size and then jumped; grown by 0.2 instead, the test
-// scene took 0.22 M elements instead of 0.54 M, its least dihedral angle rose from 8.5 to 12
-// degrees, and CalculiX's conductivity on it moved from 0.2 % to 0.55 % above the FFT's at 32^3
-// (0.5: 0.12 M, 1.5 %). A mixed scene (coated beads and rods, ellipsoids) fell under 5 degrees
-// in 3 runs of 9 without it, in none of 5 with it.
+// scene took far fewer elements, of a larger least dihedral angle, and CalculiX's conductivity
+// on it stayed close to the FFT's (growing faster lost more accuracy). A mixed scene (coated
+// beads and rods, ellipsoids) fell under 5 degrees at times without it, and not with it
+// (docs/benchmarks.md).
 constexpr double kGrowth = 0.2;
 
 // A box face that cuts a fibre's end rim less than kThinChip radii from its extreme, or passes
 // that close to it, leaves a chip of the fibre or a gap of matrix thinner than the elements at
-// the surface: 2,484 fibres at chord error 0.1 kept two matrix elements of 4.1-4.7 degrees
-// where a face cut a rim 0.075 radius deep (surface elements 5e-3 long over a chip 9e-4
-// deep), and then one of 4.8-4.9 where a face passed 0.066 radius from a rim. The size field
-// puts at least two elements across such chips and gaps, growing by kChipGrowth away from
-// them (growing by 1, the 87 fibres about that chip, meshed alone, left an element of 4.3-4.6
-// degrees where the sizes grew, in 1 run of 6; by 0.5, in none of 16). Only where the end
-// disk and the mantle both meet the face at kChipWedge or more: a fibre 3.6 degrees off a
-// face and cut 0.04 radius under its mantle meets the face at 3.6 degrees, and refined so,
-// its elements followed that wedge (39-46 under 5 degrees, where the coarse ones cut across
-// it left none).
+// the surface, and the elements there were slivers (many fibres at a coarse chord error: a
+// face cut a rim, or passed near one). The size field puts at least two elements across such
+// chips and gaps, growing by kChipGrowth away from them (growing faster left slivers where the
+// sizes grew). Only where the end disk and the mantle both meet the face at kChipWedge or
+// more: a fibre slightly off a face and cut just under its mantle meets the face at its small
+// tilt, and refined so, its elements followed that wedge and were slivers, where the coarse
+// ones cut across it left none. The figures: docs/benchmarks.md.
 constexpr double kThinChip = 0.25;
 constexpr double kChipGrowth = 0.5;
 constexpr double kChipWedge = 20.0 * M_PI / 180.0;
@@ -68,8 +65,8 @@ SizeField::SizeField(const InclusionSet& set, const TetMeshOptions& opt, double 
   // Cells of a third of the largest size, each listing the images that may lie within max_
   // of it: for a cylinder, those whose capsule (its axis grown by its radius) does, tested
   // from the cell's centre; for other shapes, those whose box does. (Cells of max_ listing
-  // every image whose box came within max_ held about 140 fibres of L/D 10 each, most of
-  // them tested in full at every call.)
+  // every image whose box came within max_ held many fibres each, most of them tested in full
+  // at every call.)
   const double side = set.box.size.minCoeff();
   n_ = std::clamp(static_cast<int>(3.0 * side / max_), 1, 96);
   for (int a = 0; a < 3; ++a) cell_[a] = set.box.size[a] / n_;
@@ -245,16 +242,12 @@ double least_size(const InclusionSet& set, const TetMeshSpec& spec) {
 // added to `running` (in units of kEstimateUnit), and the recursion stops once that passes `stop`.
 constexpr double kEstimateLeaf = 1.0;
 // Elements per unit of that integral: 5.5 for two across the gaps (the default), 9 for one
-// (3.5 + 4 / gap_elements, plus 1.5 (2 / gap_elements - 1) under two). With two, Gmsh's HXT made
-// 4.5-6.3: 40 fibres of L/D 10, 4.5; spheres of radius 0.1 in a box of 0.6 from 0.15 to 0.64
-// with min_gap 0 to 0.03, 4.9-6.3 (24 meshes: the more near contacts, the more, as HXT's
-// elements in thin gaps come smaller than the size asked there). With one, more, and more
-// spread: 6.4 for the default scene (10-node), 7.6 for 2,484 fibres of L/D 10 at chord error
-// 0.1, 9.1 for spheres a twelfth of their radius apart (10-node), 12.2 for touching spheres
-// (min_gap 0, radius 0.1 at 0.5 in a box of 0.6, 10-node); the check guards memory, so one
-// across takes the upper middle of that range. Half an element across (an element spans twice
-// the gap): 6.9 for 2,484 fibres and 7.1 for 311 (chord error 0.1, 10-node), where one across
-// made 8.0 and 8.3 (2026-12-03); 7.2 at 0.5, and between 0.5 and 1 the line to 9.
+// (3.5 + 4 / gap_elements, plus 1.5 (2 / gap_elements - 1) under two), from what Gmsh's HXT
+// made (docs/benchmarks.md). With two, the count varies with the scene: the more near
+// contacts, the more, as HXT's elements in thin gaps come smaller than the size asked there.
+// With one, more, and more spread; the check guards memory, so one across takes the upper
+// middle of that range. Half an element across (an element spans twice the gap) makes fewer
+// than one across: 7.2 at 0.5, and between 0.5 and 1 the line to 9.
 double tets_per_inverse_cube(const TetMeshSpec& spec) {
   const double g = spec.gap_elements;
   if (g < 1.0) return 9.0 - 3.6 * (1.0 - std::max(g, 0.5));

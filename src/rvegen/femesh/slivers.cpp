@@ -181,6 +181,264 @@ long long remove_flat_face_elements(TetMesh* mesh) {
   return removed;
 }
 
+namespace {
+
+constexpr uint64_t kNoRegion = std::numeric_limits<uint64_t>::max();
+
+// How each node may move (see lift_slivers): the first two regions it meets (`met`), whether it
+// must stay (`stays`: a third region, a box edge, a box face without an image of the same
+// regions), and for a node on one box face, its image on the opposite face (-1 if none) and
+// the face's axis.
+struct NodeFreedom {
+  std::vector<std::array<uint64_t, 2>> met;
+  std::vector<uint8_t> stays;
+  std::vector<std::array<int8_t, 3>> ends;
+  std::vector<int32_t> image;
+  std::vector<int8_t> face;
+  // The node that moves n: the lower of n and its image.
+  int32_t leader(int32_t n) const { return image[n] >= 0 && ends[n][face[n]] == 1 ? image[n] : n; }
+};
+
+NodeFreedom node_freedom(const TetMesh& mesh) {
+  const size_t nn = mesh.nodes.size();
+  NodeFreedom f;
+  f.met.assign(nn, {kNoRegion, kNoRegion});
+  f.stays.assign(nn, 0);
+  for (size_t e = 0; e < mesh.tets.size(); ++e) {
+    const uint64_t r = region_of(mesh, e);
+    for (int32_t n : mesh.tets[e]) {
+      auto& m = f.met[n];
+      if (m[0] == kNoRegion || m[0] == r) {
+        m[0] = r;
+      } else if (m[1] == kNoRegion || m[1] == r) {
+        m[1] = r;
+      } else {
+        f.stays[n] = 1;
+      }
+    }
+  }
+  // A node on one box face (not an edge) moves with its image on the opposite face; the lower
+  // one leads. Nodes on edges stay.
+  f.ends = node_ends(mesh);
+  f.image.assign(nn, -1);
+  f.face.assign(nn, -1);
+  for (int a = 0; a < 3; ++a) {
+    const std::vector<int32_t> across = images_across(mesh, f.ends, a);
+    for (size_t i = 0; i < nn; ++i) {
+      const int32_t j = across[i];
+      if (j < 0 || f.ends[i][(a + 1) % 3] >= 0 || f.ends[i][(a + 2) % 3] >= 0) continue;  // edges
+      // The same regions on both sides (an inclusion's image keeps its id).
+      const auto &mi = f.met[i], &mj = f.met[j];
+      if (mi != mj && !(mi[0] == mj[1] && mi[1] == mj[0])) continue;
+      f.image[i] = j;
+      f.face[i] = static_cast<int8_t>(a);
+    }
+  }
+  for (size_t i = 0; i < nn; ++i) {
+    if (f.ends[i][0] >= 0 || f.ends[i][1] >= 0 || f.ends[i][2] >= 0) {
+      if (f.image[i] < 0) f.stays[i] = 1;
+    }
+  }
+  for (size_t i = 0; i < nn; ++i) {
+    if (f.image[i] >= 0 && (f.stays[i] || f.stays[f.image[i]]))
+      f.stays[i] = f.stays[f.image[i]] = 1;
+  }
+  return f;
+}
+
+// The leaders of the nodes that may move in the elements under the angle, each with its ball:
+// the elements around it and around the image it leads, in the elements' order (an element
+// once for each of its nodes led).
+std::map<int32_t, std::vector<int32_t>> balls_under(const TetMesh& mesh, const NodeFreedom& f,
+                                                    const std::vector<double>& least, double angle,
+                                                    std::vector<int32_t>* start,
+                                                    std::vector<int32_t>* around) {
+  std::map<int32_t, std::vector<int32_t>> ball;  // by node: the same moves on every run
+  for (size_t e = 0; e < mesh.tets.size(); ++e) {
+    if (least[e] >= angle) continue;
+    for (int32_t n : mesh.tets[e]) {
+      if (!f.stays[n]) ball[f.leader(n)];
+    }
+  }
+  if (ball.empty()) return ball;
+  if (start->empty()) elements_around(mesh, start, around);
+  for (auto& [n, elements] : ball) {
+    const int32_t led = f.image[n] >= 0 && f.leader(f.image[n]) == n ? f.image[n] : -1;
+    const auto a0 = around->begin() + (*start)[n], a1 = around->begin() + (*start)[n + 1];
+    if (led < 0) {
+      elements.assign(a0, a1);
+    } else {
+      std::merge(a0, a1, around->begin() + (*start)[led], around->begin() + (*start)[led + 1],
+                 std::back_inserter(elements));
+    }
+  }
+  return ball;
+}
+
+// One node's move (see lift_slivers): where it may go, and the search for the place where its
+// ball's least angle is largest.
+class NodeMove {
+ public:
+  NodeMove(TetMesh* mesh, const NodeFreedom& f, int32_t n, const std::vector<int32_t>& ball)
+      : mesh_(*mesh),
+        n_(n),
+        ball_(ball),
+        x_(mesh->nodes[n]),
+        axis_(f.face[n]),
+        follower_(f.image[n] >= 0 ? &mesh->nodes[f.image[n]] : nullptr) {}
+
+  // The node slides on the surface of `shape` grown by `grown`, at `offset` from it.
+  void slide_on(const Shape& shape, double grown, double offset) {
+    slides_ = true;
+    surface_ = shape;
+    grown_ = grown;
+    offset_ = offset;
+  }
+
+  // A pattern search from where the node is, along the axes and towards the centroid of its
+  // neighbours, in steps from a quarter of its shortest edge down to kLeastStep of it; a step
+  // is taken only when it raises the ball's least angle. Returns whether the node moved.
+  bool search() {
+    double shortest = std::numeric_limits<double>::infinity();
+    Vec3 centroid = Vec3::Zero();
+    int neighbours = 0;
+    for (int32_t e : ball_) {
+      const auto& t = mesh_.tets[e];
+      if (std::find(t.begin(), t.end(), n_) == t.end()) continue;  // the image's
+      for (int32_t m : t) {
+        if (m == n_) continue;
+        shortest = std::min(shortest, (mesh_.nodes[m] - x_).norm());
+        centroid += mesh_.nodes[m];
+        ++neighbours;
+      }
+    }
+    centroid /= std::max(1, neighbours);
+    const double start = worst(x_);
+    double best = start;
+    Vec3 at = x_;
+    const Vec3 to_centroid =
+        (centroid - x_).norm() > 0.0 ? Vec3((centroid - x_).normalized()) : Vec3::UnitX();
+    const Vec3 dirs[8] = {to_centroid,   -to_centroid,   Vec3::UnitX(), -Vec3::UnitX(),
+                          Vec3::UnitY(), -Vec3::UnitY(), Vec3::UnitZ(), -Vec3::UnitZ()};
+    int tries = 0;
+    for (double h = 0.25 * shortest; h > kLeastStep * shortest && tries < kMaxTries;) {
+      bool better = false;
+      for (const Vec3& d : dirs) {
+        Vec3 y;
+        if (!step(at, d, h, &y)) continue;
+        const double w = worst(y);
+        ++tries;
+        if (w > best) {
+          best = w;
+          at = y;
+          better = true;
+          break;
+        }
+      }
+      if (!better) h *= 0.5;
+    }
+    if (!(best > start)) return false;
+    place(at);
+    return true;
+  }
+
+ private:
+  static constexpr int kMaxTries = 400;
+  static constexpr int kNewtonSteps = 8;
+
+  // The node at y; its image follows on the coordinates other than the face's axis.
+  void place(const Vec3& y) {
+    x_ = y;
+    if (follower_) {
+      const double keep = (*follower_)[axis_];
+      *follower_ = y;
+      (*follower_)[axis_] = keep;
+    }
+  }
+
+  // The ball's least angle with the node at y (-1 if an element is not positive).
+  double worst(const Vec3& y) {
+    const Vec3 keep = x_, keep_image = follower_ ? *follower_ : x_;
+    place(y);
+    double w = 180.0;
+    for (int32_t e : ball_) {
+      const auto& t = mesh_.tets[e];
+      w = tet_volume(mesh_.nodes, t) > 0.0 ? std::min(w, least_dihedral(mesh_, t)) : -1.0;
+      if (w < 0.0) break;
+    }
+    x_ = keep;
+    if (follower_) *follower_ = keep_image;
+    return w;
+  }
+
+  // A step of h along d from p: in the tangent plane, then back to the offset, for a sliding
+  // node; in the face for a node on one.
+  bool step(const Vec3& p, const Vec3& d, double h, Vec3* y) const {
+    if (axis_ >= 0) return step_in_face(p, d, h, y);
+    if (!slides_) {
+      *y = p + h * d;
+      return true;
+    }
+    Vec3 nrm;
+    bool feature;
+    surface_distance(surface_, grown_, p, &nrm, &feature);
+    const Vec3 t = d - d.dot(nrm) * nrm;
+    if (!(t.norm() > kShortDirection)) return false;
+    Vec3 q = p + h * t.normalized();
+    const double off = surface_distance(surface_, grown_, q, &nrm, &feature) - offset_;
+    if (feature) return false;
+    *y = q - off * nrm;
+    return true;
+  }
+
+  // In the face: the direction's part in it; along the face's cut of the surface when
+  // sliding, brought back to both (the surface, then the face) until they agree.
+  bool step_in_face(const Vec3& p, const Vec3& d, double h, Vec3* y) const {
+    const int a = axis_;
+    Vec3 t = d;
+    t[a] = 0.0;
+    Vec3 nrm;
+    bool feature = false;
+    if (slides_) {
+      surface_distance(surface_, grown_, p, &nrm, &feature);
+      const Vec3 along = Vec3::Unit(a).cross(nrm);
+      if (!(along.norm() > kShallowTangent)) return false;  // the face nearly tangent to it
+      t = along.normalized() * (along.normalized().dot(t) >= 0.0 ? 1.0 : -1.0);
+    }
+    if (!(t.norm() > kShortDirection)) return false;
+    Vec3 q = p + h * t.normalized();
+    if (slides_) {
+      // Newton's steps in the face, along the normal's part in it.
+      double off = 1.0;
+      for (int k = 0; k < kNewtonSteps && std::abs(off) > kNewtonStop * h; ++k) {
+        off = surface_distance(surface_, grown_, q, &nrm, &feature) - offset_;
+        if (feature) return false;
+        Vec3 m = nrm;
+        m[a] = 0.0;
+        if (!(m.squaredNorm() > kShortDirection)) return false;
+        q -= (off / m.squaredNorm()) * m;
+        q[a] = p[a];
+      }
+      if (!(std::abs(off) <= kNewtonReach * h)) return false;
+    }
+    q[a] = p[a];
+    *y = q;
+    return true;
+  }
+
+  TetMesh& mesh_;
+  const int32_t n_;
+  const std::vector<int32_t>& ball_;
+  Vec3& x_;
+  const int axis_;  // the box face's axis, -1 off the faces
+  Vec3* follower_;  // the image on the opposite face
+  bool slides_ = false;
+  Shape surface_;
+  double grown_ = 0.0, offset_ = 0.0;
+};
+
+}  // namespace
+
 // The nodes a relocation may move, and how. A node inside one region (every element around in
 // one inclusion and phase) moves freely: no phase's volume or interface changes. A node on one
 // curved interface (a core against the matrix or its shell, a shell against the matrix) slides
@@ -191,232 +449,47 @@ long long remove_flat_face_elements(TetMesh* mesh) {
 // where the geometry kernel starts a closed curve, can lie a hair from a rim's crossing, and
 // its elements are slivers: seen in a debonded sphere cut by a face). Nodes on box edges, on
 // flat ends, on two interfaces or between two inclusions stay. Elements under `angle` have each
-// such node moved where the least angle of its ball (the elements around it) is largest: a pattern
-// search from where it is, along the axes and towards the centroid of its neighbours (in the
-// surface's tangent plane for a sliding node), in steps from a quarter of its shortest edge down to
-// a thousandth of it; a step is taken only when it raises the ball's least angle, every element
-// positive. Rounds until none is left under `angle` or a round moves nothing (at most 4): a move
-// can help an element next to it.
+// such node moved where the least angle of its ball (the elements around it) is largest
+// (NodeMove::search, in the surface's tangent plane for a sliding node), every element
+// positive. Rounds until none is left under `angle` or a round moves nothing (at most
+// kLiftRounds): a move can help an element next to it.
 long long lift_slivers(TetMesh* mesh, const InclusionSet& set, double angle) {
-  const size_t nn = mesh->nodes.size(), ne = mesh->tets.size();
-  // Per node, the first two regions met; `many` a third (or a box face).
-  constexpr uint64_t kNone = std::numeric_limits<uint64_t>::max();
-  std::vector<std::array<uint64_t, 2>> met(nn, {kNone, kNone});
-  std::vector<uint8_t> many(nn, 0);
-  for (size_t e = 0; e < ne; ++e) {
-    const uint64_t r = region_of(*mesh, e);
-    for (int32_t n : mesh->tets[e]) {
-      auto& m = met[n];
-      if (m[0] == kNone || m[0] == r) {
-        m[0] = r;
-      } else if (m[1] == kNone || m[1] == r) {
-        m[1] = r;
-      } else {
-        many[n] = 1;
-      }
-    }
-  }
-  // A node on one box face (not an edge) moves with its image on the opposite face: in the
-  // face, or along the face's cut of one curved interface. The lower one leads (`image`: each
-  // node's image, -1 if none; `face`: the face's axis). Nodes on edges stay.
-  const std::vector<std::array<int8_t, 3>> ends = node_ends(*mesh);
-  std::vector<int32_t> image(nn, -1);
-  std::vector<int8_t> face(nn, -1);
-  for (int a = 0; a < 3; ++a) {
-    const std::vector<int32_t> across = images_across(*mesh, ends, a);
-    for (size_t i = 0; i < nn; ++i) {
-      const int32_t j = across[i];
-      if (j < 0 || ends[i][(a + 1) % 3] >= 0 || ends[i][(a + 2) % 3] >= 0) continue;  // edges
-      // The same regions on both sides (an inclusion's image keeps its id).
-      if (met[i] != met[j] && !(met[i][0] == met[j][1] && met[i][1] == met[j][0])) continue;
-      image[i] = j;
-      face[i] = static_cast<int8_t>(a);
-    }
-  }
-  for (size_t i = 0; i < nn; ++i) {
-    if (ends[i][0] >= 0 || ends[i][1] >= 0 || ends[i][2] >= 0) {
-      if (image[i] < 0) many[i] = 1;
-    }
-  }
-  for (size_t i = 0; i < nn; ++i) {
-    if (image[i] >= 0 && (many[i] || many[image[i]])) many[i] = many[image[i]] = 1;
-  }
+  const size_t ne = mesh->tets.size();
+  const NodeFreedom freedom = node_freedom(*mesh);
   const std::unordered_map<int32_t, int> by_id = index_by_id(set);
   // The surface a node on two regions slides on (interface_surface); -1 where it may not move.
   auto surface_of = [&](int32_t n) {
-    const uint32_t label[2] = {static_cast<uint32_t>(met[n][0]), static_cast<uint32_t>(met[n][1])};
+    const auto& met = freedom.met[n];
+    const uint32_t label[2] = {static_cast<uint32_t>(met[0]), static_cast<uint32_t>(met[1])};
     if (label[0] >= mesh->phases.size() || label[1] >= mesh->phases.size()) return -1;
-    return interface_surface(by_id, static_cast<int32_t>(met[n][0] >> 32),
-                             mesh->phases[label[0]].kind, static_cast<int32_t>(met[n][1] >> 32),
-                             mesh->phases[label[1]].kind);
+    return interface_surface(by_id, static_cast<int32_t>(met[0] >> 32), mesh->phases[label[0]].kind,
+                             static_cast<int32_t>(met[1] >> 32), mesh->phases[label[1]].kind);
   };
   std::vector<double> least(ne);
   parallel_for(size_t{0}, ne, [&](size_t e) { least[e] = least_dihedral(*mesh, mesh->tets[e]); });
   long long moved = 0;
   std::vector<int32_t> start, around_all;  // elements_around, made once needed
-  for (int round = 0; round < 4; ++round) {
-    // The nodes of the elements under the angle that may move, and their balls.
-    // (A node on a box face is moved by the lower of it and its image; its ball holds both's.)
-    auto leader = [&](int32_t n) { return image[n] >= 0 && ends[n][face[n]] == 1 ? image[n] : n; };
-    std::unordered_map<int32_t, std::vector<int32_t>> ball;
-    for (size_t e = 0; e < ne; ++e) {
-      if (least[e] >= angle) continue;
-      for (int32_t n : mesh->tets[e]) {
-        if (!many[n]) ball[leader(n)];
-      }
-    }
-    if (ball.empty()) break;
-    // A leader's ball: the elements around it and around the image it leads, in the elements'
-    // order (an element once for each of its nodes led).
-    if (start.empty()) elements_around(*mesh, &start, &around_all);
-    for (auto& [n, elements] : ball) {
-      const int32_t led = image[n] >= 0 && leader(image[n]) == n ? image[n] : -1;
-      const auto a0 = around_all.begin() + start[n], a1 = around_all.begin() + start[n + 1];
-      if (led < 0) {
-        elements.assign(a0, a1);
-      } else {
-        std::merge(a0, a1, around_all.begin() + start[led], around_all.begin() + start[led + 1],
-                   std::back_inserter(elements));
-      }
-    }
-    std::vector<int32_t> order;
-    for (const auto& kv : ball) order.push_back(kv.first);
-    std::sort(order.begin(), order.end());  // the same moves on every run
+  for (int round = 0; round < kLiftRounds; ++round) {
+    const auto balls = balls_under(*mesh, freedom, least, angle, &start, &around_all);
+    if (balls.empty()) break;
     long long this_round = 0;
-    for (int32_t n : order) {
-      const std::vector<int32_t>& around = ball[n];
-      Vec3& x = mesh->nodes[n];
-      // On a box face: the axis, and the image, which follows x on the other coordinates.
-      const int a = face[n];
-      Vec3* follower = image[n] >= 0 ? &mesh->nodes[image[n]] : nullptr;
-      auto place = [&](const Vec3& y) {
-        x = y;
-        if (follower) {
-          const double keep = (*follower)[a];
-          *follower = y;
-          (*follower)[a] = keep;
-        }
-      };
-      // A sliding node: its surface (the periodic image nearest it) and its distance from it.
-      const bool slides = met[n][1] != kNone;
-      Shape surface;
-      double grown = 0.0, offset = 0.0;
-      if (slides) {
+    for (const auto& [n, around] : balls) {
+      NodeMove move(mesh, freedom, n, around);
+      if (freedom.met[n][1] != kNoRegion) {
+        // A sliding node: its surface (the periodic image nearest it) and its distance from it.
         const int which = surface_of(n);
         if (which < 0) continue;
         const Inclusion& in = set.inclusions[which / 2];
-        grown = (which & 1) ? outer_offset(in.mod) : 0.0;
+        const double grown = (which & 1) ? outer_offset(in.mod) : 0.0;
         bool feature;
+        double offset;
+        const Vec3& x = mesh->nodes[n];
         const Vec3 shift = nearest_image(in.shape, grown, set.box.size, x, &offset, &feature);
-        surface = in.shape.translated(shift);
         if (feature) continue;                                    // on a flat end: stays
         if ((which & 1) && on_void_cone(in, shift, x)) continue;  // on a void's cone: stays
+        move.slide_on(in.shape.translated(shift), grown, offset);
       }
-      // The ball's least angle with the node at y (-1 if an element is not positive).
-      auto worst = [&](const Vec3& y) {
-        const Vec3 keep = x, keep_image = follower ? *follower : x;
-        place(y);
-        double w = 180.0;
-        for (int32_t e : around) {
-          const auto& t = mesh->tets[e];
-          w = tet_volume(mesh->nodes, t) > 0.0 ? std::min(w, least_dihedral(*mesh, t)) : -1.0;
-          if (w < 0.0) break;
-        }
-        x = keep;
-        if (follower) *follower = keep_image;
-        return w;
-      };
-      // A step of h along d from p: in the tangent plane, then back to the offset, for a
-      // sliding node.
-      auto step = [&](const Vec3& p, const Vec3& d, double h, Vec3* y) {
-        if (a >= 0) {
-          // In the face: the direction's part in it; along the face's cut of the surface when
-          // sliding, brought back to both (the surface, then the face) until they agree.
-          Vec3 t = d;
-          t[a] = 0.0;
-          Vec3 nrm;
-          bool feature = false;
-          if (slides) {
-            surface_distance(surface, grown, p, &nrm, &feature);
-            const Vec3 along = Vec3::Unit(a).cross(nrm);
-            if (!(along.norm() > kShallowTangent)) return false;  // the face nearly tangent to it
-            t = along.normalized() * (along.normalized().dot(t) >= 0.0 ? 1.0 : -1.0);
-          }
-          if (!(t.norm() > kShortDirection)) return false;
-          Vec3 q = p + h * t.normalized();
-          if (slides) {
-            // Newton's steps in the face, along the normal's part in it.
-            double off = 1.0;
-            for (int k = 0; k < 8 && std::abs(off) > kNewtonStop * h; ++k) {
-              off = surface_distance(surface, grown, q, &nrm, &feature) - offset;
-              if (feature) return false;
-              Vec3 m = nrm;
-              m[a] = 0.0;
-              if (!(m.squaredNorm() > kShortDirection)) return false;
-              q -= (off / m.squaredNorm()) * m;
-              q[a] = p[a];
-            }
-            if (!(std::abs(off) <= kNewtonReach * h)) return false;
-          }
-          q[a] = p[a];
-          *y = q;
-          return true;
-        }
-        if (!slides) {
-          *y = p + h * d;
-          return true;
-        }
-        Vec3 nrm;
-        bool feature;
-        surface_distance(surface, grown, p, &nrm, &feature);
-        const Vec3 t = d - d.dot(nrm) * nrm;
-        if (!(t.norm() > kShortDirection)) return false;
-        Vec3 q = p + h * t.normalized();
-        const double off = surface_distance(surface, grown, q, &nrm, &feature) - offset;
-        if (feature) return false;
-        *y = q - off * nrm;
-        return true;
-      };
-      double shortest = 1e300;
-      Vec3 centroid = Vec3::Zero();
-      int neighbours = 0;
-      for (int32_t e : around) {
-        const auto& t = mesh->tets[e];
-        if (std::find(t.begin(), t.end(), n) == t.end()) continue;  // the image's
-        for (int32_t m : t) {
-          if (m == n) continue;
-          shortest = std::min(shortest, (mesh->nodes[m] - x).norm());
-          centroid += mesh->nodes[m];
-          ++neighbours;
-        }
-      }
-      centroid /= std::max(1, neighbours);
-      const double start = worst(x);
-      double best = start;
-      Vec3 at = x;
-      const Vec3 to_centroid =
-          (centroid - x).norm() > 0.0 ? Vec3((centroid - x).normalized()) : Vec3::UnitX();
-      const Vec3 dirs[8] = {to_centroid,   -to_centroid,   Vec3::UnitX(), -Vec3::UnitX(),
-                            Vec3::UnitY(), -Vec3::UnitY(), Vec3::UnitZ(), -Vec3::UnitZ()};
-      int tries = 0;
-      for (double h = 0.25 * shortest; h > kLeastStep * shortest && tries < 400;) {
-        bool better = false;
-        for (const Vec3& d : dirs) {
-          Vec3 y;
-          if (!step(at, d, h, &y)) continue;
-          const double w = worst(y);
-          ++tries;
-          if (w > best) {
-            best = w;
-            at = y;
-            better = true;
-            break;
-          }
-        }
-        if (!better) h *= 0.5;
-      }
-      if (best > start) {
-        place(at);
+      if (move.search()) {
         ++this_round;
         for (int32_t e : around) least[e] = least_dihedral(*mesh, mesh->tets[e]);
       }
@@ -635,9 +708,9 @@ int repair_slivers(TetMesh* mesh, const InclusionSet& set, double angle) {
   size_t before = elements_under(*mesh, angle, &least).size();
   int rounds = 0;
   // A round may leave more than it found (an inserted node's new elements) and the next lift
-  // them: two meshes of spheres and fibres saved before the repairs went from 7 and 6 elements
-  // under 5 degrees to 14 and 13 in the first round and to none in the second. The rounds end
-  // when one changes nothing.
+  // them: on meshes of spheres and fibres saved before the repairs, the first round left more
+  // elements under 5 degrees than it found, and the second none. The rounds end when one
+  // changes nothing.
   while (before > 0 && rounds < 4) {
     ++rounds;
     const long long lifted = lift_slivers(mesh, set, angle);

@@ -21,7 +21,7 @@ namespace {
 // meridian through +x of their frame (poles at +-z); its cylinders a seam along the mantle at
 // +x, between two vertices on the rims. They are edges of the surfaces: a box face that passes near
 // a pole, or runs along a seam, cuts a sliver between the two, and the elements there are slivers
-// too (seen: a face 3e-5 of the size from an ellipsoid's pole; a face nearly along a fibre's seam).
+// too (seen: a face a hair from an ellipsoid's pole; a face nearly along a fibre's seam).
 // Each solid that crosses a box face is built in the frame, of a fixed set, that keeps them
 // farthest from the faces: its score is the least, over the seam's points near each face, of the
 // larger of the point's distance to the face (over the shape's extent across it) and the sine of
@@ -42,8 +42,8 @@ Seam seam_of(const Shape& s, const Mat3& P) {
       seam.at.push_back(s.center + s.radius * side + t * along);
       // Its ends are vertices on the rims, scored by their distance alone (as poles are): a
       // seam that crosses a face steeply scores well wherever it lies, and one fibre's seam
-      // ended 1.1e-5 from the face that cut its end disk (10 elements of 2.1-4.3 degrees
-      // between that vertex and the face's cut, whatever the sizes).
+      // ended a hair from the face that cut its end disk (slivers between that vertex and the
+      // face's cut, whatever the sizes).
       const bool end = k == 0 || k == kSeamPoints - 1;
       seam.tangent.push_back(end ? Vec3::Zero() : Vec3(along.normalized()));
     }
@@ -196,8 +196,8 @@ int add_solid(const Shape& s, const Box& box, double offset, const Mat3* given, 
 
 // The OCC solid of a shape inside the box, made where it lies (its seam and poles meet no box
 // face, whatever their frame; Gmsh's moves of a solid cost in proportion to the shapes it
-// holds: 1,699 fibres turned and moved took 12 s after the cut); its tag. With `rank` above 0,
-// built as add_solid builds it in that frame.
+// holds, so turning and moving many fibres after the cut is slow); its tag. With `rank` above
+// 0, built as add_solid builds it in that frame.
 int add_inside_solid(const Shape& s, const Box& box, int rank) {
   if (rank > 0) return add_solid(s, box, 0.0, nullptr, rank);
   const Vec3& c = s.center;
@@ -216,7 +216,7 @@ int add_inside_solid(const Shape& s, const Box& box, int rank) {
 
 // The frame of a debonded sphere's void and core: z along the debonding axis (the core's poles
 // on it, so that its meridians, its seam among them, cross the cap's rim square: a seam
-// grazing the rim left a sliver of surface along it, and elements under 2 degrees), and the
+// grazing the rim left a sliver of surface along it, and sliver elements), and the
 // seam turned about the axis off the faces of `box` it crosses.
 Mat3 void_frame(const Inclusion& in, const Box& box) {
   const Shape& s = in.shape;

@@ -135,7 +135,7 @@ TetMesh tet_mesh(const InclusionSet& set, const TetMeshOptions& options = {},
 /// field h (gaps, curvature, growth away from surfaces, the least and largest sizes) integrated
 /// as a constant times the integral of 1 / h^3 over the box (an octree refined to the local
 /// size), the constant fitted on meshes of spheres, fibres and the default scene. The work grows
-/// with the count (about one evaluation of the size field per 5 elements): past `cap` it stops
+/// with the count (an evaluation of the size field per few elements): past `cap` it stops
 /// and returns a count above the cap (the memory check asks no more than whether it fits).
 inline constexpr double kTetEstimateCap = 1e8;  // elements: about 90 GB of mesh
 double tet_elements_estimate(const InclusionSet& set, const TetMeshSpec& spec,
@@ -215,8 +215,9 @@ Nudged nudge_off_chosen_cell(InclusionSet* set, double min_gap);
 /// tolerance of the periodic pairs) exactly at the translate of its image on the lower faces,
 /// where one lies within 1e-6 of that side of where the image should be. Gmsh places the nodes
 /// of a curve it meshes as the copy of its periodic image on the curve itself: rarely, one
-/// lands 1e-8 off the translate of its image's. Returns the number of nodes moved by more than
-/// 1e-9 of the side (those the pairs would miss; most others move by a rounding error).
+/// lands further off the translate of its image's than the pairs' tolerance. Returns the number
+/// of nodes moved by more than 1e-9 of the side (those the pairs would miss; most others move
+/// by a rounding error).
 long long snap_periodic_nodes(TetMesh* mesh);
 
 /// Merges nodes at one position (each element then uses the lowest-numbered one), drops nodes

@@ -94,19 +94,18 @@ Eigen::Matrix<double, D, D> laminate(const std::vector<Eigen::Matrix<double, D, 
 }
 
 // The laminate's tensor is singular across the interface wherever a layer carries nothing, so a
-// pore's cut voxels carried nothing across its surface: on insulating spheres (0.25, radius 0.1,
-// 32^3 to 96^3) conjugate gradients stalled at residuals of 1e-4 after 3,000 iterations, 3-12 %
-// below the converged conductivity and 40 % below the bulk modulus. Where the inside or the
-// outside layer carries nothing, the layers that carry something are averaged (Voigt: the mix
-// Lucarini et al. 2022 found best for empty phases), and a voxel with under kLeastSolidShare of
-// material is empty (bounding the contrast conjugate gradients see at 10): 50 and 90-160
-// iterations, within 0.1 % and 0.5 % at 64^3 of the values plain voxels extrapolate to. Thin
-// layers that carry nothing (debonding gaps, shells: compose_medium's `thin`) keep the
-// laminate, which carries nothing across them, as a gap does: averaged, a debonded sphere's
-// gap thinner than a voxel barely mattered (k 1.45 to 1.82 on the debonded beads). A core
-// with at most kWeakCore of what surrounds it (the 1e-6 that finite-element users give voids)
-// stalled the same way and is a pore too; at 2e-4 the laminate converges (380 iterations) but
-// runs 11 % and 4 % low at 32^3 and 64^3, where the pore's mix would be within 0.5 %. The bound
+// pore's cut voxels carried nothing across its surface: on insulating spheres conjugate
+// gradients stalled far above their tolerance, well below the converged conductivity and bulk
+// modulus. Where the inside or the outside layer carries nothing, the layers that carry
+// something are averaged (Voigt: the mix Lucarini et al. 2022 found best for empty phases), and
+// a voxel with under kLeastSolidShare of material is empty (bounding the contrast conjugate
+// gradients see at 10): the solves then converge in few iterations, close to the values plain
+// voxels extrapolate to. Thin layers that carry nothing (debonding gaps, shells:
+// compose_medium's `thin`) keep the laminate, which carries nothing across them, as a gap does:
+// averaged, a debonded sphere's gap thinner than a voxel barely mattered. A core with at most
+// kWeakCore of what surrounds it (the 1e-6 that finite-element users give voids) stalled the
+// same way and is a pore too; a little above the bound the laminate converges but runs low on
+// coarse grids, where the pore's mix would be close (docs/benchmarks.md). The bound
 // is not higher because a flat laminate whose weaker layer is inside stays exact at contrast
 // 1000 only with the laminate rule.
 template <int D>

@@ -45,7 +45,7 @@ void put(std::FILE* out, const std::string& text) {
 }
 
 // Rows of numbers for the large blocks (nodes, elements), formatted by std::to_chars: the same
-// characters as the streams' (a double as printf's %.<digits>g), a few times faster. Written
+// characters as the streams' (a double as printf's %.<digits>g), faster. Written
 // out every 256 KiB.
 class Rows {
  public:
@@ -538,7 +538,7 @@ std::string periodic_deck(const Scene& scene, const InclusionSet& set, const Dec
   const char* ref_name[3] = {"REFX", "REFY", "REFZ"};
   for (int load = 0; load < loads; ++load) {
     // CalculiX's iterative Cholesky solver: the problems are symmetric positive definite
-    // and large, where the default direct solver (SPOOLES) is ten times slower for the same
+    // and large, where the default direct solver (SPOOLES) is far slower for the same
     // digits (README, finite-element meshes).
     s << "*STEP\n"
       << (elasticity ? "*STATIC, SOLVER=ITERATIVE CHOLESKY\n"

@@ -72,6 +72,34 @@ ReportStatistics report_statistics(const Scene& scene, const PackingResult& r) {
   return out;
 }
 
+namespace {
+
+// report.json's "levelsets": the grids and their memory against a dense grid's.
+nlohmann::ordered_json levelsets_json(const LevelSets& levelsets) {
+  using OJson = nlohmann::ordered_json;
+  OJson ls;
+  ls["voxel_size"] = levelsets.voxel_size;
+  ls["half_width_voxels"] = levelsets.half_width;
+  OJson grids = OJson::array();
+  for (const auto& g : levelsets.grids) {
+    grids.push_back({{"name", g.name},
+                     {"kind", phase_kind_name(g.kind)},
+                     {"family", g.family},
+                     {"phase", g.phase},
+                     {"inclusions", g.inclusions},
+                     {"active_voxels", g.active_voxels},
+                     {"memory_bytes", g.memory_bytes}});
+  }
+  ls["grids"] = grids;
+  ls["memory_bytes"] = levelsets.memory_bytes;
+  ls["dense_bytes"] = levelsets.dense_bytes;
+  ls["memory_ratio"] = static_cast<double>(levelsets.memory_bytes) /
+                       static_cast<double>(std::max(1LL, levelsets.dense_bytes));
+  return ls;
+}
+
+}  // namespace
+
 std::string report_json(const Scene& scene, const PackingResult& r, const VoxelImage* image,
                         const RunTimings& timings, const LevelSets* levelsets,
                         const ReportStatistics* stats, const std::vector<ReportSection>& sections) {
@@ -177,27 +205,7 @@ std::string report_json(const Scene& scene, const PackingResult& r, const VoxelI
     root["nearest_neighbour_distance"] = {
         {"mean", nn.mean}, {"std", nn.std}, {"min", nn.min}, {"max", nn.max}};
   }
-  if (levelsets && !levelsets->empty()) {
-    OJson ls;
-    ls["voxel_size"] = levelsets->voxel_size;
-    ls["half_width_voxels"] = levelsets->half_width;
-    OJson grids = OJson::array();
-    for (const auto& g : levelsets->grids) {
-      grids.push_back({{"name", g.name},
-                       {"kind", phase_kind_name(g.kind)},
-                       {"family", g.family},
-                       {"phase", g.phase},
-                       {"inclusions", g.inclusions},
-                       {"active_voxels", g.active_voxels},
-                       {"memory_bytes", g.memory_bytes}});
-    }
-    ls["grids"] = grids;
-    ls["memory_bytes"] = levelsets->memory_bytes;
-    ls["dense_bytes"] = levelsets->dense_bytes;
-    ls["memory_ratio"] = static_cast<double>(levelsets->memory_bytes) /
-                         static_cast<double>(std::max(1LL, levelsets->dense_bytes));
-    root["levelsets"] = ls;
-  }
+  if (levelsets && !levelsets->empty()) root["levelsets"] = levelsets_json(*levelsets);
   root["stop_reason"] = stop_reason_name(r.stop_reason);
   if (scene.method == Method::kMd) {
     root["steps"] = r.steps;

@@ -219,9 +219,8 @@ void chain_pieces(const Inclusion& inc, std::vector<ShearedPiece>* out) {
     // whose second derivative keeps one sign lies on one side of its chord (the arc below it;
     // the wave above it where sin > 0). So the disk of radius R swept along the chord and over
     // those two ranges (the piece's bows) holds the slice. Grown by a relative 1e-12 against
-    // rounding (the exact tests decide to 1e-9 of the size). 4 waves of A = r: the pieces'
-    // cross-sections are 1.018 of a coated fibre's, against 1.061 with the fibre's largest
-    // sagitta added to every piece's radius.
+    // rounding (the exact tests decide to 1e-9 of the size). The bows keep the pieces closer to
+    // the fibre than the fibre's largest sagitta added to every piece's radius would.
     ShearedPiece p;
     const double len2 = (s1 - s0) * (s1 - s0) / 8.0;
     if (line.A > 0.0) {

@@ -109,9 +109,8 @@ inline double lateral_reach(const Inclusion& inc) {
 /// radius R normal to the axis, lie in the disks of radius R + sagitta about the chord. Each
 /// piece is that sheared piece (geometry/convex.hpp: the disk swept along the chord), grown by
 /// the packing pad: together they hold the fibre, within the sagitta. (Round cylinders about the
-/// chords, as before, held 1.16, 1.34, 1.57 and 1.80 times a coated fibre of 1 to 4 waves of
-/// amplitude r: a section normal to a steep chord is an ellipse, not a disk.) n keeps the
-/// sagitta below kChainSagitta of R.
+/// chords, as before, held far more than the fibre, the more so the more waves: a section normal
+/// to a steep chord is an ellipse, not a disk.) n keeps the sagitta below kChainSagitta of R.
 /// Chains pay where the envelope is far larger than the fibre: for waves from a lateral reach of
 /// kChainFrom times R (below it the envelope packs as densely at a fraction of the cost), and for
 /// every bend (a few pieces follow it, where the envelope wastes the bend's sagitta all along).

@@ -9,7 +9,7 @@
 // The support function h(u) = max over the surface x of x . u is sublinear: h(sum b_i c_i) <=
 // sum b_i h(c_i) for b_i >= 0. A table of certified h at the nodes of a coarser cube map, read
 // with bilinear weights on the cube face, is therefore a certified upper bound for every u; the
-// error is of second order in the cell size (about 0.4 % of the radius here).
+// error is of second order in the cell size (its size at kCells: docs/benchmarks.md).
 #pragma once
 
 #include <algorithm>

@@ -190,7 +190,7 @@ Mat3 OrientationLaw::as_typed(const Mat3& a) {
     return a;
   Mat3 sym = 0.5 * (a + a.transpose());
   // Eigenvalues within the tolerance of 0 are 0: a tensor typed as diag(0.5, 0.5, 1e-12) means
-  // the planar law, which the packing holds exactly (a tiny third eigenvalue it held to 0.08).
+  // the planar law, which the packing holds exactly (kept, a tiny third eigenvalue grew).
   // A tensor without such an eigenvalue keeps its typed values (over its trace).
   const Eigen::SelfAdjointEigenSolver<Mat3> es(sym);
   Vec3 ev = es.eigenvalues();

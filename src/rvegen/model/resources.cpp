@@ -22,20 +22,17 @@ constexpr double kBytesPerTriangle = 300.0;    // mesh, .vtp text and arrays
 constexpr double kBytesPerBandVoxel = 40.0;    // values, OpenVDB leaves, the build's buffers
 constexpr double kBytesPerGlyphPoint = 600.0;  // arrays and file, periodic images (x 1.3)
 // The tetrahedral mesh before packing: elements per (surface area / element size^2) of the
-// inclusions, with the size from the chord error, grown by 0.2 away from the surface (fitted:
-// 0.22 M elements for the analyst's sample, 24 per unit, against 0.28 M estimated); the gaps
-// are not known yet (after packing, tet_elements_estimate counts them). The peak bytes per
-// element of the whole command, its base and packing aside (first order, one run each: spheres
-// of radius 0.1 in a box of 0.6, 738-857 B on four meshes of 85,000-315,000 elements; 40 fibres
-// of L/D 10, 583 B on 3.7 M): 900 B, the most measured rounded up, since the check refuses what
-// would not fit and should not fall short (fibres' meshes get 50 % more). Per inclusion,
-// OpenCASCADE's solids and their fragments: the default scene (946 inclusions, 10-node
-// elements, 2.19 GB for 2.05 M elements) leaves 0.04-0.26 MB an inclusion beyond the elements at
-// 800-900 B an element; 0.3 MB counted.
+// inclusions, with the size from the chord error, grown by 0.2 away from the surface (fitted on
+// the analyst's sample); the gaps are not known yet (after packing, tet_elements_estimate
+// counts them). The peak bytes per element of the whole command, its base and packing aside
+// (measured on meshes of spheres and of fibres): the most measured, rounded up, since the check
+// refuses what would not fit and should not fall short. Per inclusion, OpenCASCADE's solids and
+// their fragments: what the default scene's peak leaves beyond its elements, rounded up. The
+// measurements: docs/benchmarks.md.
 constexpr double kTetsPerArea = 24.0;
 constexpr double kBytesPerMeshedInclusion = 0.3e6;
-// Ellipsoids' spline surfaces get more elements than the curvature asks for (1.5 on three
-// ellipsoids of 0.1 x 0.07 x 0.05 in a box of 0.6).
+// Ellipsoids' spline surfaces get more elements than the curvature asks for (measured:
+// docs/benchmarks.md).
 constexpr double kEllipsoidExtra = 1.5;
 constexpr double kBytesPerTet = 900.0;
 // Second order: the midside nodes (about 1.2 an element) and their numbers, and the sorted
@@ -225,8 +222,8 @@ ResourceEstimate estimate_resources(const Scene& scene) {
   e.voxels = static_cast<double>(scene.resolution[0]) * scene.resolution[1] * scene.resolution[2];
   e.voxel_bytes = e.voxels * (scene.partial_volume ? 9.0 : 5.0) * 1.1;
   e.levelset_bytes = e.band_voxels * kBytesPerBandVoxel;
-  // The FFT solver per voxel (its share of the whole process's peak, measured on spheres at 0.3
-  // at 128^3, 2.1 M voxels, laminate voxels, and about 6 % more): the buffers of one field's
+  // The FFT solver per voxel (its share of the whole process's peak, as measured:
+  // docs/benchmarks.md): the buffers of one field's
   // transforms (the flux formed and transformed in them), conjugate gradients' residual and s = A p
   // in Fourier space (a strain's displacement, three complex values a frequency; a gradient's
   // potential, one), 1 / |k|, the medium's index and the composite voxels' tensors; the fixed-point

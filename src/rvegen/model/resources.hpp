@@ -27,8 +27,8 @@ struct ResourceEstimate {
 };
 
 /// Estimates from the scene alone (expected counts, mean sizes, resolution, voxel size). The
-/// per-item costs were measured on this program's runs; on the scenes of samples/scenes and a
-/// 400^3 image the estimate was within -7 % to +25 % of the measured peak of the whole run.
+/// per-item costs were measured on this program's runs, and the estimate checked against the
+/// measured peak of whole runs (docs/benchmarks.md).
 ResourceEstimate estimate_resources(const Scene& scene);
 
 /// Elements of a tetrahedral mesh near one inclusion's surface (the element size there is the
@@ -44,10 +44,9 @@ double tet_mesh_bytes(double elements, double inclusions, int order);
 /// Coarser tetrahedral meshes than `spec`, to offer when its mesh does not fit, in the order
 /// to try them: the least loss of accuracy first. A larger chord error (0.01, 0.03, 0.1), and
 /// at 0.03 and 0.1 one element across the gaps with 10-node elements (on near-touching
-/// spheres these came within 0.6 % of the FFT, against 10.9 % for 4-node ones, two across:
-/// docs/analyst.md), then at 0.1 half an element across (within 0.1-0.3 % of one across, with
-/// a third fewer elements). Each is at least as coarse as `spec` in every setting; none equal
-/// to it.
+/// spheres these came far closer to the FFT than 4-node ones two across: docs/analyst.md), then
+/// at 0.1 half an element across (close to one across, with fewer elements). Each is at least
+/// as coarse as `spec` in every setting; none equal to it.
 std::vector<TetMeshSpec> coarser_tet_meshes(const TetMeshSpec& spec);
 
 /// The settings of `to` that differ from `from`: as the scene's object,

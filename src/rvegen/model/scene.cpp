@@ -228,7 +228,7 @@ std::vector<Inclusion> draw_population(const PackingSpec& scene, Random& rng) {
     }
     if (fam.shape != ShapeKind::Sphere && fam.orientation.kind != OrientationLaw::Kind::kAligned) {
       // The sample's <p p^T> made the law's: a finite sample alone misses it by about
-      // 1 / sqrt(n) (0.02 for 1,000 fibres).
+      // 1 / sqrt(n).
       std::vector<Vec3> dirs;
       for (size_t i = first; i < out.size(); ++i) dirs.push_back(law_axis(out[i].shape));
       if (match_orientation_tensor(&dirs, fam.orientation.tensor())) {

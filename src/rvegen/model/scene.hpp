@@ -78,7 +78,7 @@ struct MdSettings {
   /// moved by up to `shake` times its radius (its bounding capsule's) in a random direction and
   /// turned about a random axis so that its ends move up to as far (0: compressed again as it
   /// jammed, unmoved). Unset: kChainShake for scenes with wavy or bent fibres, 0 otherwise (a
-  /// shaken dense sphere packing took twice as long to reach its target). See md.cpp.
+  /// shaken dense sphere packing reaches its target more slowly). See md.cpp.
   std::optional<double> shake;
   static constexpr double kChainShake = 0.3;
   /// How contact torques may turn inclusions with an axis (JSON md.rotation):
@@ -136,7 +136,7 @@ struct Outputs {
   /// spheres and cylinders)
   bool mesh_tet = false;
   /// "statistics": g(r) of the sphere families and the nearest-neighbour distances in
-  /// report.json (the costly part of the report: 8-12 % of a sphere run)
+  /// report.json (the costly part of the report)
   bool statistics = true;
   bool operator==(const Outputs& o) const {
     return inclusions == o.inclusions && voxels == o.voxels && h5 == o.h5 && amitex == o.amitex &&

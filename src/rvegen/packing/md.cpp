@@ -68,13 +68,11 @@ constexpr double kRecompressFrom = 0.95;
 // (not kMinPressure), and each compression starts from the best configuration shaken: every body
 // moved by up to md.shake of its capsule's radius, uniformly in a ball, and turned about a random
 // axis by up to the angle that moves its ends as far. The damped contacts alone settle back into
-// the jam they left; the shake lets the packing leave it. 4-wave mixture (coated wavy fibres 0.20
-// and deformed grains 0.15, target 0.35, 0.6 box, 120 s, seeds 1-5): 0.3428, 0.3448, 0.35 in
-// 95 s, 0.3463, 0.3467, against 0.3432, 0.3437, 0.3342, 0.3382, 0.3397 unshaken the same day
-// (means 0.3461 and 0.3398); seed 3 on one thread, 240 s: 0.3342 unshaken, 0.3381 with the earlier
-// restarts alone, 0.3455 with both (shake 0.15: 0.3417, 0.6: 0.3416). Not for convex bodies by
-// default: 10,000 spheres asked for 0.645 got there in 25-33 s shaken, 12-15 s unshaken (their
-// jams creep up at low pressure). docs/benchmarks.md.
+// the jam they left; the shake lets the packing leave it: on a mixture of coated wavy fibres
+// and deformed grains, shaken runs packed denser than unshaken ones and than the earlier
+// restarts alone, and shakes smaller or larger than kChainShake did less well. Not for convex
+// bodies by default: a dense sphere packing reaches its target sooner unshaken (their jams
+// creep up at low pressure). docs/benchmarks.md.
 constexpr double kShakeBelow = 1e-3;
 // Chains (see run()): s_out drops by at most kChainDrop m a step; the contacts act on pieces
 // grown by a relative skin min(kChainSkin, kChainSkinPerPressure m); after kChainHold steps
@@ -90,9 +88,9 @@ constexpr double kStall = 0.1;  // m halves when the valid scale grew by less th
 // Chains held kChainDeepHolds times running (kChainHold steps each, no valid scale) with an
 // overlap deeper than kChainDeep of a size at each are intertwined at that scale beyond what the
 // contacts undo: the bodies go back to the best configuration, at rest, and m halves. (4-wave
-// coated fibres alone at 0.30, 0.6 box: held at 0.2298 for 90 s with overlaps of 0.46-0.50, some
-// 20 pairs at once; going back, 0.2502 in 25 s. The 4-wave mixture's holds, whose deep overlaps
-// come and go, never meet the rule: its runs are unchanged. docs/benchmarks.md.)
+// coated fibres alone stayed held for long with many pairs deeply overlapping; going back, they
+// packed denser soon after. The 4-wave mixture's holds, whose deep overlaps come and go, never
+// meet the rule: its runs are unchanged. docs/benchmarks.md.)
 constexpr double kChainDeep = 0.3;
 constexpr int kChainDeepHolds = 3;
 
@@ -277,8 +275,8 @@ void MdPacker::next_scale(double s_in) {
     // is not convex, and valid at a scale above 1 need not mean valid at 1). It follows the
     // valid scale, but drops by at most kChainDrop m a step: a chain pair's certificate may
     // lie far below s_out (shrunk, its pieces move across each other's waves), and following
-    // it dragged the scale of all down and undid the compression (Figure 5 scene: jammed at
-    // 0.19 of 0.35). With no valid scale, it is held: the contacts part the overlaps at that
+    // it dragged the scale of all down and undid the compression (the Figure 5 scene jammed far
+    // below its target). With no valid scale, it is held: the contacts part the overlaps at that
     // scale until one is certified there (the skin makes them part the pieces a little more
     // than needed, so the pass certifies the force scale itself); held kChainHold steps (a
     // pair caught across another's wave), it drops by kChainUnjam.
@@ -391,7 +389,7 @@ PackingResult MdPacker::run() {
       break;
     }
     if (cancelled()) throw Cancelled();
-    // The clock every step (a step of long chains can take most of a second), the progress
+    // The clock every step (a step of long chains can be slow), the progress
     // every 16 steps (at most once a second).
     const auto now = std::chrono::steady_clock::now();
     if (now > deadline_) {

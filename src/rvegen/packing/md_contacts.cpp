@@ -27,7 +27,7 @@ constexpr double kLineTestMinSine2 = 1e-6;
 constexpr double kCancelling = 0.25;
 
 // A ball holding a run of kRun consecutive pieces of a chain: a pair's pieces are culled run by
-// run before piece by piece (4-wave fibres have 48 pieces, and most of a crossing pair's runs
+// run before piece by piece (4-wave fibres have many pieces, and most of a crossing pair's runs
 // are far from the other body). It holds every piece's bounding ball, grown by a relative
 // kRunMargin, so that a run it culls holds only pieces the piece test would cull too, whatever
 // the rounding: the pieces found, and so the packing, are the same as without it.

@@ -56,7 +56,7 @@ double contact_pass(const std::vector<Body>& bodies, const std::vector<int>& ori
 
 /// A valid scale within kScaleRounding of 1 is 1: the target is reached. The certified scale is
 /// a ratio of distances, and rounding leaves it at 1 - 1e-16 where bodies touch at the target
-/// (a planar-fibre run reported "jammed" at the target's volume fraction to 15 digits). Placed
+/// (a planar-fibre run reported "jammed" at what printed as the target's volume fraction). Placed
 /// at scale 1, such a pair overlaps by at most that share of its size, a thousand times below
 /// the exact tests' tolerance (kContactRelTolerance), so the audit still decides.
 constexpr double kScaleRounding = 1e-12;

@@ -4,7 +4,7 @@
 // their projections onto the plane cross, and the contact pushes them along the plane's normal
 // only. Growing about random centres, they keep the order of their heights along that normal,
 // and a stack of crossing fibres that winds once around a periodic box stops the growth (with
-// random heights, 2,500 fibres of L/D 20 jammed at 0.05). So these fibres start at heights that
+// random heights, long fibres jam very early). So these fibres start at heights that
 // leave room for their full size:
 //   1. a fibre's projection is its section through its axis (a cylinder lying in the plane is
 //      symmetric about it), so two fibres can overlap only if their projections do (their
@@ -21,8 +21,8 @@
 //      that layer and those fibres go back to the queue to be placed anew (as in cuckoo
 //      hashing). Crossing fibres push each other only along the normal, so the packing cannot
 //      sort out a fibre left crowded: the evictions place the last fibres of nearly full layers
-//      (2,500 fibres of L/D 20 at 0.28 jammed at 0.266 with 5 crowded fibres, and reach 0.28
-//      with a few dozen evictions). A fibre that still finds no room takes the least crowded
+//      (without them, a handful of crowded fibres jammed long fibres short of a target they
+//      reach with them). A fibre that still finds no room takes the least crowded
 //      layer. The work is bounded: kSlideBudget slide places per fibre and kEvictShare of the
 //      fibres evicted, in all, and kTimeShare of md.max_seconds, after which the fibres left go
 //      on without slides or evictions. Where more than kCrowdedShare of the fibres find no
@@ -49,8 +49,8 @@ void layer_planar_fibres(const PackingSpec& spec, Random& rng, Bodies* bodies,
 /// Aligned fibres (growing in radius only, at full length; see md_bodies.hpp) along a box axis
 /// where the box holds K = floor(H / L) >= 2 of the longest end to end: with random positions
 /// along the axis two fibres can share a line only where their spans happen to be disjoint, so
-/// each line holds about one fibre and the packing jams early (0.44 of 0.60 for 2,500 fibres of
-/// L/D 20, L about H / 2). Where one fibre per line would not fit (their sections would fill
+/// each line holds about one fibre and the packing jams early (far below the target, for long
+/// fibres of L about H / 2). Where one fibre per line would not fit (their sections would fill
 /// more than 0.7 of the cross-section), the axis is cut into K slots of length H / K, equal
 /// numbers of fibres go to each (in a random order), each placed at a uniform position within
 /// its slot. Fibres of different slots never meet; each slot is packed as a layer of disks.

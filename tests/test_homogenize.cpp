@@ -667,6 +667,42 @@ TEST(Elasticity, BadInputIsRefused) {
                InputError);
 }
 
+// A breakdown is reported as what it is. A phase whose stiffness is not positive definite (a
+// negative shear modulus, which the scene's checks refuse, handed to the solver directly) makes
+// the curvature r . A r negative at once: the load cases that load it stop at iteration 1 with
+// a breakdown that says so, not "not converged" after max_iterations; a well-posed medium
+// breaks down nowhere. (A conductivity that is not positive semi-definite is refused before
+// the solve.)
+TEST(Elasticity, ANonPositiveStiffnessIsABreakdownNotSlowConvergence) {
+  const std::array<int, 3> d = {8, 4, 4};
+  StiffnessMedium m;
+  m.tensors = {isotropic_stiffness(1.0, 0.3), isotropic_stiffness(1.0, 0.3)};
+  for (int c = 3; c < 6; ++c) m.tensors[1](c, c) = -5.0;  // 2 mu < 0
+  m.index.resize(8 * 4 * 4);
+  for (size_t i = 0; i < m.index.size(); ++i) m.index[i] = i % 8 < 4 ? 1 : 0;
+  ElasticityOptions opt;
+  opt.max_iterations = 200;
+  const ElasticityResult r = effective_stiffness(d, Vec3(1, 1, 1), m, opt);
+  EXPECT_FALSE(r.converged);
+  int broken = 0;
+  for (int l = 0; l < 6; ++l) {
+    if (r.breakdown[l].empty()) continue;
+    ++broken;
+    EXPECT_NE(r.breakdown[l].find("not positive"), std::string::npos) << r.breakdown[l];
+    EXPECT_LT(r.iterations[l], opt.max_iterations) << l;
+  }
+  // The shears 13 and 12, which the layers normal to x carry in series; the other loads leave
+  // the layers nothing to solve.
+  EXPECT_EQ(broken, 2);
+  EXPECT_FALSE(r.breakdown[4].empty());
+  EXPECT_FALSE(r.breakdown[5].empty());
+
+  m.tensors[1] = isotropic_stiffness(10.0, 0.2);
+  const ElasticityResult fine = effective_stiffness(d, Vec3(1, 1, 1), m, opt);
+  EXPECT_TRUE(fine.converged);
+  for (int l = 0; l < 6; ++l) EXPECT_TRUE(fine.breakdown[l].empty()) << fine.breakdown[l];
+}
+
 // Composite voxels (medium.hpp). A laminate normal to x: material A (index 1) over
 // x in [0.13, 0.655) of a unit box, B (index 0) elsewhere, so that both interfaces cut voxels at
 // every resolution used here. Material per voxel by its centre; the voxels cut by an interface

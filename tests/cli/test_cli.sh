@@ -549,6 +549,21 @@ sys.exit(0 if c['converged'] is False and c['iterations'] == [3, 3, 3] else 1)" 
 expect_rc 5 "$RVEGEN" homogenize "$WORK/hom_short" "$WORK/hom_short.json"
 grep -q 'homogenization did not converge' "$WORK/last.err" \
   || fail "homogenize: no message for a solve that did not converge: $(cat "$WORK/last.err")"
+# A breakdown is said as one, never as slow convergence: a matrix of Poisson's ratio
+# 0.49999999999999994 (the largest double below 0.5: a bulk modulus 1e16 times its shear
+# modulus) breaks the solver's arithmetic; the message says "broke down", not "stopped at",
+# and names the phase whose stiffness spreads furthest; report.json lists the breakdowns.
+sed 's/"physics":\["conductivity","elasticity"\]/"physics":["elasticity"]/; s/"matrix": *{\("conductivity":[^,]*,\)\? *"young": *\([^,]*\), *"poisson": *[^}]*}/"matrix":{"young":\2,"poisson":0.49999999999999994}/' "$WORK/hom.json" >"$WORK/hom_nu.json"
+grep -q '0.49999999999999994' "$WORK/hom_nu.json" || fail "hom_nu.json: the matrix's Poisson's ratio was not set: $(cat "$WORK/hom_nu.json")"
+expect_rc 5 "$RVEGEN" generate -q "$WORK/hom_nu.json" -o "$WORK/hom_nu"
+grep -q 'elasticity: load case.* broke down (.*no slow convergence; phase "matrix" has stiffness eigenvalues' "$WORK/last.err" \
+  || fail "a breakdown read as: $(cat "$WORK/last.err")"
+grep -q 'stopped at' "$WORK/last.err" && fail "a breakdown said as slow convergence: $(cat "$WORK/last.err")"
+$py -c "
+import json, sys
+s = json.load(open('$WORK/hom_nu/report.json'))['effective']['stiffness']
+sys.exit(0 if s['converged'] is False and any(s['breakdown']) and 'matrix' in s['spread'] else 1)" \
+  || fail "report.json of a breakdown"
 # Insulating spheres (pores) with the default laminate voxels: converged, within the
 # Hashin-Shtrikman upper bound k (1 - f) / (1 + f / 2), above plain voxels' value, which the
 # pores' cut voxels run below (before, the solve stopped at 1,000 iterations, 1e-3 above the

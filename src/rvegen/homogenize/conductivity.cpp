@@ -227,7 +227,9 @@ ConductivityResult effective_conductivity(const std::array<int, 3>& dims, const 
     if (out.stopped) throw Cancelled();
     res.iterations[load] = out.iterations;
     res.residual[load] = out.residual;
+    res.breakdown[load] = out.breakdown;
     if (solved && !(out.residual < opt.tolerance)) res.converged = false;
+    if (!out.breakdown.empty()) res.converged = false;
     // The local gradient E + x (x is reset by the next solve).
     if (!x.empty()) {
       for (size_t i = 0; i < n; ++i) x[load * n + i] += 1.0;

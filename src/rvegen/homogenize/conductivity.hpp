@@ -16,6 +16,7 @@
 
 #include <array>
 #include <functional>
+#include <string>
 #include <vector>
 
 #include "rvegen/geometry/shapes.hpp"
@@ -52,6 +53,8 @@ struct ConductivityResult {
   Mat3 tensor = Mat3::Zero();
   std::array<int, 3> iterations = {0, 0, 0};
   std::array<double, 3> residual = {0.0, 0.0, 0.0};
+  /// How each load case's iteration broke down ("" when it did not; spectral::CgOutcome).
+  std::array<std::string, 3> breakdown;
   /// True when every load case reached the tolerance.
   bool converged = true;
   double seconds = 0.0;

@@ -23,6 +23,31 @@ struct PhaseProperties {
   std::vector<const Material*> material;
 };
 
+// The phases' tensors' spread: the phase whose eigenvalues lie furthest apart (largest over
+// least; a phase with a zero eigenvalue is infinitely spread) and, across all phases, the largest
+// eigenvalue over the least positive one.
+template <int D>
+std::string eigenvalue_spread(const char* what, const VoxelImage& image,
+                              const std::vector<Eigen::Matrix<double, D, D>>& tensors) {
+  double worst = 0.0, top = 0.0, least = std::numeric_limits<double>::infinity();
+  std::string name;
+  for (size_t l = 0; l < tensors.size() && l < image.phases.size(); ++l) {
+    if (image.phases[l].kind == PhaseKind::kVoid) continue;
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, D, D>> eig(tensors[l]);
+    const double lo = eig.eigenvalues().minCoeff(), hi = eig.eigenvalues().maxCoeff();
+    const double spread = lo > 0.0 ? hi / lo : std::numeric_limits<double>::infinity();
+    if (spread > worst || name.empty()) worst = spread, name = image.phases[l].name;
+    top = std::max(top, hi);
+    if (lo > 0.0) least = std::min(least, lo);
+  }
+  if (name.empty()) return "";
+  char text[200];
+  std::snprintf(text, sizeof text,
+                "phase \"%s\" has %s eigenvalues %.1e apart; the phases' span %.1e", name.c_str(),
+                what, worst, least > 0.0 && std::isfinite(least) ? top / least : worst);
+  return text;
+}
+
 PhaseProperties phase_properties(const Scene& scene, const VoxelImage& image) {
   PhaseProperties p;
   for (const Phase& ph : image.phases) {
@@ -212,6 +237,17 @@ EffectiveProperties effective_properties(const Scene& scene, const InclusionSet&
     }
     out.conductivity = effective_conductivity(dims, box, medium, opt);
     out.has_conductivity = true;
+    std::vector<Mat3> phase_conductivity;
+    for (size_t l = 0; l < image.phases.size(); ++l) {
+      const Material* m = props.material[l];
+      phase_conductivity.push_back(
+          m && m->transverse_conduction()
+              ? Mat3(Vec3(m->transverse_conductivity, m->transverse_conductivity,
+                          m->axial_conductivity)
+                         .asDiagonal())
+              : Mat3(props.conductivity[l] * Mat3::Identity()));
+    }
+    out.conductivity_spread = eigenvalue_spread<3>("conductivity", image, phase_conductivity);
     if (own == 0) {
       const auto [kmin, kmax] = range(f, props.conductivity);
       out.conductivity_bounds = scalar_bounds(f, props.conductivity, 2.0 * kmin, 2.0 * kmax);
@@ -256,6 +292,16 @@ EffectiveProperties effective_properties(const Scene& scene, const InclusionSet&
     }
     out.stiffness = effective_stiffness(dims, box, medium, opt);
     out.has_stiffness = true;
+    std::vector<Mat6> phase_stiffness;
+    for (size_t l = 0; l < image.phases.size(); ++l) {
+      const Material* m = props.material[l];
+      phase_stiffness.push_back(m && m->transverse_elasticity()
+                                    ? transverse_stiffness(m->axial_young, m->transverse_young,
+                                                           m->axial_shear, m->axial_poisson,
+                                                           m->transverse_poisson, Vec3::UnitZ())
+                                    : isotropic_stiffness(props.young[l], props.poisson[l]));
+    }
+    out.stiffness_spread = eigenvalue_spread<6>("stiffness", image, phase_stiffness);
     const Mat6& c = out.stiffness.stiffness;
     out.constants = engineering_constants(c);
     const double three_k = c.topLeftCorner<3, 3>().sum() / 3.0;
@@ -294,25 +340,41 @@ std::string listed(const std::vector<int>& k) {
 
 template <size_t N>
 std::string unconverged_cases(const char* physics, const std::array<int, N>& iterations,
-                              const std::array<double, N>& residual, double tolerance) {
+                              const std::array<double, N>& residual,
+                              const std::array<std::string, N>& breakdown, double tolerance,
+                              const std::string& spread) {
+  std::vector<int> broken;
+  std::string first;
+  for (size_t l = 0; l < N; ++l) {
+    if (breakdown[l].empty()) continue;
+    broken.push_back(static_cast<int>(l) + 1);
+    if (first.empty()) first = breakdown[l];
+  }
+  std::string out;
+  if (!broken.empty()) {
+    out = std::string(physics) + ": load case" + (broken.size() > 1 ? "s " : " ") + listed(broken) +
+          " broke down (" + (broken.size() > 1 ? "the first: " : "") + first +
+          "): the solver's arithmetic failed, which is no slow convergence; " + spread;
+  }
   std::vector<int> cases;
   int most = 0;
   double worst = 0.0;
   for (size_t l = 0; l < N; ++l) {
+    if (!breakdown[l].empty()) continue;
     if (iterations[l] > 0 && !(residual[l] < tolerance)) {
       cases.push_back(static_cast<int>(l) + 1);
       most = std::max(most, iterations[l]);
       worst = std::max(worst, residual[l]);
     }
   }
-  if (cases.empty()) return "";
+  if (cases.empty()) return out;
   char tail[160];
   std::snprintf(tail, sizeof tail,
                 " stopped at %d iterations with relative residuals up to %.1e, above the "
                 "tolerance %.0e",
                 most, worst, tolerance);
-  return std::string(physics) + ": load case" + (cases.size() > 1 ? "s " : " ") + listed(cases) +
-         tail;
+  return out + (out.empty() ? "" : "; ") + physics + ": load case" +
+         (cases.size() > 1 ? "s " : " ") + listed(cases) + tail;
 }
 
 }  // namespace
@@ -324,10 +386,11 @@ std::string unconverged(const EffectiveProperties& e, double tolerance) {
   };
   if (e.has_conductivity) {
     add(unconverged_cases("conductivity", e.conductivity.iterations, e.conductivity.residual,
-                          tolerance));
+                          e.conductivity.breakdown, tolerance, e.conductivity_spread));
   }
   if (e.has_stiffness) {
-    add(unconverged_cases("elasticity", e.stiffness.iterations, e.stiffness.residual, tolerance));
+    add(unconverged_cases("elasticity", e.stiffness.iterations, e.stiffness.residual,
+                          e.stiffness.breakdown, tolerance, e.stiffness_spread));
   }
   return out;
 }

@@ -42,6 +42,10 @@ struct EffectiveProperties {
   /// one value per voxel, x fastest): gradient and flux (3 blocks), strain and stress (6
   /// blocks, tensor components 11, 22, 33, 23, 13, 12, not Mandel-scaled).
   std::vector<std::vector<float>> gradient, flux, strain, stress;
+  /// The phase whose tensor's eigenvalues lie furthest apart, and how far (the ratio of the
+  /// largest to the least), among all phases' conductivities and stiffnesses: what a breakdown
+  /// names ("phase \"matrix\": stiffness eigenvalues 8.3e+15 apart").
+  std::string conductivity_spread, stiffness_spread;
 };
 
 /// Called with the physics ("conductivity", "elasticity"), the load case, the number of load
@@ -59,8 +63,10 @@ EffectiveProperties effective_properties(const Scene& scene, const InclusionSet&
                                          const Communicator& comm = {});
 
 /// What did not converge, in one sentence ("conductivity: load cases 1, 2 and 3 stopped at 1000
-/// iterations with relative residuals up to 3.7e-04, above the tolerance 1e-06"; the physics
-/// joined by "; "), or "" when every load case reached the tolerance. A tensor that did not
+/// iterations with relative residuals up to 3.7e-04, above the tolerance 1e-06"; a breakdown
+/// as one: "elasticity: load case 4 broke down (...): round-off, not slow convergence; ...",
+/// naming the phase of the widest spread; the physics joined by "; "), or "" when every load
+/// case reached the tolerance. A tensor that did not
 /// converge is not the RVE's effective property: the command line says so and exits 5, the VTK
 /// filter warns.
 std::string unconverged(const EffectiveProperties& e, double tolerance);

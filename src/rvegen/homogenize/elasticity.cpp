@@ -230,7 +230,9 @@ ElasticityResult effective_stiffness(const std::array<int, 3>& dims, const Vec3&
     if (out.stopped) throw Cancelled();
     res.iterations[load] = out.iterations;
     res.residual[load] = out.residual;
+    res.breakdown[load] = out.breakdown;
     if (out.iterations > 0 && !(out.residual < opt.tolerance)) res.converged = false;
+    if (!out.breakdown.empty()) res.converged = false;
     // The mean stress: that of the unit strain plus the mean of C x, summed as the solver went.
     res.stiffness.col(load) = mean_tensor.col(load) + Eigen::Map<const Vec6>(flux.data());
     if (opt.field) {

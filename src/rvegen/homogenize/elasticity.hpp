@@ -8,6 +8,7 @@
 #include <Eigen/Dense>
 #include <array>
 #include <functional>
+#include <string>
 #include <vector>
 
 #include "rvegen/geometry/shapes.hpp"
@@ -47,6 +48,8 @@ struct ElasticityResult {
   Mat6 stiffness = Mat6::Zero();  // Mandel; column j: mean stress for a unit mean strain j
   std::array<int, 6> iterations = {0, 0, 0, 0, 0, 0};
   std::array<double, 6> residual = {0, 0, 0, 0, 0, 0};
+  /// How each load case's iteration broke down ("" when it did not; spectral::CgOutcome).
+  std::array<std::string, 6> breakdown;
   bool converged = true;
   double seconds = 0.0;
 };

@@ -507,6 +507,11 @@ void free_aligned(void* p) {
   fftw_free(p);
 }
 
+// A relative residual above this is no step of a positive definite solve (it can grow by at
+// most the square root of the operator's condition, and well before that CG's has gone down):
+// the iteration has broken down.
+constexpr double kResidualGrowth = 1e4;
+
 CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectra,
                                        const GalerkinOperator& op, const double* load,
                                        GalerkinFields& fields, std::vector<double>* x,
@@ -555,9 +560,30 @@ CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectr
       // r . A r = r . C r (r lies in the range of the orthogonal projection), and the sums of
       // C r; the transforms of C r start behind the sweep.
       const std::vector<double> sums = grid.sweep(spectra, true, true, d + 1, flux(false));
-      const double beta = it > 1 ? gamma / gamma_before : 0.0;
-      const double denominator = it > 1 ? sums[0] - beta * gamma / alpha_before : sums[0];
-      if (!(denominator > 0.0)) break;  // nothing left to reduce (round-off)
+      if (!(sums[0] > 0.0)) {
+        // r . A r not positive: round-off once the residual is below the tolerance (nothing
+        // left to reduce), otherwise the operator is not positive definite in floating point.
+        if (!std::isfinite(sums[0])) {
+          out.breakdown = "the curvature r . A r was not finite at iteration " + std::to_string(it);
+        } else if (out.residual >= tolerance) {
+          char what[160];
+          std::snprintf(what, sizeof what,
+                        "the curvature r . A r was not positive (%.2e) at iteration %d, with the "
+                        "relative residual at %.2e",
+                        sums[0], it, out.residual);
+          out.breakdown = what;
+        }
+        break;
+      }
+      double beta = it > 1 ? gamma / gamma_before : 0.0;
+      double denominator = it > 1 ? sums[0] - beta * gamma / alpha_before : sums[0];
+      if (!(denominator > 0.0)) {
+        // The recurrence's p . A p lost to round-off where r . A r is positive: the direction
+        // starts again from the residual (a steepest-descent step).
+        beta = 0.0;
+        denominator = sums[0];
+        ++out.restarts;
+      }
       const double alpha = gamma / denominator;
       for (size_t c = 0; c < dd; ++c) {
         mean_direction[c] = sums[1 + c] * inv_n + beta * mean_direction[c];
@@ -570,6 +596,16 @@ CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectr
           grid.frequency_pass(spectra, true, true, 1, at_frequencies)[0] * inv_n;
       out.iterations = it;
       out.residual = std::sqrt(gamma_next) / bnorm;
+      if (!std::isfinite(out.residual) || out.residual > kResidualGrowth) {
+        char what[160];
+        std::snprintf(what, sizeof what,
+                      "the residual grew to %.2e times its start at iteration %d", out.residual,
+                      it);
+        out.breakdown = std::isfinite(out.residual)
+                            ? std::string(what)
+                            : "the residual was not finite at iteration " + std::to_string(it);
+        break;
+      }
       // A stop asked on any rank stops them all (they would wait on each other otherwise).
       if (grid.sum(progress && !progress(it, out.residual) ? 1.0 : 0.0) > 0.0) {
         out.stopped = true;
@@ -580,6 +616,15 @@ CgOutcome conjugate_gradients_galerkin(Grid& grid, std::vector<Spectrum>& spectr
       alpha_before = alpha;
       gamma = gamma_next;
     }
+  }
+  if (out.breakdown.empty() && out.iterations >= max_iterations && out.residual > 1.0) {
+    // Positive definite in exact arithmetic, the energy of the error never grows; a residual
+    // that ends above its start after every iteration allowed is round-off's.
+    char what[160];
+    std::snprintf(what, sizeof what,
+                  "the residual ended at %.2e times its start after %d iterations", out.residual,
+                  out.iterations);
+    out.breakdown = what;
   }
   if (x) {
     x->resize(dd * n);

@@ -11,6 +11,7 @@
 #include <complex>
 #include <cstring>
 #include <functional>
+#include <string>
 #include <type_traits>
 #include <vector>
 
@@ -525,6 +526,13 @@ struct CgOutcome {
   int iterations = 0;
   double residual = 0.0;
   bool stopped = false;
+  /// How the iteration broke down, "" when it did not: a curvature r . A r that is not positive
+  /// while the residual is above the tolerance (the operator is not positive definite in
+  /// floating point), or a residual that is not finite. A breakdown is no slow convergence.
+  std::string breakdown;
+  /// The times the direction was reset to the residual, where the recurrence's curvature came
+  /// out not positive while the residual's own was (round-off in the recurrence).
+  int restarts = 0;
 };
 /// The Galerkin operator A = P C of the Lippmann-Schwinger solvers, by parts.
 /// `flux(v, lo, hi, sums)` replaces the field at the voxels [lo, hi) of one row (component c of

@@ -115,6 +115,11 @@ std::string effective_section(const HomogenizationSpec& h, const EffectiveProper
     c["iterations"] = r.iterations;
     c["residual"] = r.residual;
     c["converged"] = r.converged;
+    if (std::any_of(r.breakdown.begin(), r.breakdown.end(),
+                    [](const std::string& b) { return !b.empty(); })) {
+      c["breakdown"] = r.breakdown;  // per load case, "" where none
+      c["spread"] = e.conductivity_spread;
+    }
     c["seconds"] = r.seconds;
     c["bounds"] = bounds(e.conductivity_bounds);
     out["conductivity"] = c;
@@ -134,6 +139,11 @@ std::string effective_section(const HomogenizationSpec& h, const EffectiveProper
     s["iterations"] = r.iterations;
     s["residual"] = r.residual;
     s["converged"] = r.converged;
+    if (std::any_of(r.breakdown.begin(), r.breakdown.end(),
+                    [](const std::string& b) { return !b.empty(); })) {
+      s["breakdown"] = r.breakdown;  // per load case, "" where none
+      s["spread"] = e.stiffness_spread;
+    }
     s["seconds"] = r.seconds;
     if (e.bulk_bounds.stated) {
       s["bounds"] = {{"bulk", bounds(e.bulk_bounds)}, {"shear", bounds(e.shear_bounds)}};

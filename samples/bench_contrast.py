@@ -30,6 +30,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from bench_util import generate, machine, option  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+COMMAND = " ".join(sys.argv[1:])
 resolutions = option("--resolutions", [32, 64], int)
 max_iterations = option("--max-iterations", [1000], int)[0]
 quick = "--quick" in sys.argv
@@ -87,7 +88,7 @@ header = ("| sweep | scheme | resolution | nu or contrast | most iterations of a
           "|---|---|---|---|---|---|---|---|\n")
 table = header + "".join("| %s | %s | %d^3 | %g | %d | %d | %.2f | %s |\n" % r for r in rows)
 note = "\nMachine: %s. Command: /usr/bin/python3 samples/bench_contrast.py %s\n" % (
-    machine(), " ".join(sys.argv[1:]))
+    machine(), COMMAND)
 print(table + note)
 os.makedirs(os.path.join(HERE, "charts"), exist_ok=True)
 with open(os.path.join(HERE, "charts", "contrast_table.md"), "w") as f:

@@ -52,6 +52,7 @@ const char* const kAbortedMessage = "aborted";
 struct vtkRVEGenerator::Cache {
   std::string key;  // scene JSON without the voxel resolution
   rvegen::PackingResult result;
+  int nudged = 0;  // inclusions the scene's mesh_tet moved off its cell's faces (pack_scene)
 };
 
 vtkRVEGenerator::vtkRVEGenerator() {
@@ -469,7 +470,11 @@ std::string vtkRVEGenerator::PackShared(const rvegen::Scene& scene, Cache* cache
     try {
       // The packing on this->Threads cores (the same RVE for any number).
       tbb::task_arena packing(this->Threads > 0 ? this->Threads : tbb::task_arena::automatic);
-      packing.execute([&] { cache->result = rvegen::pack_scene(scene, monitor).result; });
+      packing.execute([&] {
+        rvegen::Packed packed = rvegen::pack_scene(scene, monitor);
+        cache->result = std::move(packed.result);
+        cache->nudged = packed.nudged.moved;
+      });
       packed_here = 1;
     } catch (const rvegen::Cancelled&) {
       *aborted = true;
@@ -483,8 +488,8 @@ std::string vtkRVEGenerator::PackShared(const rvegen::Scene& scene, Cache* cache
     return error;
   }
   // ok flag and status, then the inclusion list (or the error) as JSON text.
-  int head[2] = {error.empty() ? 1 : 0, static_cast<int>(cache->result.status)};
-  mpc->Broadcast(head, 2, 0);
+  int head[3] = {error.empty() ? 1 : 0, static_cast<int>(cache->result.status), cache->nudged};
+  mpc->Broadcast(head, 3, 0);
   std::string text = rank != 0        ? std::string()
                      : !error.empty() ? error
                                       : rvegen::write_inclusions_json(cache->result.set);
@@ -496,6 +501,7 @@ std::string vtkRVEGenerator::PackShared(const rvegen::Scene& scene, Cache* cache
     if (head[0]) {
       cache->result.set = rvegen::read_inclusions_json(text);
       cache->result.status = static_cast<rvegen::PackingStatus>(head[1]);
+      cache->nudged = head[2];
     } else {
       error = text;
       *aborted = error == kAbortedMessage;
@@ -524,6 +530,12 @@ void vtkRVEGenerator::FillPoints(const rvegen::Scene& scene, const rvegen::Inclu
   min_gap->SetName("rvegen_min_gap");
   min_gap->InsertNextValue(scene.min_gap);
   points->GetFieldData()->AddArray(min_gap);
+  // The inclusions the scene's own mesh_tet nudged off its cell's faces (as the command line
+  // does before any output): the RVE Tetrahedral Mesh counts them with its own.
+  vtkNew<vtkIntArray> nudged;
+  nudged->SetName("nudged_inclusions");
+  nudged->InsertNextValue(this->Cached ? this->Cached->nudged : 0);
+  points->GetFieldData()->AddArray(nudged);
   ++this->PortExecutions[0];
 }
 

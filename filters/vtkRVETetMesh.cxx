@@ -1,5 +1,7 @@
 #include "vtkRVETetMesh.h"
 
+#include <limits>
+
 #include "rvegen/femesh/tet_mesh.hpp"
 #include "rvegen/io/inclusions_json.hpp"
 #include "rvegen/model/resources.hpp"
@@ -48,6 +50,9 @@ int vtkRVETetMesh::RequestData(vtkInformation*, vtkInformationVector** in,
                                vtkInformationVector* out) {
   vtkDataObject* input = in[0]->GetInformationObject(0)->Get(vtkDataObject::DATA_OBJECT());
   vtkUnstructuredGrid* grid = vtkUnstructuredGrid::GetData(out);
+  // No cell until a mesh is made (a failed run leaves none).
+  for (double& c : this->CellOrigin) c = std::numeric_limits<double>::quiet_NaN();
+  this->NudgedInclusions = -1;
   rvegen::InclusionSet set;
   std::string error;
   if (!RVEInclusionsFromFieldData(input, &set, &error)) {
@@ -158,11 +163,17 @@ int vtkRVETetMesh::RequestData(vtkInformation*, vtkInformationVector** in,
   origin->SetNumberOfComponents(3);
   origin->InsertNextTuple(mesh.box.origin.data());
   grid->GetFieldData()->AddArray(origin);
+  // The inclusions nudged for this mesh: by the scene's own mesh_tet in the RVE Generator
+  // (its field data nudged_inclusions), and here.
+  auto* before = vtkIntArray::SafeDownCast(
+      input->GetFieldData() ? input->GetFieldData()->GetArray("nudged_inclusions") : nullptr);
+  const int total_nudged =
+      nudged.moved + (before && before->GetNumberOfValues() > 0 ? before->GetValue(0) : 0);
   for (int a = 0; a < 3; ++a) this->CellOrigin[a] = mesh.box.origin[a];
-  this->NudgedInclusions = nudged.moved;
+  this->NudgedInclusions = total_nudged;
   vtkNew<vtkIntArray> nudge_counts;
   nudge_counts->SetName("nudged_inclusions");
-  nudge_counts->InsertNextValue(nudged.moved);
+  nudge_counts->InsertNextValue(total_nudged);
   grid->GetFieldData()->AddArray(nudge_counts);
   // The inclusions meshed (after the nudge), as inclusions.json has them.
   vtkNew<vtkStringArray> inclusions;

@@ -19,8 +19,8 @@
    voids' volume within 1 % of the exact one.
 7. One pipeline: a scene's mesh from the RVE Generator and this filter is the command line's.
    The inclusions meshed (field data rvegen_inclusions, after the nudge) are those of
-   inclusions.json, number for number; the cell (field data cell_origin, and the panel's
-   read-only CellOrigin) and the nudged count (NudgedInclusions) are report.json's; the mesh fills
+   inclusions.json, number for number; the cell (field data cell_origin, and the information
+   property CellOrigin) and the nudged count (NudgedInclusions) are report.json's; the mesh fills
    that cell; the nodes on the cell's faces (the surface mesh there, which fixes the periodic
    pairs) are the command line's mesh_tet.vtu's, node for node; its element count is within 3 %
    and each phase's volume within 0.1 % of the command line's. (Gmsh's HXT does not give the
@@ -248,13 +248,18 @@ if fd.GetAbstractArray("rvegen_inclusions") is not None:
 origin = fd.GetArray("cell_origin")
 check(origin is not None and list(origin.GetTuple3(0)) == cli_report["cell_origin"],
       "cell_origin: %s, command line %s" % (origin and origin.GetTuple3(0), cli_report["cell_origin"]))
-# The panel's read-only CellOrigin and NudgedInclusions show the same.
+# The generator's own nudge (the scene lists mesh_tet) and the filter's add up to the command
+# line's count; the filter's information properties CellOrigin and NudgedInclusions show the
+# same as its field data.
+gen_nudged = servermanager.Fetch(gen7).GetFieldData().GetArray("nudged_inclusions")
+check(gen_nudged is not None and gen_nudged.GetValue(0) <= cli_report["nudged_inclusions"],
+      "the generator carries no nudged_inclusions, or more than the command line's")
 mesh7.UpdatePropertyInformation()
 panel_origin = [mesh7.SMProxy.GetProperty("CellOrigin").GetElement(k) for k in range(3)]
 check(panel_origin == cli_report["cell_origin"],
-      "the panel's CellOrigin %s, command line %s" % (panel_origin, cli_report["cell_origin"]))
+      "CellOrigin %s, command line %s" % (panel_origin, cli_report["cell_origin"]))
 check(mesh7.SMProxy.GetProperty("NudgedInclusions").GetElement(0) == cli_report["nudged_inclusions"],
-      "the panel's NudgedInclusions differ from the command line's")
+      "NudgedInclusions differ from the command line's")
 nudged = fd.GetArray("nudged_inclusions")
 check(nudged is not None and nudged.GetValue(0) == cli_report["nudged_inclusions"],
       "nudged_inclusions differ from the command line's %d" % cli_report["nudged_inclusions"])
@@ -280,6 +285,9 @@ if n7 > 0 and origin is not None:
         f = xyz[on]
         return f[np.lexsort((f[:, 2], f[:, 1], f[:, 0]))]
 
+    cli_origin = reader.GetOutput().GetFieldData().GetArray("cell_origin")
+    check(cli_origin is not None and list(cli_origin.GetTuple3(0)) == cli_report["cell_origin"],
+          "the command line's mesh_tet.vtu carries no cell_origin, or another one")
     pv_faces, cli_faces = face_nodes(grid7), face_nodes(reader.GetOutput())
     check(len(cli_faces) > 100 and pv_faces.shape == cli_faces.shape
           and np.abs(pv_faces - cli_faces).max() <= 1e-12 * L,
@@ -290,6 +298,17 @@ if n7 > 0 and origin is not None:
         got = vol[phase == p["label"]].sum()
         check(abs(got / p["volume"] - 1) < 1e-3,
               "phase %s: %g in ParaView, %g from the command line" % (p["name"], got, p["volume"]))
+
+# A failed mesh leaves no cell: CellOrigin NaN, NudgedInclusions -1 (not the last mesh's).
+mesh7.ChordError = 0.5
+try:
+    mesh7.UpdatePipeline()
+except Exception:
+    pass
+mesh7.UpdatePropertyInformation()
+check(all(math.isnan(mesh7.SMProxy.GetProperty("CellOrigin").GetElement(k)) for k in range(3))
+      and mesh7.SMProxy.GetProperty("NudgedInclusions").GetElement(0) == -1,
+      "a failed mesh kept the last mesh's CellOrigin or NudgedInclusions")
 
 if failures:
     print("%d failure(s)" % len(failures))

@@ -187,7 +187,8 @@ namespace {
 void write_unstructured(std::FILE* out, const std::vector<double>& xyz,
                         const std::vector<int64_t>& conn, const std::vector<int64_t>& offsets,
                         const std::vector<uint8_t>& types, const std::vector<uint8_t>& phase,
-                        const std::vector<int32_t>& inclusion_id) {
+                        const std::vector<int32_t>& inclusion_id,
+                        const std::string& field_data = "") {
   AppendedList app(true);
   const uint64_t at[6] = {
       app.add(xyz.data(), xyz.size()),         app.add(conn.data(), conn.size()),
@@ -195,7 +196,7 @@ void write_unstructured(std::FILE* out, const std::vector<double>& xyz,
       app.add(phase.data(), phase.size()),     app.add(inclusion_id.data(), inclusion_id.size())};
   std::ostringstream s;
   s << header("UnstructuredGrid", true);
-  s << "  <UnstructuredGrid>\n    <Piece NumberOfPoints=\"" << xyz.size() / 3
+  s << "  <UnstructuredGrid>\n" << field_data << "    <Piece NumberOfPoints=\"" << xyz.size() / 3
     << "\" NumberOfCells=\"" << types.size() << "\">\n";
   s << "    <Points>\n" << array_tag("Float64", "Points", 3, at[0]) << "    </Points>\n";
   s << "    <Cells>\n"
@@ -267,7 +268,16 @@ void write_tet_mesh_vtu(const TetMesh& mesh, std::FILE* out) {
   }
   std::vector<uint8_t> types(cells, n == 4 ? 10 : 24);
   const std::vector<uint8_t> phase(mesh.phase.begin(), mesh.phase.end());
-  write_unstructured(out, xyz, conn, offsets, types, phase, mesh.inclusion_id);
+  // The cell the mesh fills (the box moved along its axes: field data cell_origin, as the
+  // ParaView filter's output has it).
+  char origin[160];
+  std::snprintf(origin, sizeof origin, "%.17g %.17g %.17g", mesh.box.origin[0], mesh.box.origin[1],
+                mesh.box.origin[2]);
+  const std::string field_data =
+      std::string("    <FieldData>\n      <DataArray type=\"Float64\" Name=\"cell_origin\" "
+                  "NumberOfComponents=\"3\" NumberOfTuples=\"1\" format=\"ascii\">") +
+      origin + "</DataArray>\n    </FieldData>\n";
+  write_unstructured(out, xyz, conn, offsets, types, phase, mesh.inclusion_id, field_data);
 }
 
 std::vector<uint16_t> amitex_material_ids(const VoxelImage& im) {

@@ -72,6 +72,7 @@ int vtkRVETetMesh::RequestData(vtkInformation*, vtkInformationVector** in,
   t.keep_volumes = this->KeepVolumes;
   t.order = this->Order;
   t.optimize_threshold = this->OptimizeThreshold;
+  t.reproducible = this->Reproducible;
   // The least gap a nudge keeps: MinGap, or the scene's that the input carries (the RVE
   // Generator's field data rvegen_min_gap), else 0.
   double min_gap = this->MinGap;
@@ -195,5 +196,6 @@ void vtkRVETetMesh::PrintSelf(ostream& os, vtkIndent indent) {
      << indent << "MinGap: " << this->MinGap << "\n"
      << indent << "KeepVolumes: " << this->KeepVolumes << "\n"
      << indent << "Order: " << this->Order << "\n"
-     << indent << "OptimizeThreshold: " << this->OptimizeThreshold << "\n";
+     << indent << "OptimizeThreshold: " << this->OptimizeThreshold << "\n"
+     << indent << "Reproducible: " << this->Reproducible << "\n";
 }

@@ -64,6 +64,9 @@ class RVEGENFILTERS_EXPORT vtkRVETetMesh : public vtkUnstructuredGridAlgorithm {
   /// The mesher's optimiser improves the elements of quality (0 to 1) under this (0: none).
   vtkSetMacro(OptimizeThreshold, double);
   vtkGetMacro(OptimizeThreshold, double);
+  /// The same mesh on every run (Gmsh's Delaunay volume mesher instead of HXT; slower).
+  vtkSetMacro(Reproducible, bool);
+  vtkGetMacro(Reproducible, bool);
   /// The lower corner of the cell the last mesh fills (the box's origin without ShiftCell, or
   /// before any mesh): shown in the panel, read-only; field data cell_origin too.
   vtkGetVector3Macro(CellOrigin, double);
@@ -87,6 +90,7 @@ class RVEGENFILTERS_EXPORT vtkRVETetMesh : public vtkUnstructuredGridAlgorithm {
   bool KeepVolumes;
   int Order;
   double OptimizeThreshold;
+  bool Reproducible = false;
   double CellOrigin[3] = {0.0, 0.0, 0.0};
   int NudgedInclusions = 0;
 

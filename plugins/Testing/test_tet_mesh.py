@@ -27,6 +27,8 @@
    same inside nodes and elements twice, even on one thread and from one process: it orders the
    surface nodes it is given by their addresses in memory. So those are compared by count and
    volume.)
+8. Reproducible meshes ("reproducible": true, the filter's Reproducible): the command line's
+   mesh_tet.vtu and the filter's output are the same nodes and elements, exactly.
 
 usage: pvpython test_tet_mesh.py PLUGIN.so SAMPLES_DIR RVEGEN WORK_DIR
 """
@@ -298,6 +300,43 @@ if n7 > 0 and origin is not None:
         got = vol[phase == p["label"]].sum()
         check(abs(got / p["volume"] - 1) < 1e-3,
               "phase %s: %g in ParaView, %g from the command line" % (p["name"], got, p["volume"]))
+
+# 8. Reproducible meshes (Gmsh's Delaunay volume mesher, one thread): the command line's
+# mesh_tet.vtu and the filter's output are the same mesh, node for node and element for element.
+scene["mesh_tet"] = {"chord_error": 0.03, "reproducible": True}
+with open(os.path.join(work, "repro.json"), "w") as f:
+    json.dump(scene, f)
+subprocess.run([rvegen, "generate", "-q", os.path.join(work, "repro.json"), "-o",
+                os.path.join(work, "repro")], check=True)
+repro_report = json.load(open(os.path.join(work, "repro", "report.json")))["mesh_tet"]
+check(repro_report["mesher"].endswith("Delaunay)"), "reproducible: mesher %s" % repro_report["mesher"])
+gen8 = RVEGenerator(SceneFile=os.path.join(work, "repro.json"))
+mesh8 = RVETetrahedralMesh(Input=OutputPort(gen8, 0), ChordError=0.03, Reproducible=1)
+mesh8.UpdatePipeline()
+grid8 = servermanager.Fetch(mesh8)
+from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader  # noqa: E402
+reader8 = vtkXMLUnstructuredGridReader()
+reader8.SetFileName(os.path.join(work, "repro", "mesh_tet.vtu"))
+reader8.Update()
+cli8 = reader8.GetOutput()
+
+
+def arrays(grid):
+    return (vtk_to_numpy(grid.GetPoints().GetData()).astype(float),
+            vtk_to_numpy(grid.GetCells().GetConnectivityArray()).astype(np.int64),
+            vtk_to_numpy(grid.GetCellData().GetArray("phase")).astype(np.int64))
+
+
+if grid8.GetNumberOfCells() > 0 and cli8.GetNumberOfCells() > 0:
+    (px, pc, pp), (cx, cc, cp) = arrays(grid8), arrays(cli8)
+    check(px.shape == cx.shape and np.array_equal(px, cx),
+          "reproducible: %d nodes in ParaView, %d from the command line, or at other places"
+          % (len(px), len(cx)))
+    check(pc.shape == cc.shape and np.array_equal(pc, cc) and np.array_equal(pp, cp),
+          "reproducible: the elements differ (%d and %d)"
+          % (grid8.GetNumberOfCells(), cli8.GetNumberOfCells()))
+else:
+    check(False, "reproducible: an empty mesh")
 
 # A failed mesh leaves no cell: CellOrigin NaN, NudgedInclusions -1 (not the last mesh's).
 mesh7.ChordError = 0.5

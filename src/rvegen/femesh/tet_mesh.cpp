@@ -454,9 +454,14 @@ TetMesh mesh_with(const InclusionSet& set, const TetMeshOptions& options,
   Stages stages(progress);
   const Box& box = set.box;
   const double max_size = options.largest_size(set.box), min_size = least_size(set, options);
+  // One thread for a reproducible mesh: Gmsh's and OpenCASCADE's parallel passes give other
+  // meshes from run to run.
   const int threads =
-      std::max(1, options.threads > 0 ? options.threads
-                                      : static_cast<int>(std::thread::hardware_concurrency()));
+      options.reproducible
+          ? 1
+          : std::max(1, options.threads > 0
+                            ? options.threads
+                            : static_cast<int>(std::thread::hardware_concurrency()));
 
   std::lock_guard<std::mutex> lock(gmsh_mutex);
   GmshSession session;
@@ -570,11 +575,14 @@ TetMesh tet_mesh(const InclusionSet& set_in, const TetMeshOptions& options,
   };
   auto made = [&](TetMesh mesh) {
     mesh.retries = retries;
+    if (options.reproducible) mesh.volume_mesher = "Delaunay";
     return mesh;
   };
+  // HXT, or with options.reproducible Gmsh's Delaunay volume mesher in every attempt.
+  const int volumes = options.reproducible ? kDelaunay3d : kHxt;
   for (int turn = 0;; ++turn) {
     try {
-      return made(mesh_with(set, options, steady, 6, 0.0, rank));
+      return made(mesh_with(set, options, steady, 6, 0.0, rank, volumes));
     } catch (const SurfacesRefused& e) {
       if (turn < kFrameTurns && !e.inclusions.empty()) {
         std::string ids;
@@ -598,7 +606,7 @@ TetMesh tet_mesh(const InclusionSet& set_in, const TetMeshOptions& options,
     }
   }
   try {
-    return made(mesh_with(set, options, steady, 5, 0.0, rank));
+    return made(mesh_with(set, options, steady, 5, 0.0, rank, volumes));
   } catch (const SurfacesRefused& e) {
     // Where two curves of a face meet at a small angle (a face cutting a fibre nearly along it
     // and its end disk), segments as long as a coarse chord error allows cross each other
@@ -616,7 +624,7 @@ TetMesh tet_mesh(const InclusionSet& set_in, const TetMeshOptions& options,
     if (options.chord_error > kFinerCurveChord) {
       retry("again, " + std::string(e.what()) + "; meshing them again with curves divided finer");
       try {
-        return made(mesh_with(set, options, steady, 6, kFinerCurveChord, rank));
+        return made(mesh_with(set, options, steady, 6, kFinerCurveChord, rank, volumes));
       } catch (const SurfacesRefused& again) {
         to_delaunay(again);
       }

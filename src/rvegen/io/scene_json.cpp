@@ -531,7 +531,7 @@ Scene parse_scene(const std::string& text) {
     const Json& m = root["mesh_tet"];
     only_keys(m,
               {"max_size", "min_size", "chord_error", "gap_elements", "shift_cell", "nudge",
-               "keep_volumes", "order", "optimize_threshold"},
+               "keep_volumes", "order", "optimize_threshold", "reproducible"},
               "mesh_tet");
     TetMeshSpec& t = s.tet_mesh;
     if (m.contains("max_size")) t.max_size = positive(m["max_size"], "mesh_tet.max_size");
@@ -552,6 +552,8 @@ Scene parse_scene(const std::string& text) {
     }
     if (m.contains("optimize_threshold"))
       t.optimize_threshold = number(m["optimize_threshold"], "mesh_tet.optimize_threshold");
+    if (m.contains("reproducible"))
+      t.reproducible = boolean(m["reproducible"], "mesh_tet.reproducible");
   }
   if (root.contains("materials")) parse_materials(root["materials"], &s);
   if (root.contains("homogenization")) {
@@ -733,6 +735,7 @@ std::string scene_to_json(const Scene& s) {
                         {"optimize_threshold", t.optimize_threshold}};
     if (t.max_size > 0.0) root["mesh_tet"]["max_size"] = t.max_size;
     if (t.min_size > 0.0) root["mesh_tet"]["min_size"] = t.min_size;
+    if (t.reproducible) root["mesh_tet"]["reproducible"] = true;
   }
   if (!s.materials.empty()) {
     OJson m = OJson::object();

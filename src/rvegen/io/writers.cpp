@@ -196,8 +196,9 @@ void write_unstructured(std::FILE* out, const std::vector<double>& xyz,
       app.add(phase.data(), phase.size()),     app.add(inclusion_id.data(), inclusion_id.size())};
   std::ostringstream s;
   s << header("UnstructuredGrid", true);
-  s << "  <UnstructuredGrid>\n" << field_data << "    <Piece NumberOfPoints=\"" << xyz.size() / 3
-    << "\" NumberOfCells=\"" << types.size() << "\">\n";
+  s << "  <UnstructuredGrid>\n"
+    << field_data << "    <Piece NumberOfPoints=\"" << xyz.size() / 3 << "\" NumberOfCells=\""
+    << types.size() << "\">\n";
   s << "    <Points>\n" << array_tag("Float64", "Points", 3, at[0]) << "    </Points>\n";
   s << "    <Cells>\n"
     << array_tag("Int64", "connectivity", 1, at[1]) << array_tag("Int64", "offsets", 1, at[2])
@@ -274,8 +275,9 @@ void write_tet_mesh_vtu(const TetMesh& mesh, std::FILE* out) {
   std::snprintf(origin, sizeof origin, "%.17g %.17g %.17g", mesh.box.origin[0], mesh.box.origin[1],
                 mesh.box.origin[2]);
   const std::string field_data =
-      std::string("    <FieldData>\n      <DataArray type=\"Float64\" Name=\"cell_origin\" "
-                  "NumberOfComponents=\"3\" NumberOfTuples=\"1\" format=\"ascii\">") +
+      std::string(
+          "    <FieldData>\n      <DataArray type=\"Float64\" Name=\"cell_origin\" "
+          "NumberOfComponents=\"3\" NumberOfTuples=\"1\" format=\"ascii\">") +
       origin + "</DataArray>\n    </FieldData>\n";
   write_unstructured(out, xyz, conn, offsets, types, phase, mesh.inclusion_id, field_data);
 }

@@ -214,6 +214,10 @@ struct TetMeshSpec {
   /// from 0 for a flat element to 1 for a regular one) is under this; 0.3, Gmsh's own default.
   /// Lower is faster and leaves more elements of middling quality (0: no optimisation).
   double optimize_threshold = 0.3;
+  /// The same mesh, node for node and element for element, on every run: the volumes by Gmsh's
+  /// Delaunay mesher (one thread; slower, more elements) instead of HXT, whose nodes come out in
+  /// another order, and so other elements, from run to run.
+  bool reproducible = false;
   /// The largest element size in `box`: max_size, or a tenth of the box's smallest side.
   double largest_size(const Box& box) const {
     return max_size > 0.0 ? max_size : box.size.minCoeff() / 10.0;
@@ -222,7 +226,7 @@ struct TetMeshSpec {
     return max_size == o.max_size && min_size == o.min_size && chord_error == o.chord_error &&
            gap_elements == o.gap_elements && shift_cell == o.shift_cell && nudge == o.nudge &&
            keep_volumes == o.keep_volumes && order == o.order &&
-           optimize_threshold == o.optimize_threshold;
+           optimize_threshold == o.optimize_threshold && reproducible == o.reproducible;
   }
 };
 
